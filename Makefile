@@ -1,0 +1,33 @@
+# Every target that runs code first makes sure .venv exists and holds the project.
+PY := .venv/bin/python
+PIP := .venv/bin/pip
+STAMP := .venv/.installed
+export SDL_VIDEODRIVER := dummy
+export MPLBACKEND := Agg
+
+.PHONY: venv test demo lint bench clean
+
+venv: $(STAMP)
+
+$(STAMP): pyproject.toml constraints.txt
+	test -x $(PY) || python3 -m venv .venv
+	$(PIP) install -q --upgrade pip
+	$(PIP) install -q -c constraints.txt -e ".[dev]"
+	touch $(STAMP)
+
+test: $(STAMP)
+	$(PY) -m ruff check .
+	$(PY) -m pytest -q -n 2
+
+demo: $(STAMP)
+	$(PY) benchmarks/paper_replication.py --out benchmarks/results
+	$(PY) benchmarks/max_force.py --out benchmarks/results
+
+bench: $(STAMP)
+	$(PY) benchmarks/convergence.py --out benchmarks/results
+
+lint: $(STAMP)
+	$(PY) -m ruff check .
+
+clean:
+	rm -rf .venv build *.egg-info
