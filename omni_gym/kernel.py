@@ -1,0 +1,256 @@
+"""The per-substep wheel-force kernel, compiled with numba and batched over robots.
+
+For every robot and wheel it (1) advances the wheel speed and angle by the actuation model,
+(2) takes the share of the substep the wheel spends on rigid material between rollers, (3) computes
+the slip velocities and the regularised-Coulomb friction forces, and (4) returns the *effective*
+generalised force that makes one linearly-implicit (Rosenbrock–Euler) velocity step:
+
+    (M + dt·A) Δq = dt·Q(q),     A = −∂Q/∂q  (symmetric, positive semi-definite),
+
+with q = (V_x, V_y, ω) the centre-of-mass velocity (world frame) and yaw rate and M = diag(m, m, I).
+Applying F_eff = M·Δq/dt through pymunk reproduces that step exactly, while pymunk still handles
+collisions. The implicit treatment keeps the stiff friction law (k = 1000 s/m) stable at any step
+and friction level; see ``docs/model.md``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from omni_gym.model import (
+    SP_CX,
+    SP_CY,
+    SP_GAP,
+    SP_INERTIA,
+    SP_JW,
+    SP_K,
+    SP_KI,
+    SP_KIN_RATIO,
+    SP_KP,
+    SP_MASS,
+    SP_MODE,
+    SP_PITCH,
+    SP_TAU,
+    SP_TMAX,
+    SP_VS,
+    WP_DX,
+    WP_DY,
+    WP_GAPT,
+    WP_GAPW,
+    WP_MUT,
+    WP_MUW,
+    WP_PHASE,
+    WP_PX,
+    WP_PY,
+    WP_R,
+)
+
+TWO_OVER_PI = 2.0 / math.pi
+
+
+@numba.njit(cache=True, inline="always")
+def friction_coefficient(v, mu_s, k, kin_ratio, v_s):
+    """(μ(v), dμ/dv) of the regularised law, with optional kinetic-below-static shaping.
+
+    μ(v) = (2/π)·atan(k·v)·[μ_k + (μ_s − μ_k)·exp(−(v/v_s)²)],  μ_k = kin_ratio·μ_s.
+    kin_ratio = 1 gives the paper's law μ_s·(2/π)·atan(k·v).
+    """
+    shape = TWO_OVER_PI * math.atan(k * v)
+    dshape = TWO_OVER_PI * k / (1.0 + (k * v) * (k * v))
+    if kin_ratio == 1.0:
+        return mu_s * shape, mu_s * dshape
+    mu_k = kin_ratio * mu_s
+    x = v / v_s
+    g = math.exp(-x * x)
+    level = mu_k + (mu_s - mu_k) * g
+    dlevel = (mu_s - mu_k) * g * (-2.0 * x / v_s)
+    return shape * level, dshape * level + shape * dlevel
+
+
+@numba.njit(cache=True, inline="always")
+def gap_measure(angle, pitch, gap):
+    """Wheel angle [rad] spent on rigid material between 0 and ``angle`` (rigid sector centred at p/2)."""
+    n = math.floor(angle / pitch)
+    within = angle - n * pitch - 0.5 * (pitch - gap)
+    if within < 0.0:
+        within = 0.0
+    elif within > gap:
+        within = gap
+    return n * gap + within
+
+
+@numba.njit(cache=True, inline="always")
+def gap_fraction(theta0, theta1, pitch, gap):
+    """Share of the wheel-angle interval [θ0, θ1] on rigid material (exact for linear θ(t))."""
+    if gap <= 0.0:
+        return 0.0
+    d = theta1 - theta0
+    if abs(d) < 1e-12:
+        m = theta0 - math.floor(theta0 / pitch) * pitch
+        return 1.0 if abs(m - 0.5 * pitch) < 0.5 * gap else 0.0
+    return (gap_measure(theta1, pitch, gap) - gap_measure(theta0, pitch, gap)) / d
+
+
+@numba.njit(cache=True)
+def substep(dt, pose, vel, wheel_angle, wheel_speed, wheel_cmd, servo_int, loads, sp, wp, ext,
+            out_force, out_slip):
+    """Advance wheel states by dt [s] and write the effective force for one pymunk step.
+
+    Arrays (B robots, n wheels):
+        pose (B, 3): x, y [m] of the geometric centre and heading θ [rad], world frame.
+        vel (B, 3): centre-of-mass velocity V_x, V_y [m/s] (world) and yaw rate ω [rad/s].
+        wheel_angle, wheel_speed (B, n): integrated wheel angle [rad] and speed [rad/s]; updated.
+        wheel_cmd (B, n): commanded wheel speed [rad/s].
+        servo_int (B, n): PI integrator state [rad] (servo actuation only); updated.
+        loads (B, n): normal loads N_i [N]; zero for lifted wheels.
+        sp (B, N_SP), wp (B, n, N_WP): parameters, layouts in :mod:`omni_gym.model`.
+        ext (B, 3): extra generalised force (F_x, F_y [N], torque [N·m] about the centre of mass).
+        out_force (B, 3): effective F_x, F_y [N] at the centre of mass and torque [N·m]; written.
+        out_slip (B, n, 2): drive slip v_W and transverse velocity v_T [m/s]; written.
+    """
+    n_robots, n_wheels = wheel_angle.shape
+    for b in range(n_robots):
+        c = math.cos(pose[b, 2])
+        s = math.sin(pose[b, 2])
+        vx = vel[b, 0]
+        vy = vel[b, 1]
+        om = vel[b, 2]
+        cx = sp[b, SP_CX]
+        cy = sp[b, SP_CY]
+        k = sp[b, SP_K]
+        kin = sp[b, SP_KIN_RATIO]
+        v_s = sp[b, SP_VS]
+        pitch = sp[b, SP_PITCH]
+        gap = sp[b, SP_GAP]
+        tau = sp[b, SP_TAU]
+        servo = sp[b, SP_MODE] == 1.0
+        q0 = ext[b, 0]
+        q1 = ext[b, 1]
+        q2 = ext[b, 2]
+        a00 = 0.0
+        a01 = 0.0
+        a02 = 0.0
+        a11 = 0.0
+        a12 = 0.0
+        a22 = 0.0
+        for i in range(n_wheels):
+            # Geometry in the world frame: lever arm from the centre of mass, drive and axle.
+            rx0 = wp[b, i, WP_PX] - cx
+            ry0 = wp[b, i, WP_PY] - cy
+            rho_x = c * rx0 - s * ry0
+            rho_y = s * rx0 + c * ry0
+            dx = c * wp[b, i, WP_DX] - s * wp[b, i, WP_DY]
+            dy = s * wp[b, i, WP_DX] + c * wp[b, i, WP_DY]
+            ax = -dy
+            ay = dx
+            ux = vx - om * rho_y
+            uy = vy + om * rho_x
+            r = wp[b, i, WP_R]
+            load = loads[b, i]
+            phase = wp[b, i, WP_PHASE]
+            w0 = wheel_speed[b, i]
+            cmd = wheel_cmd[b, i]
+            th0 = wheel_angle[b, i]
+            # 1) Actuation: wheel speed at the end of the substep and the angle turned.
+            if servo:
+                f0 = gap_fraction(th0 + phase, th0 + phase + w0 * dt, pitch, gap)
+                mu_w_max = (1.0 - f0) * wp[b, i, WP_MUW] + f0 * wp[b, i, WP_GAPW]
+                mu, dmu = friction_coefficient(ux * dx + uy * dy - r * w0, mu_w_max, k, kin, v_s)
+                f_drive = -load * mu  # force on the robot along the drive direction
+                err = cmd - w0
+                torque = sp[b, SP_KP] * err + sp[b, SP_KI] * servo_int[b, i]
+                kp_eff = sp[b, SP_KP]
+                tmax = sp[b, SP_TMAX]
+                if torque > tmax:
+                    torque = tmax
+                    kp_eff = 0.0
+                elif torque < -tmax:
+                    torque = -tmax
+                    kp_eff = 0.0
+                else:
+                    servo_int[b, i] += err * dt  # anti-windup: integrate only when unsaturated
+                # Wheel: J dw/dt = torque − r·f_drive, with the friction and P terms taken implicitly
+                # (the wheel mode is far stiffer than the body's).
+                jw = sp[b, SP_JW]
+                dw = dt * (torque - r * f_drive) / (jw + dt * (r * r * load * dmu + kp_eff))
+                w1 = w0 + dw
+                dth = 0.5 * (w0 + w1) * dt
+            elif tau > 0.0:
+                e = math.exp(-dt / tau)
+                w1 = cmd + (w0 - cmd) * e
+                dth = cmd * dt + (w0 - cmd) * tau * (1.0 - e)
+            else:
+                w1 = cmd
+                dth = cmd * dt
+            th1 = th0 + dth
+            wheel_speed[b, i] = w1
+            wheel_angle[b, i] = th1
+            # 2) Rigid-material share of this substep, 3) coefficients and slip.
+            f = gap_fraction(th0 + phase, th1 + phase, pitch, gap)
+            mu_w_max = (1.0 - f) * wp[b, i, WP_MUW] + f * wp[b, i, WP_GAPW]
+            mu_t_max = (1.0 - f) * wp[b, i, WP_MUT] + f * wp[b, i, WP_GAPT]
+            v_w = ux * dx + uy * dy - r * w1
+            v_t = ux * ax + uy * ay
+            out_slip[b, i, 0] = v_w
+            out_slip[b, i, 1] = v_t
+            if load <= 0.0:
+                continue
+            mu_w, dmu_w = friction_coefficient(v_w, mu_w_max, k, kin, v_s)
+            mu_t, dmu_t = friction_coefficient(v_t, mu_t_max, k, kin, v_s)
+            fx = -load * (mu_w * dx + mu_t * ax)
+            fy = -load * (mu_w * dy + mu_t * ay)
+            q0 += fx
+            q1 += fy
+            q2 += rho_x * fy - rho_y * fx
+            # 4) A = Σ Gᵀ K G with K = N(μ'_W d dᵀ + μ'_T a aᵀ) and G = [[1, 0, −ρ_y], [0, 1, ρ_x]].
+            kw = load * dmu_w
+            kt = load * dmu_t
+            k11 = kw * dx * dx + kt * ax * ax
+            k12 = kw * dx * dy + kt * ax * ay
+            k22 = kw * dy * dy + kt * ay * ay
+            a00 += k11
+            a01 += k12
+            a11 += k22
+            a02 += -k11 * rho_y + k12 * rho_x
+            a12 += -k12 * rho_y + k22 * rho_x
+            a22 += k11 * rho_y * rho_y - 2.0 * k12 * rho_x * rho_y + k22 * rho_x * rho_x
+        m = sp[b, SP_MASS]
+        inertia = sp[b, SP_INERTIA]
+        # Solve (M + dt A) Δq = dt Q by the symmetric 3×3 adjugate.
+        m00 = m + dt * a00
+        m01 = dt * a01
+        m02 = dt * a02
+        m11 = m + dt * a11
+        m12 = dt * a12
+        m22 = inertia + dt * a22
+        c00 = m11 * m22 - m12 * m12
+        c01 = m02 * m12 - m01 * m22
+        c02 = m01 * m12 - m02 * m11
+        c11 = m00 * m22 - m02 * m02
+        c12 = m01 * m02 - m00 * m12
+        c22 = m00 * m11 - m01 * m01
+        det = m00 * c00 + m01 * c01 + m02 * c02
+        r0 = dt * q0
+        r1 = dt * q1
+        r2 = dt * q2
+        dv0 = (c00 * r0 + c01 * r1 + c02 * r2) / det
+        dv1 = (c01 * r0 + c11 * r1 + c12 * r2) / det
+        dv2 = (c02 * r0 + c12 * r1 + c22 * r2) / det
+        out_force[b, 0] = m * dv0 / dt
+        out_force[b, 1] = m * dv1 / dt
+        out_force[b, 2] = inertia * dv2 / dt
+
+
+def warm_up() -> None:
+    """Compile (or load from cache) the kernel on tiny inputs, so the first real step is not slow."""
+    from omni_gym.model import N_SP, N_WP
+
+    z = np.zeros
+    sp = z((1, N_SP))
+    sp[0, SP_MASS] = sp[0, SP_INERTIA] = sp[0, SP_K] = sp[0, SP_KIN_RATIO] = sp[0, SP_VS] = 1.0
+    sp[0, SP_PITCH] = 1.0
+    substep(1e-3, z((1, 3)), z((1, 3)), z((1, 3)), z((1, 3)), z((1, 3)), z((1, 3)), z((1, 3)), sp,
+            z((1, 3, N_WP)), z((1, 3)), z((1, 3)), z((1, 3, 2)))

@@ -1,0 +1,42 @@
+"""Normal loads on the wheels from static balance, for any contact mask.
+
+With the centre of mass at c (body frame) and wheel centres p_i, the loads N_i ≥ 0 of the wheels in
+contact satisfy   Σ N_i = m·g   and   Σ N_i (p_i − c) = 0   (no tipping moment about c).
+For three wheels in contact that is one solution; for more it is the least-norm solution (the
+flattest load spread, what a compliant chassis on a flat floor tends to); for fewer it is the
+least-squares one. Loads that come out negative (the centre of mass outside the support polygon,
+where a real robot would tip) are clipped to zero and the rest rescaled to carry m·g: the robot is
+assumed to stay upright, as in Phunopas & Inoue (2018), whose lifted wheels never topple it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def static_loads(positions: np.ndarray, com: np.ndarray, mass: float, gravity: float,
+                 contact: np.ndarray | None = None) -> np.ndarray:
+    """Normal load [N] on each wheel (zero for wheels not in contact).
+
+    Args:
+        positions: wheel centres p_i [m], shape (n, 2), body frame.
+        com: centre of mass [m], shape (2,), body frame.
+        mass: robot mass [kg]; gravity: [m/s²].
+        contact: bool (n,), True where the wheel touches the floor (default all).
+    """
+    p = np.asarray(positions, dtype=float)
+    n = p.shape[0]
+    mask = np.ones(n, dtype=bool) if contact is None else np.asarray(contact, dtype=bool)
+    loads = np.zeros(n)
+    if not mask.any():
+        return loads
+    rel = p[mask] - np.asarray(com, dtype=float)
+    A = np.vstack([np.ones(mask.sum()), rel[:, 0], rel[:, 1]])
+    b = np.array([mass * gravity, 0.0, 0.0])
+    sol = np.linalg.lstsq(A, b, rcond=None)[0]
+    sol = np.clip(sol, 0.0, None)
+    total = sol.sum()
+    # All-negative solutions cannot happen for a positive weight; guard anyway: share equally.
+    sol = sol * (mass * gravity / total) if total > 0 else np.full(sol.shape, mass * gravity / sol.size)
+    loads[mask] = sol
+    return loads
