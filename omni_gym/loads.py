@@ -1,4 +1,10 @@
-"""Normal loads on the wheels from static balance, for any contact mask.
+"""Normal loads on the wheels, for any contact mask.
+
+Default (centre of mass at the geometric centre): the weight is shared equally by the wheels in
+contact, N_i = m·g / n_contact: the assumption of Williams et al. (2002), "the vehicle weight is
+equally distributed on each wheel", even where the wheel layout is not symmetric.
+
+With a centre-of-mass offset the loads follow from static balance:
 
 With the centre of mass at c (body frame) and wheel centres p_i, the loads N_i ≥ 0 of the wheels in
 contact satisfy   Σ N_i = m·g   and   Σ N_i (p_i − c) = 0   (no tipping moment about c).
@@ -14,9 +20,19 @@ from __future__ import annotations
 import numpy as np
 
 
+def wheel_loads(positions: np.ndarray, com: np.ndarray, mass: float, gravity: float,
+                contact: np.ndarray | None = None) -> np.ndarray:
+    """Normal load [N] per wheel: equal shares when ``com`` is (0, 0), else :func:`static_loads`."""
+    p = np.asarray(positions, dtype=float)
+    if np.any(np.asarray(com, dtype=float) != 0.0):
+        return static_loads(p, com, mass, gravity, contact)
+    mask = np.ones(p.shape[0], dtype=bool) if contact is None else np.asarray(contact, dtype=bool)
+    return np.where(mask, mass * gravity / max(int(mask.sum()), 1), 0.0)
+
+
 def static_loads(positions: np.ndarray, com: np.ndarray, mass: float, gravity: float,
                  contact: np.ndarray | None = None) -> np.ndarray:
-    """Normal load [N] on each wheel (zero for wheels not in contact).
+    """Normal load [N] on each wheel from static balance (zero for wheels not in contact).
 
     Args:
         positions: wheel centres p_i [m], shape (n, 2), body frame.

@@ -26,7 +26,7 @@ from pymunk import batch as pmbatch
 
 from omni_gym.kernel import substep, warm_up
 from omni_gym.liftoff import ContactProcess
-from omni_gym.loads import static_loads
+from omni_gym.loads import wheel_loads
 from omni_gym.model import N_SP, N_WP, SP_INERTIA, SP_MASS, Actuation, SimModel
 
 DEFAULT_DT = 0.0005  # s, physics substep
@@ -146,6 +146,19 @@ class World:
         forces = np.frombuffer(self._set_buf.float_buf(), dtype=np.float64).reshape(-1, 3)
         self._state_view = states[:B]
         self._force_view = forces[:B]
+        # Pre-built batch requests, called straight through pymunk's cffi library: the per-call
+        # setup in pymunk.batch costs more than the data transfer for a few robots.
+        ffi, lib = pmbatch.ffi, pmbatch.lib
+        self._get_req = ffi.new("pmBatchedData *")
+        self._get_req.fields = self._get_fields.value
+        self._get_req.floatArray = self._get_buf._float_arr
+        self._get_req.intArray = self._get_buf._int_arr
+        self._set_req = ffi.new("pmBatchedData *")
+        self._set_req.fields = self._set_fields.value
+        self._set_req.floatArray = self._set_buf._float_arr
+        self._set_req.intArray = self._set_buf._int_arr
+        self._get_iter = ffi.addressof(lib, "pmSpaceBodyGetIteratorFuncBatched")
+        self._set_iter = ffi.addressof(lib, "pmSpaceBodySetIteratorFuncBatched")
 
     def _add_arena(self, j: int) -> None:
         ox, oy = self.origins[j]
@@ -247,22 +260,23 @@ class World:
 
     def _update_loads(self, j: int) -> None:
         m = self.models[j]
-        self.loads[j] = static_loads(m.robot.positions(), m.com, self.sp[j, SP_MASS], m.gravity, self.contact[j])
+        self.loads[j] = wheel_loads(m.robot.positions(), m.com, self.sp[j, SP_MASS], m.gravity, self.contact[j])
 
     def _refresh_next_switch(self) -> None:
         times = [p.next_switch for p in self.contact_processes if p is not None]
         self._next_switch = min(times) if times else math.inf
 
-    def _advance_contacts(self) -> None:
+    def _advance_contacts(self, t: float) -> None:
         for j, proc in enumerate(self.contact_processes):
-            if proc is not None and proc.advance(self.time):
+            if proc is not None and proc.advance(t):
                 self.contact[j] = proc.mask
                 self._update_loads(j)
         self._refresh_next_switch()
 
     def _read_state(self) -> None:
-        self._get_buf.clear()
-        pmbatch.get_space_bodies(self.space, self._get_fields, self._get_buf)
+        self._get_buf._float_arr.num = 0
+        self._get_buf._int_arr.num = 0
+        pmbatch.lib.cpSpaceEachBody(self.space._space, self._get_iter, self._get_req)
 
     @property
     def pose(self) -> np.ndarray:
@@ -297,17 +311,28 @@ class World:
         """Run ``count`` physics substeps of ``dt``."""
         dt = self.dt
         space = self.space
-        get_buf, set_buf = self._get_buf, self._set_buf
-        gf, sf = self._get_fields, self._set_fields
+        cspace = space._space
+        each_body = pmbatch.lib.cpSpaceEachBody
+        get_arr, get_int = self._get_buf._float_arr, self._get_buf._int_arr
+        set_arr = self._set_buf._float_arr
+        get_iter, get_req = self._get_iter, self._get_req
+        set_iter, set_req = self._set_iter, self._set_req
+        n_set = set_arr.num
         state = self._state_view
-        force = self._force_view
-        for _ in range(count):
-            if self.time >= self._next_switch:
-                self._advance_contacts()
-            get_buf.clear()
-            pmbatch.get_space_bodies(space, gf, get_buf)
-            substep(dt, state[:, 0:3], state[:, 3:6], self.wheel_angle, self.wheel_speed, self.wheel_cmd,
-                    self.servo_int, self.loads, self.sp, self.wp, self.ext_force, force, self.slip)
-            pmbatch.set_space_bodies(space, sf, set_buf)
+        pose, vel = state[:, 0:3], state[:, 3:6]
+        args = (self.wheel_angle, self.wheel_speed, self.wheel_cmd, self.servo_int, self.loads, self.sp, self.wp,
+                self.ext_force, self._force_view, self.slip)
+        t0 = self.time
+        for k in range(count):
+            t = t0 + k * dt
+            if t >= self._next_switch:
+                self._advance_contacts(t)
+            get_arr.num = 0
+            get_int.num = 0
+            each_body(cspace, get_iter, get_req)
+            substep(dt, pose, vel, *args)
+            set_arr.num = 0
+            each_body(cspace, set_iter, set_req)
+            set_arr.num = n_set
             space.step(dt)
-            self.time += dt
+        self.time = t0 + count * dt

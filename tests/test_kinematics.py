@@ -1,0 +1,82 @@
+"""Kinematics against Phunopas & Inoue (2018), eqs. (1)–(3), and basic identities."""
+
+import numpy as np
+import pytest
+
+from omni_gym import kinematics as kin
+from omni_gym.robot import phunopas2018, regular, williams2002
+
+R, r = 0.10, 0.05
+ALPHAS = np.pi / 4 + np.arange(4) * np.pi / 2
+
+
+def paper_eq3(theta: float) -> np.ndarray:
+    """Eq. (3): world twist (Vx, Vy, θ̇) → wheel speeds, typed in from the paper."""
+    return np.array([[-np.sin(theta + a), np.cos(theta + a), R] for a in ALPHAS]) / r
+
+
+def paper_eq2(theta: float) -> np.ndarray:
+    """Eq. (2): J = (r/2)·[−sin(θ+α_i), cos(θ+α_i), 1/(2R)]ᵀ, wheel speeds → world twist."""
+    return (r / 2) * np.array([[-np.sin(theta + a), np.cos(theta + a), 1 / (2 * R)] for a in ALPHAS]).T
+
+
+@pytest.mark.parametrize("theta", [0.0, 0.3, -2.0, np.pi])
+def test_four_wheel_matrices_match_paper(theta):
+    robot = phunopas2018()
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        twist_world = rng.normal(size=3)
+        twist_body = kin.world_to_body(twist_world, theta)
+        w = kin.inverse(robot, twist_body)
+        np.testing.assert_allclose(w, paper_eq3(theta) @ twist_world, rtol=1e-12, atol=1e-12)
+        # Forward kinematics (least squares) equals the paper's J, in the world frame.
+        back = kin.body_to_world(kin.forward(robot, w), theta)
+        np.testing.assert_allclose(back, paper_eq2(theta) @ w, rtol=1e-12, atol=1e-12)
+        w_any = rng.normal(size=4)
+        np.testing.assert_allclose(kin.body_to_world(kin.forward(robot, w_any), theta), paper_eq2(theta) @ w_any,
+                                   rtol=1e-12, atol=1e-12)
+
+
+def test_table1_directions_of_paper():
+    """Table 1: 'Forward' (+y in Fig. 1) turns W1 CW, W2 CCW, W3 CCW, W4 CW."""
+    w = kin.inverse(phunopas2018(), np.array([0.0, 1.0, 0.0]))
+    # With the paper's eq. (3), +y motion gives w ∝ cos(α_i): signs (+, −, −, +).
+    np.testing.assert_array_equal(np.sign(w), [1, -1, -1, 1])
+
+
+def test_forward_inverts_inverse_for_three_wheels():
+    robot = williams2002()
+    twist = np.array([0.3, -0.1, 1.2])
+    np.testing.assert_allclose(kin.forward(robot, kin.inverse(robot, twist)), twist, atol=1e-12)
+
+
+def test_consistency_residual_detects_slip_only_with_redundancy():
+    robot = phunopas2018()
+    w = kin.inverse(robot, np.array([0.2, 0.1, 0.5]))
+    np.testing.assert_allclose(kin.consistency_residual(robot, w), 0.0, atol=1e-12)
+    slipped = w.copy()
+    slipped[2] += 1.0  # one wheel spins 1 rad/s faster than the body motion allows
+    res = kin.consistency_residual(robot, slipped)
+    # The redundant direction of a square layout is (1, -1, 1, -1)/2: the residual is the projection.
+    np.testing.assert_allclose(np.abs(res), 0.25, atol=1e-12)
+    # Three wheels have no redundant direction: every wheel-speed vector is consistent.
+    three = williams2002()
+    np.testing.assert_allclose(kin.consistency_residual(three, np.array([1.0, -2.0, 0.5])), 0.0, atol=1e-12)
+
+
+def test_forward_with_lifted_wheel_uses_remaining_wheels():
+    robot = phunopas2018()
+    twist = np.array([0.1, 0.2, -0.3])
+    w = kin.inverse(robot, twist)
+    w[1] = 99.0  # lifted wheel spinning freely: excluded, so it cannot corrupt the estimate
+    np.testing.assert_allclose(kin.forward(robot, w, contact=[True, False, True, True]), twist, atol=1e-12)
+    with pytest.raises(ValueError, match="do not determine"):
+        kin.forward(robot, w, contact=[True, False, True, False])
+
+
+def test_regular_generator_and_bad_wheel_count():
+    robot = regular(5)
+    assert robot.n_wheels == 5
+    np.testing.assert_allclose(np.linalg.norm(robot.positions(), axis=1), 0.1)
+    with pytest.raises(ValueError, match="n must be an integer >= 3"):
+        regular(2)
