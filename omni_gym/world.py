@@ -2,8 +2,8 @@
 
 Each robot is a pymunk dynamic body whose origin is the robot's geometric centre and whose centre of
 gravity is the model's centre of mass; a disc shape of ``body_radius`` collides with optional walls
-and obstacles. Robot *j* lives in its own arena, offset by ``j·spacing`` along x, so robots never
-touch each other or another robot's obstacles while sharing one space (and one pymunk step).
+and obstacles. Robot *j* lives in its own arena, offset along x, so robots never touch each other or another
+robot's obstacles while sharing one space (and one pymunk step).
 
 One :meth:`World.step` of duration T runs T/dt substeps. A substep reads every body's state through
 pymunk's batch API, calls the compiled force kernel (:mod:`omni_gym.kernel`) for all robots at once,
@@ -30,6 +30,13 @@ from omni_gym.loads import wheel_loads
 from omni_gym.model import N_SP, N_WP, SP_INERTIA, SP_MASS, Actuation, SimModel
 
 DEFAULT_DT = 0.0005  # s, physics substep
+# Arena j's origin is at x = ARENA_BASE + j·spacing, with spacing a power of two. All arenas then lie
+# inside one binade [2^20, 2^21) (the first one away from its edge), so pymunk's world-coordinate
+# arithmetic rounds identically in every arena and robot j of a batch reproduces a lone robot bit for
+# bit; the local pose x_world − origin is exact (Sterbenz). Position resolution is
+# ulp(2^20) = 2.3e-10 m, far below any physical tolerance.
+ARENA_BASE = 1.5 * 2.0**20
+ARENA_ROOM = 2.0**19  # m of x along which arenas may be laid out
 ROBOT_COLLISION = 1
 OBSTACLE_COLLISION = 2
 
@@ -80,9 +87,11 @@ class World:
         self.arena = arena or Arena()
         self.n_robots = B = len(model_list)
         self.n_wheels = n
-        self.spacing = 2.0 * self.arena.half_size + 10.0
+        self.spacing = 2.0 ** math.ceil(math.log2(2.0 * self.arena.half_size + 4.0))
+        if (B + 1) * self.spacing > ARENA_ROOM:
+            raise ValueError(f"too many robots ({B}) for arenas of {self.spacing:g} m in one space")
         self.origins = np.zeros((B, 2))
-        self.origins[:, 0] = np.arange(B) * self.spacing
+        self.origins[:, 0] = ARENA_BASE + np.arange(B) * self.spacing
         self.time = 0.0
         # State and parameter arrays (robot-major, contiguous: the kernel reads them directly).
         self.sp = np.zeros((B, N_SP))

@@ -1,0 +1,138 @@
+"""World behaviour: determinism, batching, actuation, collisions, lift-off wiring."""
+
+import numpy as np
+import pytest
+
+from omni_gym.friction import Surface
+from omni_gym.liftoff import ContactProcess
+from omni_gym.model import Actuation, SimModel, load_model
+from omni_gym.robot import phunopas2018
+from omni_gym.world import Arena, World
+
+
+def twist_commands(model, twist):
+    return model.robot.wheel_matrix() @ np.asarray(twist, dtype=float)
+
+
+def test_batched_robots_match_single_robot_bit_for_bit():
+    model = load_model("williams2002", "carpet", "roller_gap")
+    twists = [(0.3, 0.0, 0.0), (0.0, 0.2, 1.0), (0.1, -0.1, -1.5)]
+    singles = []
+    for tw in twists:
+        w = World(model)
+        w.set_commands(twist_commands(model, tw))
+        w.step(0.5)
+        singles.append(np.concatenate([w.pose[0], w.velocity[0], w.wheel_angle[0]]))
+    batch = World(model, n_robots=3)
+    batch.set_commands(np.array([twist_commands(model, tw) for tw in twists]))
+    batch.step(0.5)
+    got = np.concatenate([batch.pose, batch.velocity, batch.wheel_angle], axis=1)
+    np.testing.assert_array_equal(got, np.array(singles))
+
+
+def test_same_inputs_same_result_and_reset_restarts():
+    model = load_model("phunopas2018", "paper", "roller_gap")
+    w = World(model)
+    w.set_commands(twist_commands(model, (0.2, 0.1, 0.5)))
+    w.step(0.3)
+    first = w.pose.copy()
+    w.reset()
+    np.testing.assert_array_equal(w.pose, np.zeros((1, 3)))
+    w.set_commands(twist_commands(model, (0.2, 0.1, 0.5)))
+    w.step(0.3)
+    np.testing.assert_array_equal(w.pose, first)
+
+
+def test_servo_tracks_command_and_respects_torque_limit():
+    model = load_model("williams2002", "carpet", "initial")
+    act = Actuation(kind="servo")
+    w = World(model, actuation=act)
+    cmd = twist_commands(model, (0.3, 0.0, 0.0))
+    w.set_commands(cmd)
+    w.step(0.002)
+    # 2 ms after a step command the wheels cannot have reached it: the torque limit bounds the
+    # acceleration to (limit + friction torque)/J; the ideal source would be there at once.
+    assert np.all(np.abs(w.wheel_speed[0]) < np.abs(cmd))
+    limit = (act.torque_limit + model.robot.wheel_radius * model.surface.mu_gap * 20) / act.wheel_inertia
+    assert np.all(np.abs(w.wheel_speed[0]) <= limit * 0.002 + 1e-9)
+    servo_slip = np.abs(w.slip[0, :, 0]).max()
+    w.step(1.0)
+    # After 1 s the PI loop has settled: speed error below 1 % of the command (integral action).
+    np.testing.assert_allclose(w.wheel_speed[0], cmd, rtol=1e-2)
+    ideal = World(model)
+    ideal.set_commands(cmd)
+    ideal.step(0.002)
+    # The ideal source jumps to the command, so its drive slip 2 ms in is larger than the servo's.
+    assert np.abs(ideal.slip[0, :, 0]).max() > servo_slip
+    ideal.step(1.0)
+    # Same steady motion: both robots end within 1 cm (slip only differs in the first tens of ms).
+    assert abs(ideal.pose[0, 0] - w.pose[0, 0]) < 0.01
+
+
+def test_servo_is_stable_on_a_lifted_wheel():
+    model = load_model("phunopas2018", "carpet", "initial")
+    w = World(model, actuation=Actuation(kind="servo"))
+    w.set_contact(0, np.array([True, False, True, True]))
+    cmd = twist_commands(model, (0.2, 0.0, 0.0))
+    w.set_commands(cmd)
+    w.step(1.0)
+    # A free wheel has no ground torque: the PI loop brings it to the command exactly (1 % bound).
+    np.testing.assert_allclose(w.wheel_speed[0, 1], cmd[1], rtol=1e-2)
+
+
+def test_walls_stop_the_robot_and_flag_a_collision():
+    model = load_model("williams2002", "carpet", "initial")
+    w = World(model, arena=Arena(half_size=0.5, walls=True))
+    w.set_commands(twist_commands(model, (0.4, 0.0, 0.0)))
+    w.step(3.0)
+    x = w.pose[0, 0]
+    assert w.collided[0]
+    # The disc (radius body_radius) cannot pass the wall at x = 0.5 (5 mm of contact slop allowed).
+    assert x < 0.5 - model.robot.body_radius + 0.005
+    free = World(model)
+    free.set_commands(twist_commands(model, (0.4, 0.0, 0.0)))
+    free.step(3.0)
+    assert free.pose[0, 0] > 0.6 and not free.collided[0]  # without walls it passes x = 0.5
+
+
+def test_each_robot_meets_only_its_own_arena_copy_of_an_obstacle():
+    model = load_model("phunopas2018", "carpet", "initial")  # symmetric: drives straight
+    w = World(model, n_robots=2, arena=Arena(half_size=2.0, obstacles=((0.6, 0.0, 0.1),)))
+    w.set_commands(np.array([twist_commands(model, (0.4, 0, 0)), twist_commands(model, (-0.4, 0, 0))]))
+    w.step(2.0)
+    assert w.collided[0] and not w.collided[1]
+
+
+def test_contact_process_drives_loads():
+    model = load_model("phunopas2018", "carpet", "initial")
+    w = World(model)
+    w.set_contact_process(0, ContactProcess(4, lift_rate=50.0, recover_rate=50.0, rng=np.random.default_rng(0)))
+    seen = set()
+    for _ in range(200):
+        w.step(0.01)
+        seen.add(tuple(w.contact[0]))
+        lifted = ~w.contact[0]
+        assert np.all(w.loads[0][lifted] == 0.0)
+        np.testing.assert_allclose(w.loads[0].sum(), model.robot.mass * model.gravity)
+    assert len(seen) >= 4  # at 50 switches/s over 2 s, several distinct cases must appear
+
+
+def test_world_rejects_bad_commands():
+    model = load_model("williams2002")
+    w = World(model)
+    with pytest.raises(ValueError, match="shape"):
+        w.set_commands(np.zeros(4))
+    with pytest.raises(ValueError, match="NaN"):
+        w.set_commands(np.array([0.0, np.nan, 0.0]))
+
+
+def test_implicit_step_is_stable_where_explicit_would_not_be():
+    """μ = 5 with k = 1000: stiffness N·μ·k·(2/π)/m ≈ 5e4 /s, 25x past explicit Euler's limit at 0.5 ms."""
+    robot = phunopas2018()
+    # Very high drive friction, roller transverse friction: the wheels act as no-slip constraints.
+    model = SimModel(robot=robot, surface=Surface("sticky", 5.0, 0.15, 5.0), friction="initial")
+    w = World(model)
+    w.set_commands(twist_commands(model, (0.2, 0.0, 0.0)))
+    w.step(0.5)
+    assert np.all(np.isfinite(w.pose))
+    np.testing.assert_allclose(w.velocity[0], [0.2, 0.0, 0.0], atol=1e-3)
