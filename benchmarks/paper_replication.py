@@ -37,8 +37,8 @@ def table(results: dict) -> str:
         "`python benchmarks/paper_replication.py --out benchmarks/results` (also run by `make demo`)",
         "",
         f"Robot `williams2002` (δ, maneuver duration {PAPER_DURATION} s: fitted, see `tuning.md`), "
-        "ideal velocity-source wheels, default physics (0.5 ms substeps). Ours: signed final values (y > 0 is left, heading > 0 is "
-        "counter-clockwise); the paper gives magnitudes.",
+        "ideal velocity-source wheels, default physics (0.5 ms substeps). Ours: signed final values "
+        "(y > 0 is left, heading > 0 is counter-clockwise); the paper gives magnitudes.",
         "",
         "| friction / surface | x short [mm] ours | paper | y drift [mm] ours | paper | heading [rad] ours | paper |",
         "|---|---|---|---|---|---|---|",
