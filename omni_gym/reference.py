@@ -1,0 +1,255 @@
+"""Validation reference: a slow, high-accuracy integration of the omni-robot slip model.
+
+This module is written independently of the world and its force kernel (it shares only the robot,
+surface, model and static-load definitions), so the tests can use it as ground truth for the
+pymunk world. It is not meant for simulation at scale: one robot, up to ~1 s of CPU per simulated second.
+
+Model (SI units). State: geometric-centre pose (x, y, θ) in the world frame, centre-of-mass world
+velocity V and yaw rate ω. With the centre of mass at c (body frame) and q = R(θ) c,
+
+    ẋ = V_x + ω q_y,   ẏ = V_y − ω q_x,   θ̇ = ω,
+    m V̇ = Σ F_i,       I ω̇ = Σ ρ_i × F_i,      ρ_i = R(p_i − c),
+    F_i = −N_i [μ_W(v_W,i) d_i + μ_T(v_T,i) a_i]    (d_i, a_i rotated to the world),
+    v_W,i = u_i · d_i − r w_i,   v_T,i = u_i · a_i,   u_i = V + ω z × ρ_i,
+    μ(v) = μ_max (2/π) atan(k v).
+
+Wheels are ideal velocity sources: wheel i turns at its commanded speed w_i (piecewise constant)
+and its angle φ_i = ∫ w_i dt is piecewise linear. In the ``roller_gap`` friction model the wheel
+rests on rigid material while |(φ_i mod p) − p/2| < g/2 (p = 2π/rollers, g = (1 − roller_fraction)
+p) and then both coefficients are mu_gap; otherwise (and always in the ``initial`` model) they are
+mu_drive and mu_transverse. The normal loads N_i come from :func:`omni_gym.loads.wheel_loads`: equal
+shares m·g/n_contact with the centre of mass at the geometric centre (the paper's assumption), static
+balance with a centre-of-mass offset.
+
+Accuracy: the coefficient switches and the command changes are discontinuities of the right-hand
+side. Because every wheel angle is piecewise linear, every switching time is computed exactly in
+advance, and the (stiff, k = 1000 s/m) ODE is integrated with an implicit solver separately on each
+interval between consecutive switching times, restarting at each boundary with the state reached.
+Within an interval the right-hand side is smooth (atan), so the solver's error control holds.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from omni_gym.loads import wheel_loads
+from omni_gym.model import SimModel
+
+SUPPORTED_EFFECTS = ("com_offset",)
+_TWO_OVER_PI = 2.0 / math.pi
+
+
+def _wheel_angles(t: float, times: np.ndarray, commands: np.ndarray) -> np.ndarray:
+    """Angle φ_i(t) [rad] of every wheel: the integral of the piecewise-constant commands from 0."""
+    ends = np.append(times[1:], np.inf)
+    span = np.clip(np.minimum(ends, t) - times, 0.0, None)
+    return span @ commands
+
+
+def _switch_times(times: np.ndarray, commands: np.ndarray, t_end: float, pitch: float, gap: float,
+                  use_gap: bool) -> np.ndarray:
+    """Sorted times in (0, t_end) where a command changes or a wheel enters / leaves rigid material."""
+    out = [t for t in times[1:] if 0.0 < t < t_end]
+    if use_gap and gap > 0.0:
+        starts = np.concatenate([times, [t_end]])
+        for j in range(len(times)):
+            ta, tb = starts[j], min(starts[j + 1], t_end)
+            if tb <= ta:
+                continue
+            phi0 = _wheel_angles(ta, times, commands)
+            for i, w in enumerate(commands[j]):
+                if w == 0.0:
+                    continue
+                lo, hi = sorted((phi0[i], phi0[i] + w * (tb - ta)))
+                for edge in (0.5 * (pitch - gap), 0.5 * (pitch + gap)):
+                    # boundaries edge + k·p inside [lo, hi]
+                    k0 = math.ceil((lo - edge) / pitch)
+                    k1 = math.floor((hi - edge) / pitch)
+                    for k in range(k0, k1 + 1):
+                        ts = ta + (edge + k * pitch - phi0[i]) / w
+                        if ta < ts < tb:
+                            out.append(ts)
+    out = np.unique(np.asarray(out, dtype=float))
+    # Merge switches closer than any meaningful solver step (they come from the same instant).
+    if out.size:
+        keep = np.concatenate([[True], np.diff(out) > 1e-13])
+        out = out[keep]
+    return out
+
+
+def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarray, t_eval: np.ndarray,
+                         contact: np.ndarray | None = None, rtol: float = 1e-10, atol: float = 1e-12,
+                         initial_velocity: np.ndarray | None = None, method: str = "LSODA") -> dict:
+    """Integrate the slip model for one robot starting at the origin (pose (0, 0, 0)).
+
+    This is the validation reference (slow; switching times handled exactly), not a simulator.
+
+    Args:
+        model: the model; only the ``com_offset`` effect is supported (others raise
+            NotImplementedError).
+        times: (K,) command switch times [s], ``times[0] == 0``, increasing. Row j of ``commands``
+            holds on [times[j], times[j+1]); the last row holds until ``t_eval[-1]``.
+        commands: (K, n) commanded wheel speeds [rad/s].
+        t_eval: (M,) increasing sample times [s] in [0, ∞).
+        contact: bool (n,), True where the wheel is on the floor (default all); lifted wheels carry
+            no load and so exert no force.
+        rtol, atol: solver tolerances (state in m, rad, m/s, rad/s).
+        initial_velocity: (3,) initial world velocity of the geometric centre and yaw rate
+            (default at rest).
+        method: scipy stiff method, ``"LSODA"`` (default: automatic stiff/non-stiff switching, several
+            times faster here) or ``"Radau"``; the two agree to ~1e-10 m on 2 s manoeuvres.
+
+    Returns:
+        dict with
+        ``pose`` (M, 3): geometric centre x, y [m] and heading θ [rad];
+        ``velocity`` (M, 3): world velocity of the geometric centre [m/s] and ω [rad/s];
+        ``slip`` (M, n, 2): slip along the drive v_W and transverse velocity v_T [m/s] per wheel;
+        ``wheel_angle`` (M, n): φ_i [rad];
+        ``switch_times``: the interval boundaries used.
+    """
+    unsupported = sorted(set(model.effects) - set(SUPPORTED_EFFECTS))
+    if unsupported:
+        raise NotImplementedError(f"reference: model effects {unsupported} are not supported")
+    robot, surf = model.robot, model.surface
+    n = robot.n_wheels
+    times = np.asarray(times, dtype=float)
+    commands = np.asarray(commands, dtype=float).reshape(len(times), n)
+    t_eval = np.asarray(t_eval, dtype=float)
+    if times.ndim != 1 or times[0] != 0.0 or np.any(np.diff(times) <= 0):
+        raise ValueError("times must start at 0 and increase strictly")
+    if t_eval.ndim != 1 or np.any(np.diff(t_eval) < 0) or t_eval[0] < 0:
+        raise ValueError("t_eval must be non-negative and non-decreasing")
+
+    c = np.asarray(model.com, dtype=float)
+    p_rel = robot.positions() - c  # wheel centres relative to the centre of mass, body frame
+    d_b = robot.drives()
+    a_b = robot.axles()
+    r = robot.wheel_radius
+    m, inertia = robot.mass, robot.inertia
+    k = surf.k
+    loads = wheel_loads(robot.positions(), c, m, model.gravity, contact)
+    pitch = 2.0 * math.pi / robot.rollers
+    gap = (1.0 - robot.roller_fraction) * pitch
+    use_gap = model.friction == "roller_gap"
+
+    t_end = float(t_eval[-1])
+    bounds = np.concatenate([[0.0], _switch_times(times, commands, t_end, pitch, gap, use_gap), [t_end]])
+
+    def frame(theta):
+        cs, sn = math.cos(theta), math.sin(theta)
+        rho = np.column_stack([cs * p_rel[:, 0] - sn * p_rel[:, 1], sn * p_rel[:, 0] + cs * p_rel[:, 1]])
+        dw = np.column_stack([cs * d_b[:, 0] - sn * d_b[:, 1], sn * d_b[:, 0] + cs * d_b[:, 1]])
+        aw = np.column_stack([cs * a_b[:, 0] - sn * a_b[:, 1], sn * a_b[:, 0] + cs * a_b[:, 1]])  # = z × dw
+        q = np.array([cs * c[0] - sn * c[1], sn * c[0] + cs * c[1]])
+        return rho, dw, aw, q
+
+    def slips(s, w_cmd):
+        rho, dw, aw, q = frame(s[2])
+        ux = s[3] - s[5] * rho[:, 1]
+        uy = s[4] + s[5] * rho[:, 0]
+        v_w = ux * dw[:, 0] + uy * dw[:, 1] - r * w_cmd
+        v_t = ux * aw[:, 0] + uy * aw[:, 1]
+        return rho, dw, aw, q, ux, uy, v_w, v_t
+
+    def make_rhs(w_cmd, mu_w, mu_t):
+        nw = loads * mu_w * _TWO_OVER_PI  # N_i μ_W,max (2/π)
+        nt = loads * mu_t * _TWO_OVER_PI
+
+        def rhs(_t, s):
+            rho, dw, aw, q, _ux, _uy, v_w, v_t = slips(s, w_cmd)
+            fw = nw * np.arctan(k * v_w)
+            ft = nt * np.arctan(k * v_t)
+            fx = -(fw * dw[:, 0] + ft * aw[:, 0])
+            fy = -(fw * dw[:, 1] + ft * aw[:, 1])
+            tau = np.sum(rho[:, 0] * fy - rho[:, 1] * fx)
+            return np.array([s[3] + s[5] * q[1], s[4] - s[5] * q[0], s[5], fx.sum() / m, fy.sum() / m, tau / inertia])
+
+        def jac(_t, s):
+            rho, dw, aw, q, ux, uy, v_w, v_t = slips(s, w_cmd)
+            om = s[5]
+            fw = nw * np.arctan(k * v_w)
+            ft = nt * np.arctan(k * v_t)
+            gw = nw * k / (1.0 + (k * v_w) ** 2)  # d(N μ_W)/d v_W
+            gt = nt * k / (1.0 + (k * v_t) ** 2)
+            # per-wheel derivatives of v_W, v_T w.r.t. (θ, Vx, Vy, ω)
+            rho_x_dw = rho[:, 0] * dw[:, 1] - rho[:, 1] * dw[:, 0]
+            rho_x_aw = rho[:, 0] * aw[:, 1] - rho[:, 1] * aw[:, 0]
+            rho_dot_dw = rho[:, 0] * dw[:, 0] + rho[:, 1] * dw[:, 1]
+            rho_dot_aw = rho[:, 0] * aw[:, 0] + rho[:, 1] * aw[:, 1]
+            u_dot_dw = ux * dw[:, 0] + uy * dw[:, 1]
+            dvw = np.stack([v_t - om * rho_dot_dw, dw[:, 0], dw[:, 1], rho_x_dw], axis=1)  # (n, 4)
+            dvt = np.stack([-om * rho_dot_aw - u_dot_dw, aw[:, 0], aw[:, 1], rho_x_aw], axis=1)
+            # F_i = −(fw d + ft a);  ∂d/∂θ = a,  ∂a/∂θ = −d
+            dfx = -(gw[:, None] * dvw * dw[:, 0:1] + gt[:, None] * dvt * aw[:, 0:1])
+            dfy = -(gw[:, None] * dvw * dw[:, 1:2] + gt[:, None] * dvt * aw[:, 1:2])
+            dfx[:, 0] += -(fw * aw[:, 0] - ft * dw[:, 0])
+            dfy[:, 0] += -(fw * aw[:, 1] - ft * dw[:, 1])
+            fx = -(fw * dw[:, 0] + ft * aw[:, 0])
+            fy = -(fw * dw[:, 1] + ft * aw[:, 1])
+            dtau = rho[:, 0:1] * dfy - rho[:, 1:2] * dfx
+            # ∂ρ/∂θ = z × ρ, and (z × ρ) × F = −ρ · F
+            dtau[:, 0] += -(rho[:, 0] * fx + rho[:, 1] * fy)
+            J = np.zeros((6, 6))
+            J[0, 2], J[0, 3], J[0, 5] = om * q[0], 1.0, q[1]
+            J[1, 2], J[1, 4], J[1, 5] = om * q[1], 1.0, -q[0]
+            J[2, 5] = 1.0
+            cols = [2, 3, 4, 5]
+            J[3, cols] = dfx.sum(axis=0) / m
+            J[4, cols] = dfy.sum(axis=0) / m
+            J[5, cols] = dtau.sum(axis=0) / inertia
+            return J
+
+        return rhs, jac
+
+    # initial state: pose 0, COM velocity from the geometric-centre velocity
+    s0 = np.zeros(6)
+    if initial_velocity is not None:
+        v0 = np.asarray(initial_velocity, dtype=float)
+        # V = v_gc + ω z × (R c) at θ = 0
+        s0[3:] = [v0[0] - v0[2] * c[1], v0[1] + v0[2] * c[0], v0[2]]
+
+    states = np.empty((len(t_eval), 6))
+    done = np.zeros(len(t_eval), dtype=bool)
+    at_zero = t_eval == 0.0
+    states[at_zero] = s0
+    done |= at_zero
+    s = s0
+    for ta, tb in zip(bounds[:-1], bounds[1:], strict=True):
+        if tb <= ta:
+            continue
+        tm = 0.5 * (ta + tb)
+        row = np.searchsorted(times, tm, side="right") - 1
+        w_cmd = commands[row]
+        if use_gap and gap > 0.0:
+            phi = _wheel_angles(tm, times, commands)
+            on_rigid = np.abs(np.mod(phi, pitch) - 0.5 * pitch) < 0.5 * gap
+            mu_w = np.where(on_rigid, surf.mu_gap, surf.mu_drive)
+            mu_t = np.where(on_rigid, surf.mu_gap, surf.mu_transverse)
+        else:
+            mu_w = np.full(n, surf.mu_drive)
+            mu_t = np.full(n, surf.mu_transverse)
+        rhs, jac = make_rhs(w_cmd, mu_w, mu_t)
+        sel = (~done) & (t_eval >= ta) & (t_eval <= tb)
+        pts = np.unique(np.append(t_eval[sel], tb))  # sorted, distinct, ends at tb
+        sol = solve_ivp(rhs, (ta, tb), s, method=method, t_eval=pts, rtol=rtol, atol=atol, jac=jac)
+        if not sol.success:
+            raise RuntimeError(f"reference: solver failed on [{ta}, {tb}]: {sol.message}")
+        states[sel] = sol.y[:, np.searchsorted(pts, t_eval[sel])].T
+        done |= sel
+        s = sol.y[:, -1]
+
+    pose = states[:, :3].copy()
+    velocity = np.empty((len(t_eval), 3))
+    slip = np.empty((len(t_eval), n, 2))
+    angles = np.empty((len(t_eval), n))
+    for j, t in enumerate(t_eval):
+        st = states[j]
+        row = np.searchsorted(times, t, side="right") - 1
+        *_, q, _ux, _uy, v_w, v_t = slips(st, commands[row])
+        velocity[j] = [st[3] + st[5] * q[1], st[4] - st[5] * q[0], st[5]]
+        slip[j, :, 0], slip[j, :, 1] = v_w, v_t
+        angles[j] = _wheel_angles(t, times, commands)
+    return {"pose": pose, "velocity": velocity, "slip": slip, "wheel_angle": angles, "switch_times": bounds[1:-1]}
