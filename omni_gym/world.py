@@ -37,6 +37,7 @@ DEFAULT_DT = 0.0005  # s, physics substep
 # ulp(2^20) = 2.3e-10 m, far below any physical tolerance.
 ARENA_BASE = 1.5 * 2.0**20
 ARENA_ROOM = 2.0**19  # m of x along which arenas may be laid out
+_NEVER = np.iinfo(np.int64).max
 ROBOT_COLLISION = 1
 OBSTACLE_COLLISION = 2
 
@@ -92,7 +93,8 @@ class World:
             raise ValueError(f"too many robots ({B}) for arenas of {self.spacing:g} m in one space")
         self.origins = np.zeros((B, 2))
         self.origins[:, 0] = ARENA_BASE + np.arange(B) * self.spacing
-        self.time = 0.0
+        self.tick = 0  # substeps run since construction (global clock of the space)
+        self.start_tick = np.zeros(B, dtype=np.int64)  # tick of each robot's last reset: its local t = 0
         # State and parameter arrays (robot-major, contiguous: the kernel reads them directly).
         self.sp = np.zeros((B, N_SP))
         self.wp = np.zeros((B, n, N_WP))
@@ -107,7 +109,8 @@ class World:
         self.slip = np.zeros((B, n, 2))
         self.collided = np.zeros(B, dtype=bool)
         self.contact_processes: list[ContactProcess | None] = [None] * B
-        self._next_switch = math.inf
+        self._switch_tick = np.full(B, _NEVER, dtype=np.int64)  # global tick of each robot's next contact switch
+        self._next_switch_tick = _NEVER
         self.models: list[SimModel] = []
         self._build_space(model_list)
         for j, m in enumerate(model_list):
@@ -228,15 +231,15 @@ class World:
         for arr in (self.wheel_angle, self.wheel_speed, self.wheel_cmd, self.servo_int, self.slip):
             arr[idx] = 0.0
         self.collided[idx] = False
-        if robots is None:
-            self.time = 0.0
+        self.start_tick[idx] = self.tick
         for j in idx:
             proc = self.contact_processes[j]
             if proc is not None:
-                proc.reset(self.time)
+                proc.reset(0.0)
                 self.contact[j] = proc.mask
                 self._update_loads(j)
-        self._refresh_next_switch()
+            self._schedule_switch(j)
+        self._next_switch_tick = int(self._switch_tick.min())
 
     def set_commands(self, wheel_speeds: np.ndarray) -> None:
         """Commanded wheel speeds [rad/s], shape (B, n) (or (n,) for one robot); held until changed."""
@@ -263,24 +266,50 @@ class World:
         if process is None:
             self.set_contact(j, np.ones(self.n_wheels, dtype=bool))
         else:
-            process.reset(self.time)
+            process.reset(self.local_time(j))
             self.set_contact(j, process.mask)
-        self._refresh_next_switch()
+        self._schedule_switch(j)
+        self._next_switch_tick = int(self._switch_tick.min())
 
     def _update_loads(self, j: int) -> None:
         m = self.models[j]
         self.loads[j] = wheel_loads(m.robot.positions(), m.com, self.sp[j, SP_MASS], m.gravity, self.contact[j])
 
-    def _refresh_next_switch(self) -> None:
-        times = [p.next_switch for p in self.contact_processes if p is not None]
-        self._next_switch = min(times) if times else math.inf
+    @property
+    def time(self) -> float:
+        """Seconds simulated since construction."""
+        return self.tick * self.dt
 
-    def _advance_contacts(self, t: float) -> None:
-        for j, proc in enumerate(self.contact_processes):
-            if proc is not None and proc.advance(t):
+    def local_time(self, j: int) -> float:
+        """Seconds since robot j's last reset (its contact process and sensors run on this clock)."""
+        return (self.tick - int(self.start_tick[j])) * self.dt
+
+    def _schedule_switch(self, j: int) -> None:
+        """Global tick of the first substep whose local time k·dt reaches robot j's next switch.
+
+        Integer ticks make a robot's switches fall on the same substeps whatever the other robots
+        do and whenever it was reset, so a batch reproduces lone robots exactly.
+        """
+        proc = self.contact_processes[j]
+        if proc is None or not math.isfinite(proc.next_switch):
+            self._switch_tick[j] = _NEVER
+            return
+        s, dt = proc.next_switch, self.dt
+        k = max(0, math.ceil(s / dt))
+        while k > 0 and (k - 1) * dt >= s:
+            k -= 1
+        while k * dt < s:
+            k += 1
+        self._switch_tick[j] = int(self.start_tick[j]) + k
+
+    def _advance_contacts(self, tick: int) -> None:
+        for j in np.flatnonzero(self._switch_tick <= tick):
+            proc = self.contact_processes[j]
+            if proc.advance((tick - int(self.start_tick[j])) * self.dt):
                 self.contact[j] = proc.mask
                 self._update_loads(j)
-        self._refresh_next_switch()
+            self._schedule_switch(j)
+        self._next_switch_tick = int(self._switch_tick.min())
 
     def _read_state(self) -> None:
         self._get_buf._float_arr.num = 0
@@ -331,11 +360,9 @@ class World:
         pose, vel = state[:, 0:3], state[:, 3:6]
         args = (self.wheel_angle, self.wheel_speed, self.wheel_cmd, self.servo_int, self.loads, self.sp, self.wp,
                 self.ext_force, self._force_view, self.slip)
-        t0 = self.time
-        for k in range(count):
-            t = t0 + k * dt
-            if t >= self._next_switch:
-                self._advance_contacts(t)
+        for _ in range(count):
+            if self.tick >= self._next_switch_tick:
+                self._advance_contacts(self.tick)
             get_arr.num = 0
             get_int.num = 0
             each_body(cspace, get_iter, get_req)
@@ -344,4 +371,4 @@ class World:
             each_body(cspace, set_iter, set_req)
             set_arr.num = n_set
             space.step(dt)
-        self.time = t0 + count * dt
+            self.tick += 1

@@ -82,17 +82,18 @@ def test_servo_is_stable_on_a_lifted_wheel():
 
 def test_walls_stop_the_robot_and_flag_a_collision():
     model = load_model("williams2002", "carpet", "initial")
+    # Along body +y the front wheels drive; along x this robot barely moves on carpet (see docs).
     w = World(model, arena=Arena(half_size=0.5, walls=True))
-    w.set_commands(twist_commands(model, (0.4, 0.0, 0.0)))
+    w.set_commands(twist_commands(model, (0.0, 0.4, 0.0)))
     w.step(3.0)
-    x = w.pose[0, 0]
+    y = w.pose[0, 1]
     assert w.collided[0]
-    # The disc (radius body_radius) cannot pass the wall at x = 0.5 (5 mm of contact slop allowed).
-    assert x < 0.5 - model.robot.body_radius + 0.005
+    # The disc (radius body_radius) cannot pass the wall at y = 0.5 (5 mm of contact slop allowed).
+    assert y < 0.5 - model.robot.body_radius + 0.005
     free = World(model)
-    free.set_commands(twist_commands(model, (0.4, 0.0, 0.0)))
+    free.set_commands(twist_commands(model, (0.0, 0.4, 0.0)))
     free.step(3.0)
-    assert free.pose[0, 0] > 0.6 and not free.collided[0]  # without walls it passes x = 0.5
+    assert free.pose[0, 1] > 0.6 and not free.collided[0]  # without walls it passes y = 0.5
 
 
 def test_each_robot_meets_only_its_own_arena_copy_of_an_obstacle():
@@ -136,3 +137,37 @@ def test_implicit_step_is_stable_where_explicit_would_not_be():
     w.step(0.5)
     assert np.all(np.isfinite(w.pose))
     np.testing.assert_allclose(w.velocity[0], [0.2, 0.0, 0.0], atol=1e-3)
+
+
+def test_robot_reset_mid_run_replays_a_lone_robot_exactly_with_lift_off():
+    """Each robot's clock and contact process restart at its own reset (needed for vector autoreset)."""
+    model = load_model("phunopas2018", "carpet", "roller_gap")
+    cmd = twist_commands(model, (0.2, 0.1, 0.4))
+
+    def process(seed):
+        return ContactProcess(4, lift_rate=20.0, recover_rate=20.0, rng=np.random.default_rng(seed))
+
+    lone = World(model)
+    lone.set_contact_process(0, process(5))
+    lone.reset()
+    lone.set_commands(cmd)
+    lone_traj = []
+    for _ in range(50):
+        lone.step(0.01)
+        lone_traj.append(np.concatenate([lone.pose[0], lone.contact[0]]))
+
+    batch = World(model, n_robots=2)
+    batch.set_contact_process(0, process(1))
+    batch.set_contact_process(1, process(2))
+    batch.reset()
+    batch.set_commands(np.array([cmd, -cmd]))
+    batch.step(0.3337)  # robot 1 is reset at an odd global time
+    batch.set_contact_process(1, process(5))
+    batch.reset(robots=[1])
+    batch.set_commands(np.array([cmd, cmd]))
+    batch_traj = []
+    for _ in range(50):
+        batch.step(0.01)
+        batch_traj.append(np.concatenate([batch.pose[1], batch.contact[1]]))
+    np.testing.assert_array_equal(np.array(batch_traj), np.array(lone_traj))
+    assert len({tuple(r[3:]) for r in lone_traj}) > 1  # the contact process did switch meanwhile
