@@ -117,6 +117,37 @@ class World:
             self.set_model(j, m)
         warm_up()
 
+    # --- pickling: rebuild the space, then restore every state variable exactly ------------------
+
+    _STATE_ARRAYS = ("wheel_angle", "wheel_speed", "wheel_cmd", "servo_int", "loads", "contact", "ext_force",
+                     "force", "slip", "collided", "start_tick", "_switch_tick", "sp", "wp")
+
+    def __getstate__(self) -> dict:
+        self._read_state()
+        return {
+            "init": (list(self.models), self.dt, self.actuation, self.arena),
+            "arrays": {k: getattr(self, k).copy() for k in self._STATE_ARRAYS},
+            "bodies": self._state_view.copy(),
+            "tick": self.tick,
+            "contact_processes": list(self.contact_processes),
+            "next_switch_tick": self._next_switch_tick,
+        }
+
+    def __setstate__(self, state: dict) -> None:
+        models, dt, actuation, arena = state["init"]
+        self.__init__(models, dt=dt, actuation=actuation, arena=arena)
+        for key, value in state["arrays"].items():
+            getattr(self, key)[...] = value
+        for body, row in zip(self.bodies, state["bodies"], strict=True):
+            body.angle = row[2]
+            body.position = (row[0], row[1])
+            body.velocity = (row[3], row[4])
+            body.angular_velocity = row[5]
+            self.space.reindex_shapes_for_body(body)
+        self.tick = state["tick"]
+        self.contact_processes = state["contact_processes"]
+        self._next_switch_tick = state["next_switch_tick"]
+
     # --- construction ---------------------------------------------------------------------------
 
     def _build_space(self, models: list[SimModel]) -> None:

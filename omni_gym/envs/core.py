@@ -1,0 +1,287 @@
+"""The batched engine behind both the single and the vectorised environments.
+
+``TaskCore`` holds B robots in one :class:`~omni_gym.world.World` and does, for all of them at once:
+action → wheel commands, one control period of physics, observations, rewards and flags. A single
+environment is a core with B = 1, so the vectorised environment reproduces N single environments
+exactly: every per-robot quantity is computed by the same code on the same numbers, every random
+draw of robot j comes from robot j's own generator, and each robot keeps its own clock.
+
+Observation layouts (float32; see ``docs/environments.md``):
+
+* ``state`` (privileged): tracking error in the body frame, body velocity, reference velocity in the
+  body frame, three look-ahead reference points (0.25, 0.5, 1.0 s) in the body frame, last action.
+* ``sensors``: encoder rates, gyro, compass, accelerometer, last camera fix and its age, the reference
+  (world frame) now and at the look-ahead times, last action.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from omni_gym.envs.config import EnvConfig, randomized_model
+from omni_gym.envs.references import draw_reference
+from omni_gym.liftoff import ContactProcess
+from omni_gym.model import SP_CX, SP_CY, Actuation
+from omni_gym.sensors import SensorSuite
+from omni_gym.world import Arena, World
+
+LOOKAHEAD_SECONDS = (0.25, 0.5, 1.0)
+POS_SCALE = 0.25  # m, tracking-error scale in observations
+LOOK_SCALE = 0.5  # m, look-ahead offset scale
+ACC_SCALE = 5.0  # m/s², accelerometer scale
+OBS_CLIP = 10.0
+# Reward weights (docs/environments.md): r = W_POS·exp(−e/E_POS) + W_HEAD·exp(−|eθ|/E_HEAD) − W_EFFORT·mean(a²)
+W_POS, E_POS, W_HEAD, E_HEAD, W_EFFORT = 0.7, 0.1, 0.3, 0.3, 0.05
+
+
+@numba.njit(cache=True)
+def _wrap(a):
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@numba.njit(cache=True)
+def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action, scales, out_obs, out_err,
+                  out_true):
+    """State observations, tracking errors and true poses/velocities for all robots.
+
+    state (B, 6): pymunk body x, y (world), θ, COM velocity V_x, V_y, ω. scales: max_speed, max_yaw_rate.
+    out_err (B, 2): position error [m], heading error [rad]. out_true (B, 6): local pose and the
+    geometric centre's world velocity.
+    """
+    n_robots = state.shape[0]
+    n_act = prev_action.shape[1]
+    vmax = scales[0]
+    wmax = scales[1]
+    for b in range(n_robots):
+        x = state[b, 0] - origins[b, 0]
+        y = state[b, 1] - origins[b, 1]
+        th = state[b, 2]
+        c = math.cos(th)
+        s = math.sin(th)
+        om = state[b, 5]
+        # Geometric-centre velocity: v_com − ω z × (R com).
+        rcx = c * sp[b, SP_CX] - s * sp[b, SP_CY]
+        rcy = s * sp[b, SP_CX] + c * sp[b, SP_CY]
+        vx = state[b, 3] + om * rcy
+        vy = state[b, 4] - om * rcx
+        out_true[b, 0] = x
+        out_true[b, 1] = y
+        out_true[b, 2] = th
+        out_true[b, 3] = vx
+        out_true[b, 4] = vy
+        out_true[b, 5] = om
+        k = step[b]
+        dx = ref_pose[b, k, 0] - x
+        dy = ref_pose[b, k, 1] - y
+        dth = _wrap(ref_pose[b, k, 2] - th)
+        out_err[b, 0] = math.sqrt(dx * dx + dy * dy)
+        out_err[b, 1] = dth
+        o = out_obs[b]
+        o[0] = (c * dx + s * dy) / POS_SCALE
+        o[1] = (-s * dx + c * dy) / POS_SCALE
+        o[2] = dth / math.pi
+        o[3] = (c * vx + s * vy) / vmax
+        o[4] = (-s * vx + c * vy) / vmax
+        o[5] = om / wmax
+        rvx = ref_vel[b, k, 0]
+        rvy = ref_vel[b, k, 1]
+        o[6] = (c * rvx + s * rvy) / vmax
+        o[7] = (-s * rvx + c * rvy) / vmax
+        o[8] = ref_vel[b, k, 2] / wmax
+        for j in range(look.shape[0]):
+            kk = k + look[j]
+            lx = ref_pose[b, kk, 0] - x
+            ly = ref_pose[b, kk, 1] - y
+            o[9 + 3 * j] = (c * lx + s * ly) / LOOK_SCALE
+            o[10 + 3 * j] = (-s * lx + c * ly) / LOOK_SCALE
+            o[11 + 3 * j] = _wrap(ref_pose[b, kk, 2] - th) / math.pi
+        base = 9 + 3 * look.shape[0]
+        for j in range(n_act):
+            o[base + j] = prev_action[b, j]
+        for j in range(o.shape[0]):
+            if o[j] > OBS_CLIP:
+                o[j] = OBS_CLIP
+            elif o[j] < -OBS_CLIP:
+                o[j] = -OBS_CLIP
+
+
+class TaskCore:
+    """B robots following their references; see the module docstring."""
+
+    def __init__(self, cfg: EnvConfig, n_robots: int) -> None:
+        self.cfg = cfg
+        self.B = n_robots
+        self.base_model = cfg.base_model()
+        self.robot = self.base_model.robot
+        self.n_wheels = self.robot.n_wheels
+        self.world = World(self.base_model, n_robots=n_robots, dt=cfg.physics_dt,
+                           actuation=Actuation(kind=cfg.actuation),
+                           arena=Arena(cfg.arena_half_size, cfg.walls, cfg.obstacles))
+        self.W = self.robot.wheel_matrix()
+        self.twist_scale = np.array([cfg.max_speed, cfg.max_speed, cfg.max_yaw_rate])
+        corners = np.array([[sx, sy, sw] for sx in (-1, 1) for sy in (-1, 1) for sw in (-1, 1)]) * self.twist_scale
+        self.wheel_scale = float(np.abs(corners @ self.W.T).max())  # rad/s at wheel action ±1
+        self.action_dim = 3 if cfg.action_mode == "twist" else self.n_wheels
+        self.look = np.array([int(round(s * cfg.control_hz)) for s in LOOKAHEAD_SECONDS], dtype=np.int64)
+        self.n_samples = cfg.episode_steps + int(self.look.max()) + 1
+        self.ref_pose = np.zeros((n_robots, self.n_samples, 3))
+        self.ref_vel = np.zeros((n_robots, self.n_samples, 3))
+        self.step_count = np.zeros(n_robots, dtype=np.int64)
+        self.prev_action = np.zeros((n_robots, self.action_dim))
+        self.scales = np.array([cfg.max_speed, cfg.max_yaw_rate])
+        self.err = np.zeros((n_robots, 2))
+        self.true = np.zeros((n_robots, 6))
+        self.prev_true = np.zeros((n_robots, 6))
+        self.sensors: list[SensorSuite | None] = [None] * n_robots
+        self.sensor_config = cfg.sensor_config()
+        self.prev_encoders = np.zeros((n_robots, self.n_wheels))
+        self.last_fix = np.zeros((n_robots, 3))
+        self.fix_age = np.ones(n_robots)
+        self.state_dim = 9 + 3 * len(self.look) + self.action_dim
+        self.sensor_dim = self.n_wheels + 5 + 5 + 7 + 4 * len(self.look) + self.action_dim
+        self.obs_dim = self.state_dim if cfg.obs_mode == "state" else self.sensor_dim
+        self.obs = np.zeros((n_robots, self.obs_dim))
+        self._state_obs = np.zeros((n_robots, self.state_dim))
+        self.models = [self.base_model] * n_robots
+
+    # --- reset -------------------------------------------------------------------------------
+
+    def reset_robot(self, j: int, rng: np.random.Generator) -> None:
+        """New episode for robot j; every draw (model, path, contacts, sensors) comes from ``rng``."""
+        cfg = self.cfg
+        model, lift_rate = randomized_model(cfg, self.base_model, rng)
+        if model is not self.models[j]:
+            self.world.set_model(j, model)
+            self.models[j] = model
+        pose, vel = draw_reference(cfg, rng, self.n_samples)
+        self.ref_pose[j] = pose
+        self.ref_vel[j] = vel
+        contact_seed, sensor_seed = rng.integers(0, 2**63 - 1, size=2)
+        if lift_rate > 0:
+            proc = ContactProcess(self.n_wheels, lift_rate, cfg.recover_rate, np.random.default_rng(contact_seed))
+            self.world.set_contact_process(j, proc)
+        elif self.world.contact_processes[j] is not None:
+            self.world.set_contact_process(j, None)
+        self.world.reset(poses=pose[0:1], robots=[j])
+        self.step_count[j] = 0
+        self.prev_action[j] = 0.0
+        if cfg.obs_mode == "sensors":
+            suite = SensorSuite(self.n_wheels, np.random.default_rng(sensor_seed), self.sensor_config)
+            self.sensors[j] = suite
+            self.prev_encoders[j] = suite.encoders.measure(self.world.wheel_angle[j])
+            self.last_fix[j] = 0.0
+            self.fix_age[j] = 1.0
+
+    # --- stepping ----------------------------------------------------------------------------
+
+    def check_actions(self, actions: np.ndarray) -> np.ndarray:
+        """Actions as a float (B, action_dim) array, clipped to [−1, 1]; NaN or inf is an error."""
+        a = np.asarray(actions, dtype=np.float64).reshape(self.B, self.action_dim)
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action contains NaN or infinity: {np.asarray(actions).tolist()}")
+        return np.clip(a, -1.0, 1.0)
+
+    def wheel_commands(self, a: np.ndarray) -> np.ndarray:
+        """Clipped actions → wheel speed commands [rad/s], (B, n)."""
+        if self.cfg.action_mode == "twist":
+            return (a * self.twist_scale) @ self.W.T
+        return a * self.wheel_scale
+
+    def advance(self, a: np.ndarray) -> None:
+        """Apply clipped actions ``a`` for one control period (all robots step together)."""
+        self.world.set_commands(self.wheel_commands(a))
+        self.prev_true[:] = self.true
+        self.world.substeps(self.cfg.substeps)
+        self.step_count += 1
+        self.prev_action[:] = a
+        self._effort = np.mean(a * a, axis=1)
+
+    def observe(self) -> None:
+        """Fill ``obs``, ``err`` and ``true`` for every robot from the current world state.
+
+        Call exactly once per robot per reset or step: sensor readings draw noise.
+        """
+        world = self.world
+        world._read_state()
+        observe_state(world._state_view, world.origins, world.sp, self.ref_pose, self.ref_vel, self.step_count,
+                      self.look, self.prev_action, self.scales, self._state_obs, self.err, self.true)
+        if self.cfg.obs_mode == "state":
+            self.obs[:] = self._state_obs
+        else:
+            for j in range(self.B):
+                self._observe_sensors(j)
+
+    def _observe_sensors(self, j: int) -> None:
+        cfg = self.cfg
+        dt = cfg.control_dt
+        suite = self.sensors[j]
+        t = self.step_count[j] * dt
+        true = self.true[j]
+        theta = true[2]
+        c, s = math.cos(theta), math.sin(theta)
+        acc_w = (true[3:5] - self.prev_true[j, 3:5]) / dt if self.step_count[j] > 0 else np.zeros(2)
+        acc_b = np.array([c * acc_w[0] + s * acc_w[1], -s * acc_w[0] + c * acc_w[1]])
+        r = suite.measure(t, dt, self.world.wheel_angle[j], true[0:3], true[5], acc_b)
+        enc_rate = (r.wheel_angles - self.prev_encoders[j]) / dt
+        self.prev_encoders[j] = r.wheel_angles
+        if r.camera is not None:
+            self.last_fix[j] = r.camera
+            self.fix_age[j] = 0.0
+        elif self.step_count[j] > 0:
+            self.fix_age[j] = min(self.fix_age[j] + dt, 1.0)
+        h = cfg.arena_half_size
+        k = self.step_count[j]
+        ref = self.ref_pose[j]
+        parts = [
+            enc_rate / self.wheel_scale,
+            [r.gyro / cfg.max_yaw_rate, math.sin(r.compass), math.cos(r.compass)],
+            r.accel / ACC_SCALE,
+            [self.last_fix[j, 0] / h, self.last_fix[j, 1] / h, math.sin(self.last_fix[j, 2]),
+             math.cos(self.last_fix[j, 2]), self.fix_age[j]],
+            [ref[k, 0] / h, ref[k, 1] / h, math.sin(ref[k, 2]), math.cos(ref[k, 2]),
+             self.ref_vel[j, k, 0] / cfg.max_speed, self.ref_vel[j, k, 1] / cfg.max_speed,
+             self.ref_vel[j, k, 2] / cfg.max_yaw_rate],
+        ]
+        for look in self.look:
+            p = ref[k + look]
+            parts.append([p[0] / h, p[1] / h, math.sin(p[2]), math.cos(p[2])])
+        parts.append(self.prev_action[j])
+        self.obs[j] = np.clip(np.concatenate([np.asarray(p, dtype=float) for p in parts]), -OBS_CLIP, OBS_CLIP)
+
+    def rewards(self) -> np.ndarray:
+        """Per-robot reward for the last control period (see the module constants)."""
+        e_pos, e_head = self.err[:, 0], self.err[:, 1]
+        return W_POS * np.exp(-e_pos / E_POS) + W_HEAD * np.exp(-np.abs(e_head) / E_HEAD) - W_EFFORT * self._effort
+
+    def terminated(self) -> np.ndarray:
+        return (self.err[:, 0] > self.cfg.lost_distance) | self.world.collided
+
+    def truncated(self) -> np.ndarray:
+        return self.step_count >= self.cfg.episode_steps
+
+    def infos(self) -> dict[str, np.ndarray]:
+        """Ground truth for every robot (never part of the observation), as arrays over robots."""
+        k = self.step_count
+        err = self.err
+        return {
+            "pose": self.true[:, 0:3].copy(),
+            "velocity": self.true[:, 3:6].copy(),
+            "reference_pose": self.ref_pose[np.arange(self.B), k],
+            "tracking_error": err[:, 0].copy(),
+            "heading_error": err[:, 1].copy(),
+            "slip": self.world.slip.copy(),
+            "contact": self.world.contact.copy(),
+            "collided": self.world.collided.copy(),
+            "is_success": (err[:, 0] <= self.cfg.success_distance) & (np.abs(err[:, 1]) <= self.cfg.success_heading),
+        }
+
+    def info(self, j: int) -> dict:
+        """:meth:`infos` of robot j, with plain Python scalars."""
+        out = {}
+        for key, value in self.infos().items():
+            v = value[j]
+            out[key] = v.item() if np.ndim(v) == 0 else v
+        return out

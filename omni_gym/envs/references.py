@@ -1,0 +1,108 @@
+"""Reference trajectories of the environments, drawn at reset and sampled once into tables.
+
+Every family starts at rest at the robot's start pose (the reference pose at t = 0) and is sampled
+at the control rate over the episode plus the longest look-ahead, so that observations only index
+tables (cheap and identical for single and vectorised environments).
+
+| family | path | speed |
+|---|---|---|
+| ``waypoints`` | rest-to-rest quintics through random waypoints in the arena | peak ≈ 1.9·ref_speed per segment |
+| ``circle`` | circle of random radius through the start, random direction | ref_speed after a 1 s smooth ramp |
+| ``figure_eight`` | lemniscate of Gerono of random size through the start | ≈ ref_speed after a 1 s ramp |
+| ``line`` | the paper's straight line at constant heading, quintic time scaling | mean ref_speed |
+| ``goto`` | one quintic to a random goal pose (Phunopas & Inoue 2018), then hold | mean ≈ ref_speed |
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from omni_gym.envs.config import EnvConfig
+from omni_gym.trajectories import Circle, FigureEight, Quintic, QuinticWaypoints, StraightLine, Trajectory
+
+RAMP_SECONDS = 1.0  # s, smooth start of the periodic paths
+SETTLE_SECONDS = 1.0  # s at the end of line and goto references, holding the goal
+
+
+def _ramp(t: np.ndarray, ramp: float) -> tuple[np.ndarray, np.ndarray]:
+    """Time warp τ(t) with τ'(0) = 0 rising smoothly (quintic blend) to τ' = 1 at t = ramp."""
+    u = np.clip(t / ramp, 0.0, 1.0)
+    tau_rate = u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
+    tau = np.where(t < ramp, ramp * u**4 * (2.5 - 3.0 * u + u**2), ramp / 2.0 + (t - ramp))
+    return tau, tau_rate
+
+
+def _sample(traj: Trajectory, t: np.ndarray, ramp: float | None) -> tuple[np.ndarray, np.ndarray]:
+    if ramp is None:
+        pose, vel, _ = traj.sample(t)
+        return pose, vel
+    tau, rate = _ramp(t, ramp)
+    pose, vel, _ = traj.sample(tau)
+    return pose, vel * rate[:, None]
+
+
+def _lemniscate_length(half_width: float) -> float:
+    phi = np.linspace(0.0, 2.0 * math.pi, 4001)
+    x, y = half_width * np.sin(phi), half_width / 2.0 * np.sin(2.0 * phi)
+    return float(np.sum(np.hypot(np.diff(x), np.diff(y))))
+
+
+def draw_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
+    """(poses (n_samples, 3), world velocities (n_samples, 3)) at t = k / control_hz.
+
+    All random draws come from ``rng``, in a fixed order per family.
+    """
+    t = np.arange(n_samples) / cfg.control_hz
+    T = cfg.episode_seconds
+    h = cfg.arena_half_size
+    fam = cfg.trajectory
+    ramp = None
+    if fam == "waypoints":
+        start = np.array([0.0, 0.0, 0.0])
+        pts = [start]
+        # Waypoints at 0.4–0.9 of the arena half size from each other, inside the arena's inner 70 %.
+        while True:
+            prev = pts[-1]
+            for _ in range(100):
+                ang = rng.uniform(-math.pi, math.pi)
+                dist = rng.uniform(0.4, 0.9) * h
+                xy = prev[:2] + dist * np.array([math.cos(ang), math.sin(ang)])
+                if np.all(np.abs(xy) <= 0.7 * h):
+                    break
+            xy = np.clip(xy, -0.7 * h, 0.7 * h)
+            heading = prev[2] + rng.uniform(-math.pi / 2, math.pi / 2)
+            pts.append(np.array([xy[0], xy[1], heading]))
+            traj = QuinticWaypoints(np.array(pts), speed=1.875 * cfg.ref_speed, yaw_rate=1.0)
+            if traj.duration >= T or len(pts) > 50:
+                break
+    elif fam == "circle":
+        radius = rng.uniform(0.4, 0.8) * h
+        clockwise = bool(rng.integers(2))
+        period = 2.0 * math.pi * radius / cfg.ref_speed
+        # Start at the origin with the tangent heading 0: centre to the left (ccw) or right (cw).
+        center = (0.0, -radius) if clockwise else (0.0, radius)
+        phase = math.pi / 2 if clockwise else -math.pi / 2
+        traj = Circle(center, radius, period, phase=phase, clockwise=clockwise, heading="tangent",
+                      laps=T / period + 1)
+        ramp = RAMP_SECONDS
+    elif fam == "figure_eight":
+        a = rng.uniform(0.5, 0.8) * h
+        period = _lemniscate_length(a) / cfg.ref_speed
+        traj = FigureEight((0.0, 0.0), a, period, clockwise=bool(rng.integers(2)), heading="tangent",
+                           laps=T / period + 1)
+        ramp = RAMP_SECONDS
+    elif fam == "line":
+        motion = max(T - SETTLE_SECONDS, 0.5)
+        ang = rng.uniform(-math.pi, math.pi)
+        dist = min(cfg.ref_speed * motion, 1.6 * h)
+        goal = (dist * math.cos(ang), dist * math.sin(ang))
+        traj = StraightLine((0.0, 0.0), goal, motion, heading=0.0)
+    else:  # goto
+        motion = max(T - SETTLE_SECONDS, 0.5)
+        ang = rng.uniform(-math.pi, math.pi)
+        dist = min(cfg.ref_speed * motion, 0.8 * h) * rng.uniform(0.6, 1.0)
+        goal = (dist * math.cos(ang), dist * math.sin(ang), rng.uniform(-math.pi / 2, math.pi / 2))
+        traj = Quintic((0.0, 0.0, 0.0), goal, motion)
+    return _sample(traj, t, ramp)

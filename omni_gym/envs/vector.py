@@ -1,0 +1,93 @@
+"""Native vectorised environment: N robots in one pymunk space, wheel forces computed for all at once.
+
+Reached through ``gym.make_vec(ID, num_envs=N, vectorization_mode="vector_entry_point")``. Follows
+Gymnasium 1.x's default autoreset mode (``NEXT_STEP``): the step after an episode ends resets that
+sub-environment, ignores its action and returns its first observation with reward 0 and both flags
+False. ``reset(seed=s)`` seeds sub-environment i with s + i, so the vector reproduces N single
+environments reset with seeds s, s + 1, …, bit for bit.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from omni_gym.envs.config import make_config
+from omni_gym.envs.core import OBS_CLIP, TaskCore
+
+
+class OmniPathVectorEnv(VectorEnv):
+    """``num_envs`` copies of :class:`~omni_gym.envs.omni_env.OmniPathEnv` stepped together."""
+
+    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, render_mode: str | None = None,
+                 **kwargs: Any) -> None:
+        if int(num_envs) != num_envs or num_envs < 1:
+            raise ValueError(f"invalid num_envs={num_envs!r}; must be a positive integer")
+        if render_mode is not None:
+            raise ValueError(f"invalid render_mode={render_mode!r} for the vectorised environment; allowed: None "
+                             "(render a single environment instead)")
+        self.cfg = make_config(**kwargs)
+        self.num_envs = int(num_envs)
+        self.core = TaskCore(self.cfg, self.num_envs)
+        steps = self.cfg.episode_steps
+        self.max_episode_steps = steps if max_episode_steps is None else min(int(max_episode_steps), steps)
+        self.single_observation_space = spaces.Box(-OBS_CLIP, OBS_CLIP, shape=(self.core.obs_dim,), dtype=np.float32)
+        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(self.core.action_dim,), dtype=np.float32)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.render_mode = None
+        self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]
+        self._autoreset = np.zeros(self.num_envs, dtype=bool)
+        self._started = False
+
+    def reset(self, *, seed: int | list[int | None] | None = None,
+              options: dict | None = None) -> tuple[np.ndarray, dict]:
+        if seed is None:
+            seeds: list[int | None] = [None] * self.num_envs
+        elif isinstance(seed, int):
+            seeds = [seed + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"reset: got {len(seeds)} seeds for {self.num_envs} environments")
+        for i, s in enumerate(seeds):
+            if s is not None:
+                self._rngs[i] = seeding.np_random(s)[0]
+            self.core.reset_robot(i, self._rngs[i])
+        self.core.observe()
+        self._autoreset[:] = False
+        self._started = True
+        return self.core.obs.astype(np.float32), self._infos()
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        core = self.core
+        a = core.check_actions(actions)
+        core.advance(a)
+        restart = np.flatnonzero(self._autoreset)
+        for i in restart:
+            core.reset_robot(i, self._rngs[i])  # replaces whatever the shared step did to it
+        core.observe()
+        rewards = core.rewards()
+        terminated = core.terminated()
+        truncated = (core.step_count >= self.max_episode_steps) & ~terminated
+        if restart.size:
+            rewards[restart] = 0.0
+            terminated[restart] = False
+            truncated[restart] = False
+        self._autoreset = terminated | truncated
+        return core.obs.astype(np.float32), rewards, terminated, truncated, self._infos()
+
+    def _infos(self) -> dict:
+        infos: dict[str, Any] = self.core.infos()
+        for key in list(infos):
+            infos["_" + key] = np.ones(self.num_envs, dtype=bool)
+        return infos
