@@ -49,6 +49,9 @@ from omni_gym.model import (
 )
 
 TWO_OVER_PI = 2.0 / math.pi
+# Layout of the per-wheel state rows.
+WH_ANGLE, WH_SPEED, WH_CMD, WH_INT, WH_LOAD = range(5)
+N_WH = 5
 
 
 @numba.njit(cache=True, inline="always")
@@ -94,154 +97,158 @@ def gap_fraction(theta0, theta1, pitch, gap):
     return (gap_measure(theta1, pitch, gap) - gap_measure(theta0, pitch, gap)) / d
 
 
+@numba.njit(cache=True, inline="always")
+def _robot_substep(b, dt, state, wheels, sp, wp, ext, out_force, out_slip):
+    """One robot's part of :func:`substep` (shared by the serial and the parallel loop)."""
+    n_wheels = wheels.shape[1]
+    c = math.cos(state[b, 2])
+    s = math.sin(state[b, 2])
+    vx = state[b, 3]
+    vy = state[b, 4]
+    om = state[b, 5]
+    cx = sp[b, SP_CX]
+    cy = sp[b, SP_CY]
+    k = sp[b, SP_K]
+    kin = sp[b, SP_KIN_RATIO]
+    v_s = sp[b, SP_VS]
+    pitch = sp[b, SP_PITCH]
+    gap = sp[b, SP_GAP]
+    tau = sp[b, SP_TAU]
+    servo = sp[b, SP_MODE] == 1.0
+    q0 = ext[b, 0]
+    q1 = ext[b, 1]
+    q2 = ext[b, 2]
+    a00 = 0.0
+    a01 = 0.0
+    a02 = 0.0
+    a11 = 0.0
+    a12 = 0.0
+    a22 = 0.0
+    for i in range(n_wheels):
+        # Geometry in the world frame: lever arm from the centre of mass, drive and axle.
+        rx0 = wp[b, i, WP_PX] - cx
+        ry0 = wp[b, i, WP_PY] - cy
+        rho_x = c * rx0 - s * ry0
+        rho_y = s * rx0 + c * ry0
+        dx = c * wp[b, i, WP_DX] - s * wp[b, i, WP_DY]
+        dy = s * wp[b, i, WP_DX] + c * wp[b, i, WP_DY]
+        ax = -dy
+        ay = dx
+        ux = vx - om * rho_y
+        uy = vy + om * rho_x
+        r = wp[b, i, WP_R]
+        load = wheels[b, i, WH_LOAD]
+        phase = wp[b, i, WP_PHASE]
+        w0 = wheels[b, i, WH_SPEED]
+        cmd = wheels[b, i, WH_CMD]
+        th0 = wheels[b, i, WH_ANGLE]
+        # 1) Actuation: wheel speed at the end of the substep and the angle turned.
+        if servo:
+            f0 = gap_fraction(th0 + phase, th0 + phase + w0 * dt, pitch, gap)
+            mu_w_max = (1.0 - f0) * wp[b, i, WP_MUW] + f0 * wp[b, i, WP_GAPW]
+            mu, dmu = friction_coefficient(ux * dx + uy * dy - r * w0, mu_w_max, k, kin, v_s)
+            f_drive = -load * mu  # force on the robot along the drive direction
+            err = cmd - w0
+            torque = sp[b, SP_KP] * err + sp[b, SP_KI] * wheels[b, i, WH_INT]
+            kp_eff = sp[b, SP_KP]
+            tmax = sp[b, SP_TMAX]
+            if torque > tmax:
+                torque = tmax
+                kp_eff = 0.0
+            elif torque < -tmax:
+                torque = -tmax
+                kp_eff = 0.0
+            else:
+                wheels[b, i, WH_INT] += err * dt  # anti-windup: integrate only when unsaturated
+            # Wheel: J dw/dt = torque − r·f_drive, with the friction and P terms taken implicitly
+            # (the wheel mode is far stiffer than the body's).
+            jw = sp[b, SP_JW]
+            dw = dt * (torque - r * f_drive) / (jw + dt * (r * r * load * dmu + kp_eff))
+            w1 = w0 + dw
+            dth = 0.5 * (w0 + w1) * dt
+        elif tau > 0.0:
+            e = math.exp(-dt / tau)
+            w1 = cmd + (w0 - cmd) * e
+            dth = cmd * dt + (w0 - cmd) * tau * (1.0 - e)
+        else:
+            w1 = cmd
+            dth = cmd * dt
+        th1 = th0 + dth
+        wheels[b, i, WH_SPEED] = w1
+        wheels[b, i, WH_ANGLE] = th1
+        # 2) Rigid-material share of this substep, 3) coefficients and slip.
+        f = gap_fraction(th0 + phase, th1 + phase, pitch, gap)
+        mu_w_max = (1.0 - f) * wp[b, i, WP_MUW] + f * wp[b, i, WP_GAPW]
+        mu_t_max = (1.0 - f) * wp[b, i, WP_MUT] + f * wp[b, i, WP_GAPT]
+        v_w = ux * dx + uy * dy - r * w1
+        v_t = ux * ax + uy * ay
+        out_slip[b, i, 0] = v_w
+        out_slip[b, i, 1] = v_t
+        if load <= 0.0:
+            continue
+        mu_w, dmu_w = friction_coefficient(v_w, mu_w_max, k, kin, v_s)
+        mu_t, dmu_t = friction_coefficient(v_t, mu_t_max, k, kin, v_s)
+        fx = -load * (mu_w * dx + mu_t * ax)
+        fy = -load * (mu_w * dy + mu_t * ay)
+        q0 += fx
+        q1 += fy
+        q2 += rho_x * fy - rho_y * fx
+        # 4) A = Σ Gᵀ K G with K = N(μ'_W d dᵀ + μ'_T a aᵀ) and G = [[1, 0, −ρ_y], [0, 1, ρ_x]].
+        kw = load * dmu_w
+        kt = load * dmu_t
+        k11 = kw * dx * dx + kt * ax * ax
+        k12 = kw * dx * dy + kt * ax * ay
+        k22 = kw * dy * dy + kt * ay * ay
+        a00 += k11
+        a01 += k12
+        a11 += k22
+        a02 += -k11 * rho_y + k12 * rho_x
+        a12 += -k12 * rho_y + k22 * rho_x
+        a22 += k11 * rho_y * rho_y - 2.0 * k12 * rho_x * rho_y + k22 * rho_x * rho_x
+    m = sp[b, SP_MASS]
+    inertia = sp[b, SP_INERTIA]
+    # Solve (M + dt A) Δq = dt Q by the symmetric 3×3 adjugate.
+    m00 = m + dt * a00
+    m01 = dt * a01
+    m02 = dt * a02
+    m11 = m + dt * a11
+    m12 = dt * a12
+    m22 = inertia + dt * a22
+    c00 = m11 * m22 - m12 * m12
+    c01 = m02 * m12 - m01 * m22
+    c02 = m01 * m12 - m02 * m11
+    c11 = m00 * m22 - m02 * m02
+    c12 = m01 * m02 - m00 * m12
+    c22 = m00 * m11 - m01 * m01
+    det = m00 * c00 + m01 * c01 + m02 * c02
+    r0 = dt * q0
+    r1 = dt * q1
+    r2 = dt * q2
+    dv0 = (c00 * r0 + c01 * r1 + c02 * r2) / det
+    dv1 = (c01 * r0 + c11 * r1 + c12 * r2) / det
+    dv2 = (c02 * r0 + c12 * r1 + c22 * r2) / det
+    out_force[b, 0] = m * dv0 / dt
+    out_force[b, 1] = m * dv1 / dt
+    out_force[b, 2] = inertia * dv2 / dt
+
+
 @numba.njit(cache=True)
-def substep(dt, pose, vel, wheel_angle, wheel_speed, wheel_cmd, servo_int, loads, sp, wp, ext,
-            out_force, out_slip):
+def substep(dt, state, wheels, sp, wp, ext, out_force, out_slip):
     """Advance wheel states by dt [s] and write the effective force for one pymunk step.
 
-    Arrays (B robots, n wheels):
-        pose (B, 3): x, y [m] of the geometric centre and heading θ [rad], world frame.
-        vel (B, 3): centre-of-mass velocity V_x, V_y [m/s] (world) and yaw rate ω [rad/s].
-        wheel_angle, wheel_speed (B, n): integrated wheel angle [rad] and speed [rad/s]; updated.
-        wheel_cmd (B, n): commanded wheel speed [rad/s].
-        servo_int (B, n): PI integrator state [rad] (servo actuation only); updated.
-        loads (B, n): normal loads N_i [N]; zero for lifted wheels.
+    Arrays (B robots, n wheels); few arguments on purpose, as each costs dispatch time:
+        state (B, 6): body x, y [m] (world), heading θ [rad], centre-of-mass velocity V_x, V_y [m/s]
+            (world) and yaw rate ω [rad/s], as pymunk's batch API lays them out.
+        wheels (B, n, 5): per wheel the integrated angle [rad] and speed [rad/s] (both updated), the
+            commanded speed [rad/s], the PI integrator state [rad] (servo only; updated) and the
+            normal load N_i [N] (zero for a lifted wheel); layout WH_* below.
         sp (B, N_SP), wp (B, n, N_WP): parameters, layouts in :mod:`omni_gym.model`.
         ext (B, 3): extra generalised force (F_x, F_y [N], torque [N·m] about the centre of mass).
         out_force (B, 3): effective F_x, F_y [N] at the centre of mass and torque [N·m]; written.
         out_slip (B, n, 2): drive slip v_W and transverse velocity v_T [m/s]; written.
     """
-    n_robots, n_wheels = wheel_angle.shape
-    for b in range(n_robots):
-        c = math.cos(pose[b, 2])
-        s = math.sin(pose[b, 2])
-        vx = vel[b, 0]
-        vy = vel[b, 1]
-        om = vel[b, 2]
-        cx = sp[b, SP_CX]
-        cy = sp[b, SP_CY]
-        k = sp[b, SP_K]
-        kin = sp[b, SP_KIN_RATIO]
-        v_s = sp[b, SP_VS]
-        pitch = sp[b, SP_PITCH]
-        gap = sp[b, SP_GAP]
-        tau = sp[b, SP_TAU]
-        servo = sp[b, SP_MODE] == 1.0
-        q0 = ext[b, 0]
-        q1 = ext[b, 1]
-        q2 = ext[b, 2]
-        a00 = 0.0
-        a01 = 0.0
-        a02 = 0.0
-        a11 = 0.0
-        a12 = 0.0
-        a22 = 0.0
-        for i in range(n_wheels):
-            # Geometry in the world frame: lever arm from the centre of mass, drive and axle.
-            rx0 = wp[b, i, WP_PX] - cx
-            ry0 = wp[b, i, WP_PY] - cy
-            rho_x = c * rx0 - s * ry0
-            rho_y = s * rx0 + c * ry0
-            dx = c * wp[b, i, WP_DX] - s * wp[b, i, WP_DY]
-            dy = s * wp[b, i, WP_DX] + c * wp[b, i, WP_DY]
-            ax = -dy
-            ay = dx
-            ux = vx - om * rho_y
-            uy = vy + om * rho_x
-            r = wp[b, i, WP_R]
-            load = loads[b, i]
-            phase = wp[b, i, WP_PHASE]
-            w0 = wheel_speed[b, i]
-            cmd = wheel_cmd[b, i]
-            th0 = wheel_angle[b, i]
-            # 1) Actuation: wheel speed at the end of the substep and the angle turned.
-            if servo:
-                f0 = gap_fraction(th0 + phase, th0 + phase + w0 * dt, pitch, gap)
-                mu_w_max = (1.0 - f0) * wp[b, i, WP_MUW] + f0 * wp[b, i, WP_GAPW]
-                mu, dmu = friction_coefficient(ux * dx + uy * dy - r * w0, mu_w_max, k, kin, v_s)
-                f_drive = -load * mu  # force on the robot along the drive direction
-                err = cmd - w0
-                torque = sp[b, SP_KP] * err + sp[b, SP_KI] * servo_int[b, i]
-                kp_eff = sp[b, SP_KP]
-                tmax = sp[b, SP_TMAX]
-                if torque > tmax:
-                    torque = tmax
-                    kp_eff = 0.0
-                elif torque < -tmax:
-                    torque = -tmax
-                    kp_eff = 0.0
-                else:
-                    servo_int[b, i] += err * dt  # anti-windup: integrate only when unsaturated
-                # Wheel: J dw/dt = torque − r·f_drive, with the friction and P terms taken implicitly
-                # (the wheel mode is far stiffer than the body's).
-                jw = sp[b, SP_JW]
-                dw = dt * (torque - r * f_drive) / (jw + dt * (r * r * load * dmu + kp_eff))
-                w1 = w0 + dw
-                dth = 0.5 * (w0 + w1) * dt
-            elif tau > 0.0:
-                e = math.exp(-dt / tau)
-                w1 = cmd + (w0 - cmd) * e
-                dth = cmd * dt + (w0 - cmd) * tau * (1.0 - e)
-            else:
-                w1 = cmd
-                dth = cmd * dt
-            th1 = th0 + dth
-            wheel_speed[b, i] = w1
-            wheel_angle[b, i] = th1
-            # 2) Rigid-material share of this substep, 3) coefficients and slip.
-            f = gap_fraction(th0 + phase, th1 + phase, pitch, gap)
-            mu_w_max = (1.0 - f) * wp[b, i, WP_MUW] + f * wp[b, i, WP_GAPW]
-            mu_t_max = (1.0 - f) * wp[b, i, WP_MUT] + f * wp[b, i, WP_GAPT]
-            v_w = ux * dx + uy * dy - r * w1
-            v_t = ux * ax + uy * ay
-            out_slip[b, i, 0] = v_w
-            out_slip[b, i, 1] = v_t
-            if load <= 0.0:
-                continue
-            mu_w, dmu_w = friction_coefficient(v_w, mu_w_max, k, kin, v_s)
-            mu_t, dmu_t = friction_coefficient(v_t, mu_t_max, k, kin, v_s)
-            fx = -load * (mu_w * dx + mu_t * ax)
-            fy = -load * (mu_w * dy + mu_t * ay)
-            q0 += fx
-            q1 += fy
-            q2 += rho_x * fy - rho_y * fx
-            # 4) A = Σ Gᵀ K G with K = N(μ'_W d dᵀ + μ'_T a aᵀ) and G = [[1, 0, −ρ_y], [0, 1, ρ_x]].
-            kw = load * dmu_w
-            kt = load * dmu_t
-            k11 = kw * dx * dx + kt * ax * ax
-            k12 = kw * dx * dy + kt * ax * ay
-            k22 = kw * dy * dy + kt * ay * ay
-            a00 += k11
-            a01 += k12
-            a11 += k22
-            a02 += -k11 * rho_y + k12 * rho_x
-            a12 += -k12 * rho_y + k22 * rho_x
-            a22 += k11 * rho_y * rho_y - 2.0 * k12 * rho_x * rho_y + k22 * rho_x * rho_x
-        m = sp[b, SP_MASS]
-        inertia = sp[b, SP_INERTIA]
-        # Solve (M + dt A) Δq = dt Q by the symmetric 3×3 adjugate.
-        m00 = m + dt * a00
-        m01 = dt * a01
-        m02 = dt * a02
-        m11 = m + dt * a11
-        m12 = dt * a12
-        m22 = inertia + dt * a22
-        c00 = m11 * m22 - m12 * m12
-        c01 = m02 * m12 - m01 * m22
-        c02 = m01 * m12 - m02 * m11
-        c11 = m00 * m22 - m02 * m02
-        c12 = m01 * m02 - m00 * m12
-        c22 = m00 * m11 - m01 * m01
-        det = m00 * c00 + m01 * c01 + m02 * c02
-        r0 = dt * q0
-        r1 = dt * q1
-        r2 = dt * q2
-        dv0 = (c00 * r0 + c01 * r1 + c02 * r2) / det
-        dv1 = (c01 * r0 + c11 * r1 + c12 * r2) / det
-        dv2 = (c02 * r0 + c12 * r1 + c22 * r2) / det
-        out_force[b, 0] = m * dv0 / dt
-        out_force[b, 1] = m * dv1 / dt
-        out_force[b, 2] = inertia * dv2 / dt
+    for b in range(wheels.shape[0]):
+        _robot_substep(b, dt, state, wheels, sp, wp, ext, out_force, out_slip)
 
 
 def warm_up() -> None:
@@ -252,5 +259,5 @@ def warm_up() -> None:
     sp = z((1, N_SP))
     sp[0, SP_MASS] = sp[0, SP_INERTIA] = sp[0, SP_K] = sp[0, SP_KIN_RATIO] = sp[0, SP_VS] = 1.0
     sp[0, SP_PITCH] = 1.0
-    substep(1e-3, z((1, 3)), z((1, 3)), z((1, 3)), z((1, 3)), z((1, 3)), z((1, 3)), z((1, 3)), sp,
-            z((1, 3, N_WP)), z((1, 3)), z((1, 3)), z((1, 3, 2)))
+    substep(1e-3, z((1, 6)), z((1, 3, N_WH)), sp, z((1, 3, N_WP)), z((1, 3)), z((1, 3)), z((1, 3, 2)))
+

@@ -202,6 +202,9 @@ class QuinticWaypoints(Trajectory):
         self.segments = self._build_segments(wp, durations, shortest_turn)
         self.start_times = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
         self.duration = float(np.sum(durations))
+        self._coefficients = np.array([seg.coefficients for seg in self.segments])  # (segments, 3, 6)
+        self._durations = np.array([seg.duration for seg in self.segments])
+        self._goals = np.array([seg.goal_pose for seg in self.segments])
 
     @staticmethod
     def _durations_from_speed(wp: np.ndarray, speed: float, yaw_rate: float,
@@ -227,16 +230,24 @@ class QuinticWaypoints(Trajectory):
         return tuple(segments)
 
     def sample(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Pose, velocity, acceleration at ``t`` [s], each shape np.shape(t) + (3,)."""
+        """Pose, velocity, acceleration at ``t`` [s], each shape np.shape(t) + (3,).
+
+        Each time is evaluated on its own segment's polynomial, gathered in one vectorised pass
+        (the same formulas as :meth:`Quintic.sample`; environments sample thousands of times per reset).
+        """
         t = _times(t)
         index = np.searchsorted(self.start_times[1:], t, side="right")
-        out = [np.empty(t.shape + (3,)) for _ in range(3)]
-        for k, seg in enumerate(self.segments):
-            mask = index == k
-            if np.any(mask):
-                for o, part in zip(out, seg.sample(t[mask] - self.start_times[k]), strict=True):
-                    o[mask] = part
-        return out[0], out[1], out[2]
+        local = (t - self.start_times[index])[..., None]
+        duration = self._durations[index][..., None]
+        coef = self._coefficients[index]
+        tc = np.clip(local, 0.0, duration)
+        A, B, C, D, E, F = (coef[..., k] for k in range(6))
+        pose = ((((A * tc + B) * tc + C) * tc + D) * tc + E) * tc + F
+        vel = (((5 * A * tc + 4 * B) * tc + 3 * C) * tc + 2 * D) * tc + E
+        acc = ((20 * A * tc + 12 * B) * tc + 6 * C) * tc + 2 * D
+        inside = (local > 0.0) & (local < duration)
+        pose = np.where(local >= duration, self._goals[index], pose)
+        return pose, np.where(inside, vel, 0.0), np.where(inside, acc, 0.0)
 
 
 # --- step velocity (Williams et al. 2002) -------------------------------------------------------

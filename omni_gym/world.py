@@ -24,7 +24,16 @@ import numpy as np
 import pymunk
 from pymunk import batch as pmbatch
 
-from omni_gym.kernel import substep, warm_up
+from omni_gym.kernel import (
+    N_WH,
+    WH_ANGLE,
+    WH_CMD,
+    WH_INT,
+    WH_LOAD,
+    WH_SPEED,
+    substep,
+    warm_up,
+)
 from omni_gym.liftoff import ContactProcess
 from omni_gym.loads import wheel_loads
 from omni_gym.model import N_SP, N_WP, SP_INERTIA, SP_MASS, Actuation, SimModel
@@ -98,11 +107,13 @@ class World:
         # State and parameter arrays (robot-major, contiguous: the kernel reads them directly).
         self.sp = np.zeros((B, N_SP))
         self.wp = np.zeros((B, n, N_WP))
-        self.wheel_angle = np.zeros((B, n))
-        self.wheel_speed = np.zeros((B, n))
-        self.wheel_cmd = np.zeros((B, n))
-        self.servo_int = np.zeros((B, n))
-        self.loads = np.zeros((B, n))
+        # Wheel state packed in one array the kernel reads; the named attributes are views of it.
+        self.wheels = np.zeros((B, n, N_WH))
+        self.wheel_angle = self.wheels[:, :, WH_ANGLE]  # rad
+        self.wheel_speed = self.wheels[:, :, WH_SPEED]  # rad/s
+        self.wheel_cmd = self.wheels[:, :, WH_CMD]  # rad/s
+        self.servo_int = self.wheels[:, :, WH_INT]  # rad
+        self.loads = self.wheels[:, :, WH_LOAD]  # N
         self.contact = np.ones((B, n), dtype=bool)
         self.ext_force = np.zeros((B, 3))
         self.force = np.zeros((B, 3))
@@ -119,7 +130,7 @@ class World:
 
     # --- pickling: rebuild the space, then restore every state variable exactly ------------------
 
-    _STATE_ARRAYS = ("wheel_angle", "wheel_speed", "wheel_cmd", "servo_int", "loads", "contact", "ext_force",
+    _STATE_ARRAYS = ("wheels", "contact", "ext_force",
                      "force", "slip", "collided", "start_tick", "_switch_tick", "sp", "wp")
 
     def __getstate__(self) -> dict:
@@ -154,17 +165,21 @@ class World:
         self.space = space = pymunk.Space()
         space.iterations = 10
         self.bodies: list[pymunk.Body] = []
+        # Robots only get collision shapes when there is something to hit: each robot is alone in its
+        # arena, and shapes without partners would only cost broad-phase time (2.5x the step at B = 1024).
+        self._has_obstacles = self.arena.walls or bool(self.arena.obstacles)
         for j, m in enumerate(models):
             body = pymunk.Body(m.robot.mass, m.robot.inertia)
             body.position = tuple(self.origins[j])
-            shape = pymunk.Circle(body, m.robot.body_radius)
-            shape.collision_type = ROBOT_COLLISION
-            shape.friction = 0.3
-            shape.elasticity = 0.0
-            space.add(body, shape)
+            space.add(body)
+            if self._has_obstacles:
+                shape = pymunk.Circle(body, m.robot.body_radius)
+                shape.collision_type = ROBOT_COLLISION
+                shape.friction = 0.3
+                shape.elasticity = 0.0
+                space.add(shape)
             self.bodies.append(body)
             self._add_arena(j)
-        self._has_obstacles = self.arena.walls or bool(self.arena.obstacles)
         if self._has_obstacles:
             index = {b: j for j, b in enumerate(self.bodies)}
 
@@ -380,26 +395,26 @@ class World:
         """Run ``count`` physics substeps of ``dt``."""
         dt = self.dt
         space = self.space
+        space.step(0.0)  # lets pymunk check newly added bodies; later substeps call the C step directly
         cspace = space._space
         each_body = pmbatch.lib.cpSpaceEachBody
+        space_step = pmbatch.lib.cpSpaceStep
         get_arr, get_int = self._get_buf._float_arr, self._get_buf._int_arr
         set_arr = self._set_buf._float_arr
         get_iter, get_req = self._get_iter, self._get_req
         set_iter, set_req = self._set_iter, self._set_req
         n_set = set_arr.num
         state = self._state_view
-        pose, vel = state[:, 0:3], state[:, 3:6]
-        args = (self.wheel_angle, self.wheel_speed, self.wheel_cmd, self.servo_int, self.loads, self.sp, self.wp,
-                self.ext_force, self._force_view, self.slip)
+        wheels, sp, wp, ext, force, slip = self.wheels, self.sp, self.wp, self.ext_force, self._force_view, self.slip
         for _ in range(count):
             if self.tick >= self._next_switch_tick:
                 self._advance_contacts(self.tick)
             get_arr.num = 0
             get_int.num = 0
             each_body(cspace, get_iter, get_req)
-            substep(dt, pose, vel, *args)
+            substep(dt, state, wheels, sp, wp, ext, force, slip)
             set_arr.num = 0
             each_body(cspace, set_iter, set_req)
             set_arr.num = n_set
-            space.step(dt)
+            space_step(cspace, dt)
             self.tick += 1

@@ -171,3 +171,19 @@ def test_robot_reset_mid_run_replays_a_lone_robot_exactly_with_lift_off():
         batch_traj.append(np.concatenate([batch.pose[1], batch.contact[1]]))
     np.testing.assert_array_equal(np.array(batch_traj), np.array(lone_traj))
     assert len({tuple(r[3:]) for r in lone_traj}) > 1  # the contact process did switch meanwhile
+
+
+
+def test_large_batch_matches_lone_robots_bit_for_bit():
+    model = load_model("phunopas2018", "carpet", "roller_gap")
+    rng = np.random.default_rng(4)
+    twists = rng.uniform(-1, 1, size=(64, 3)) * [0.3, 0.3, 1.5]
+    batch = World(model, n_robots=64)
+    batch.set_commands(np.array([model.robot.wheel_matrix() @ tw for tw in twists]))  # same arithmetic as alone
+    batch.step(0.2)
+    for j in (0, 17, 63):
+        lone = World(model)
+        lone.set_commands(model.robot.wheel_matrix() @ twists[j])
+        lone.step(0.2)
+        np.testing.assert_array_equal(batch.pose[j], lone.pose[0])
+        np.testing.assert_array_equal(batch.wheel_angle[j], lone.wheel_angle[0])

@@ -23,6 +23,7 @@ import numpy as np
 
 from omni_gym.envs.config import EnvConfig, randomized_model
 from omni_gym.envs.references import draw_reference
+from omni_gym.kernel import WH_CMD
 from omni_gym.liftoff import ContactProcess
 from omni_gym.model import SP_CX, SP_CY, Actuation
 from omni_gym.sensors import SensorSuite
@@ -43,13 +44,40 @@ def _wrap(a):
 
 
 @numba.njit(cache=True)
+def apply_actions(raw, twist_mode, scale, W, wheels, out_clipped):
+    """Clip actions to [−1, 1] and write wheel commands [rad/s] into ``wheels``; False if any is NaN/inf.
+
+    raw, out_clipped (B, A); scale: (max_speed, max_speed, max_yaw_rate) in twist mode, else
+    (wheel_scale,); W (n, 3) the wheel matrix; wheels (B, n, 5), commands at WH_CMD. Nothing is
+    written unless every action is finite.
+    """
+    n_robots, n_act = raw.shape
+    for b in range(n_robots):
+        for j in range(n_act):
+            if not math.isfinite(raw[b, j]):
+                return False
+    for b in range(n_robots):
+        for j in range(n_act):
+            out_clipped[b, j] = min(1.0, max(-1.0, raw[b, j]))
+        for i in range(W.shape[0]):
+            if twist_mode:
+                cmd = 0.0
+                for j in range(3):
+                    cmd += W[i, j] * out_clipped[b, j] * scale[j]
+            else:
+                cmd = out_clipped[b, i] * scale[0]
+            wheels[b, i, WH_CMD] = cmd
+    return True
+
+
+@numba.njit(cache=True)
 def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action, scales, out_obs, out_err,
-                  out_true):
-    """State observations, tracking errors and true poses/velocities for all robots.
+                  out_true, out_reward):
+    """State observations, tracking errors, true poses/velocities and rewards for all robots.
 
     state (B, 6): pymunk body x, y (world), θ, COM velocity V_x, V_y, ω. scales: max_speed, max_yaw_rate.
     out_err (B, 2): position error [m], heading error [rad]. out_true (B, 6): local pose and the
-    geometric centre's world velocity.
+    geometric centre's world velocity. out_reward (B,): reward of the last action (``prev_action``).
     """
     n_robots = state.shape[0]
     n_act = prev_action.shape[1]
@@ -99,8 +127,12 @@ def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action
             o[10 + 3 * j] = (-s * lx + c * ly) / LOOK_SCALE
             o[11 + 3 * j] = _wrap(ref_pose[b, kk, 2] - th) / math.pi
         base = 9 + 3 * look.shape[0]
+        effort = 0.0
         for j in range(n_act):
             o[base + j] = prev_action[b, j]
+            effort += prev_action[b, j] * prev_action[b, j]
+        out_reward[b] = (W_POS * math.exp(-out_err[b, 0] / E_POS) + W_HEAD * math.exp(-abs(dth) / E_HEAD)
+                         - W_EFFORT * effort / n_act)
         for j in range(o.shape[0]):
             if o[j] > OBS_CLIP:
                 o[j] = OBS_CLIP
@@ -133,6 +165,10 @@ class TaskCore:
         self.prev_action = np.zeros((n_robots, self.action_dim))
         self.scales = np.array([cfg.max_speed, cfg.max_yaw_rate])
         self.err = np.zeros((n_robots, 2))
+        self.reward = np.zeros(n_robots)
+        self._twist_mode = cfg.action_mode == "twist"
+        self._action_scale = self.twist_scale if self._twist_mode else np.array([self.wheel_scale])
+        self._clipped = np.zeros((n_robots, self.action_dim))
         self.true = np.zeros((n_robots, 6))
         self.prev_true = np.zeros((n_robots, 6))
         self.sensors: list[SensorSuite | None] = [None] * n_robots
@@ -177,27 +213,21 @@ class TaskCore:
 
     # --- stepping ----------------------------------------------------------------------------
 
-    def check_actions(self, actions: np.ndarray) -> np.ndarray:
-        """Actions as a float (B, action_dim) array, clipped to [−1, 1]; NaN or inf is an error."""
-        a = np.asarray(actions, dtype=np.float64).reshape(self.B, self.action_dim)
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"action contains NaN or infinity: {np.asarray(actions).tolist()}")
-        return np.clip(a, -1.0, 1.0)
+    def advance(self, actions: np.ndarray) -> None:
+        """Clip ``actions`` (B, action_dim) to [−1, 1] and run one control period for all robots.
 
-    def wheel_commands(self, a: np.ndarray) -> np.ndarray:
-        """Clipped actions → wheel speed commands [rad/s], (B, n)."""
-        if self.cfg.action_mode == "twist":
-            return (a * self.twist_scale) @ self.W.T
-        return a * self.wheel_scale
-
-    def advance(self, a: np.ndarray) -> None:
-        """Apply clipped actions ``a`` for one control period (all robots step together)."""
-        self.world.set_commands(self.wheel_commands(a))
+        An action with NaN or infinity raises ValueError before anything changes.
+        """
+        raw = np.asarray(actions, dtype=np.float64)
+        if raw.size != self._clipped.size:
+            raise ValueError(f"action must have {self.action_dim} values per robot, got shape {raw.shape}")
+        if not apply_actions(raw.reshape(self._clipped.shape), self._twist_mode, self._action_scale, self.W,
+                             self.world.wheels, self._clipped):
+            raise ValueError(f"action contains NaN or infinity: {raw.tolist()}")
         self.prev_true[:] = self.true
         self.world.substeps(self.cfg.substeps)
         self.step_count += 1
-        self.prev_action[:] = a
-        self._effort = np.mean(a * a, axis=1)
+        self.prev_action[:] = self._clipped
 
     def observe(self) -> None:
         """Fill ``obs``, ``err`` and ``true`` for every robot from the current world state.
@@ -207,7 +237,7 @@ class TaskCore:
         world = self.world
         world._read_state()
         observe_state(world._state_view, world.origins, world.sp, self.ref_pose, self.ref_vel, self.step_count,
-                      self.look, self.prev_action, self.scales, self._state_obs, self.err, self.true)
+                      self.look, self.prev_action, self.scales, self._state_obs, self.err, self.true, self.reward)
         if self.cfg.obs_mode == "state":
             self.obs[:] = self._state_obs
         else:
@@ -252,9 +282,8 @@ class TaskCore:
         self.obs[j] = np.clip(np.concatenate([np.asarray(p, dtype=float) for p in parts]), -OBS_CLIP, OBS_CLIP)
 
     def rewards(self) -> np.ndarray:
-        """Per-robot reward for the last control period (see the module constants)."""
-        e_pos, e_head = self.err[:, 0], self.err[:, 1]
-        return W_POS * np.exp(-e_pos / E_POS) + W_HEAD * np.exp(-np.abs(e_head) / E_HEAD) - W_EFFORT * self._effort
+        """Per-robot reward for the last control period (see the module constants), after :meth:`observe`."""
+        return self.reward.copy()
 
     def terminated(self) -> np.ndarray:
         return (self.err[:, 0] > self.cfg.lost_distance) | self.world.collided
@@ -279,9 +308,17 @@ class TaskCore:
         }
 
     def info(self, j: int) -> dict:
-        """:meth:`infos` of robot j, with plain Python scalars."""
-        out = {}
-        for key, value in self.infos().items():
-            v = value[j]
-            out[key] = v.item() if np.ndim(v) == 0 else v
-        return out
+        """:meth:`infos` of robot j, with plain Python scalars (built directly: it is on the step path)."""
+        err = self.err[j]
+        e_pos, e_head = float(err[0]), float(err[1])
+        return {
+            "pose": self.true[j, 0:3].copy(),
+            "velocity": self.true[j, 3:6].copy(),
+            "reference_pose": self.ref_pose[j, self.step_count[j]].copy(),
+            "tracking_error": e_pos,
+            "heading_error": e_head,
+            "slip": self.world.slip[j].copy(),
+            "contact": self.world.contact[j].copy(),
+            "collided": bool(self.world.collided[j]),
+            "is_success": e_pos <= self.cfg.success_distance and abs(e_head) <= self.cfg.success_heading,
+        }

@@ -47,8 +47,7 @@ class OmniPathEnv(gym.Env):
         if self._needs_reset:
             raise RuntimeError("call reset() before step() (and after an episode ends)")
         core = self.core
-        a = core.check_actions(action)
-        core.advance(a)
+        core.advance(action)
         core.observe()
         reward = float(core.rewards()[0])
         terminated = bool(core.terminated()[0])

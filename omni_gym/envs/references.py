@@ -7,7 +7,7 @@ tables (cheap and identical for single and vectorised environments).
 | family | path | speed |
 |---|---|---|
 | ``waypoints`` | rest-to-rest quintics through random waypoints in the arena | peak ≈ 1.9·ref_speed per segment |
-| ``circle`` | circle of random radius through the start, random direction | ref_speed after a 1 s smooth ramp |
+| ``circle`` | circle of radius 0.25–0.45 arena half-size through the start, random direction | ref_speed after a 1 s smooth ramp |
 | ``figure_eight`` | lemniscate of Gerono of random size through the start | ≈ ref_speed after a 1 s ramp |
 | ``line`` | the paper's straight line at constant heading, quintic time scaling | mean ref_speed |
 | ``goto`` | one quintic to a random goal pose (Phunopas & Inoue 2018), then hold | mean ≈ ref_speed |
@@ -17,13 +17,39 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from omni_gym.envs.config import EnvConfig
-from omni_gym.trajectories import Circle, FigureEight, Quintic, QuinticWaypoints, StraightLine, Trajectory
+from omni_gym.trajectories import Circle, FigureEight, Quintic, StraightLine, Trajectory
 
 RAMP_SECONDS = 1.0  # s, smooth start of the periodic paths
 SETTLE_SECONDS = 1.0  # s at the end of line and goto references, holding the goal
+
+
+@numba.njit(cache=True)
+def _sample_rest_to_rest(waypoints, durations, t, out_pose, out_vel):
+    """Rest-to-rest quintic segments through ``waypoints`` (S+1, 3) at increasing times ``t`` [s].
+
+    Segment s moves from waypoint s to s+1 in durations[s] as S(u) = S_s + Δ·(10u³ − 15u⁴ + 6u⁵),
+    u = τ/T (Phunopas & Inoue 2018, eq. 4 with zero boundary velocity and acceleration); the last
+    waypoint is held afterwards.
+    """
+    seg = 0
+    start = 0.0
+    n_seg = durations.shape[0]
+    for k in range(t.shape[0]):
+        while seg < n_seg - 1 and t[k] >= start + durations[seg]:
+            start += durations[seg]
+            seg += 1
+        T = durations[seg]
+        u = min(max((t[k] - start) / T, 0.0), 1.0)
+        shape = u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
+        rate = u * u * (30.0 + u * (-60.0 + 30.0 * u)) / T
+        for c in range(3):
+            delta = waypoints[seg + 1, c] - waypoints[seg, c]
+            out_pose[k, c] = waypoints[seg, c] + delta * shape
+            out_vel[k, c] = delta * rate
 
 
 def _ramp(t: np.ndarray, ramp: float) -> tuple[np.ndarray, np.ndarray]:
@@ -62,8 +88,10 @@ def draw_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int) -> 
     if fam == "waypoints":
         start = np.array([0.0, 0.0, 0.0])
         pts = [start]
-        # Waypoints at 0.4–0.9 of the arena half size from each other, inside the arena's inner 70 %.
-        while True:
+        peak, yaw_rate, total, durations = 1.875 * cfg.ref_speed, 1.0, 0.0, []
+        # Waypoints at 0.4–0.9 of the arena half size from each other, inside the arena's inner 70 %,
+        # until the segments (each as long as QuinticWaypoints makes it) fill the episode.
+        while total < T and len(pts) <= 50:
             prev = pts[-1]
             for _ in range(100):
                 ang = rng.uniform(-math.pi, math.pi)
@@ -72,13 +100,17 @@ def draw_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int) -> 
                 if np.all(np.abs(xy) <= 0.7 * h):
                     break
             xy = np.clip(xy, -0.7 * h, 0.7 * h)
-            heading = prev[2] + rng.uniform(-math.pi / 2, math.pi / 2)
-            pts.append(np.array([xy[0], xy[1], heading]))
-            traj = QuinticWaypoints(np.array(pts), speed=1.875 * cfg.ref_speed, yaw_rate=1.0)
-            if traj.duration >= T or len(pts) > 50:
-                break
+            turn = rng.uniform(-math.pi / 2, math.pi / 2)
+            pts.append(np.array([xy[0], xy[1], prev[2] + turn]))
+            durations.append(15.0 / 8.0 * max(math.hypot(*(xy - prev[:2])) / peak, abs(turn) / yaw_rate))
+            total += durations[-1]
+        # The same rest-to-rest quintics as trajectories.QuinticWaypoints, evaluated by a compiled loop:
+        # resets are frequent in training and building the objects cost more than the physics of a step.
+        pose, vel = np.empty((n_samples, 3)), np.empty((n_samples, 3))
+        _sample_rest_to_rest(np.array(pts), np.array(durations), t, pose, vel)
+        return pose, vel
     elif fam == "circle":
-        radius = rng.uniform(0.4, 0.8) * h
+        radius = rng.uniform(0.25, 0.45) * h  # the circle passes through the start: it spans 2·radius
         clockwise = bool(rng.integers(2))
         period = 2.0 * math.pi * radius / cfg.ref_speed
         # Start at the origin with the tangent heading 0: centre to the left (ccw) or right (cw).
@@ -96,7 +128,7 @@ def draw_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int) -> 
     elif fam == "line":
         motion = max(T - SETTLE_SECONDS, 0.5)
         ang = rng.uniform(-math.pi, math.pi)
-        dist = min(cfg.ref_speed * motion, 1.6 * h)
+        dist = min(cfg.ref_speed * motion, 0.9 * h)
         goal = (dist * math.cos(ang), dist * math.sin(ang))
         traj = StraightLine((0.0, 0.0), goal, motion, heading=0.0)
     else:  # goto

@@ -70,8 +70,7 @@ class OmniPathVectorEnv(VectorEnv):
         if not self._started:
             raise RuntimeError("call reset() before step()")
         core = self.core
-        a = core.check_actions(actions)
-        core.advance(a)
+        core.advance(actions)
         restart = np.flatnonzero(self._autoreset)
         for i in restart:
             core.reset_robot(i, self._rngs[i])  # replaces whatever the shared step did to it

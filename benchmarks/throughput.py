@@ -1,0 +1,125 @@
+"""Environment throughput, as ratios to Gymnasium's LunarLander-v3 measured in the same run.
+
+    python benchmarks/throughput.py --out benchmarks/results
+
+Measures environment steps per second, with uniformly random actions drawn beforehand from the seeded
+action space (so that the cost of sampling is not counted, for either environment) and every reset
+included (episodes end when the robot is lost, so random actions reset often):
+
+* LunarLander-v3 through ``gym.make`` (the reference);
+* one omni-gym environment through ``gym.make`` (default physics: 0.5 ms substeps, 100 Hz control,
+  no rendering);
+* the native vectorised environment (``gym.make_vec(..., vectorization_mode="vector_entry_point")``)
+  at N = 1, 64, 1024, counting N environment steps per vector step.
+
+Targets: one environment ≥ 0.5× LunarLander-v3; the vectorised environment at N = 1024 ≥ 10×.
+Each measurement is repeated (best of ``--repeats``) because this machine is shared and noisy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+import omni_gym  # noqa: F401  (registers the environments)
+
+ENV_ID = "OmniPathFollow-Williams-v0"
+ACTION_POOL = 4096  # random actions drawn before timing and cycled
+
+
+def single_rate(env_id: str, seconds: float, **kwargs) -> tuple[float, int]:
+    """(steps per second, episodes finished) of one environment under random actions."""
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    actions = [env.action_space.sample() for _ in range(ACTION_POOL)]
+    for k in range(200):  # warm up caches and compiled code
+        _, _, term, trunc, _ = env.step(actions[k])
+        if term or trunc:
+            env.reset()
+    steps = episodes = 0
+    start = time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        for _ in range(100):
+            _, _, term, trunc, _ = env.step(actions[steps % ACTION_POOL])
+            steps += 1
+            if term or trunc:
+                env.reset()
+                episodes += 1
+    rate = steps / (time.perf_counter() - start)
+    env.close()
+    return rate, episodes
+
+
+def vector_rate(env_id: str, n: int, seconds: float) -> tuple[float, int]:
+    """(environment steps per second, episodes finished) of the native vector environment."""
+    env = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    actions = [env.action_space.sample() for _ in range(max(ACTION_POOL // n, 8))]
+    for k in range(20):
+        env.step(actions[k % len(actions)])
+    steps = episodes = calls = 0
+    start = time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        _, _, term, trunc, _ = env.step(actions[calls % len(actions)])
+        calls += 1
+        steps += n
+        episodes += int(np.sum(term | trunc))
+    rate = steps / (time.perf_counter() - start)
+    env.close()
+    return rate, episodes
+
+
+def best(fn, repeats: int, *args) -> tuple[float, int]:
+    runs = [fn(*args) for _ in range(repeats)]
+    return max(runs, key=lambda r: r[0])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default="benchmarks/results")
+    parser.add_argument("--seconds", type=float, default=3.0, help="duration of each measurement")
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    rows = []
+    lunar, lunar_eps = best(single_rate, args.repeats, "LunarLander-v3", args.seconds)
+    rows.append(("LunarLander-v3 (gym.make)", 1, lunar, lunar_eps))
+    rate, eps = best(single_rate, args.repeats, ENV_ID, args.seconds)
+    rows.append((f"{ENV_ID} (gym.make)", 1, rate, eps))
+    for n in (1, 64, 1024):
+        rate, eps = best(vector_rate, args.repeats, ENV_ID, n, args.seconds)
+        rows.append((f"{ENV_ID} vector_entry_point", n, rate, eps))
+    lines = [
+        "# Throughput: environment steps per second, ratio to LunarLander-v3 in the same run",
+        "",
+        "`python benchmarks/throughput.py --out benchmarks/results`",
+        "",
+        f"Machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}; random actions, "
+        f"resets included, best of {args.repeats} runs of {args.seconds:g} s. Default physics (0.5 ms substeps, "
+        "20 per 10 ms control step).",
+        "",
+        "| environment | N | env steps/s | × LunarLander-v3 | episodes ended | target |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name, n, rate, eps in rows:
+        target = ""
+        if "gym.make" in name and ENV_ID in name:
+            target = "≥ 0.5×"
+        elif n == 1024:
+            target = "≥ 10×"
+        lines.append(f"| {name} | {n} | {rate:,.0f} | {rate / lunar:.2f} | {eps} | {target} |")
+    text = "\n".join(lines) + "\n"
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "throughput.md").write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()

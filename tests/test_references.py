@@ -1,0 +1,48 @@
+"""Reference tables of the environments."""
+
+import numpy as np
+import pytest
+
+from omni_gym.envs.config import make_config
+from omni_gym.envs.references import _sample_rest_to_rest, draw_reference
+from omni_gym.trajectories import QuinticWaypoints
+
+
+def test_compiled_waypoint_sampler_matches_quintic_waypoints():
+    rng = np.random.default_rng(0)
+    wp = rng.uniform(-1, 1, size=(6, 3))
+    durations = rng.uniform(0.5, 3.0, size=5)
+    t = np.arange(0, durations.sum() + 1.0, 0.01)
+    pose, vel = np.empty((len(t), 3)), np.empty((len(t), 3))
+    _sample_rest_to_rest(wp, durations, t, pose, vel)
+    ref_pose, ref_vel, _ = QuinticWaypoints(wp, segment_durations=durations).sample(t)
+    # Same polynomial in two algebraic forms: agreement to rounding (1e-12 of unit-sized values).
+    np.testing.assert_allclose(pose, ref_pose, atol=1e-12)
+    np.testing.assert_allclose(vel, ref_vel, atol=1e-12)
+
+
+@pytest.mark.parametrize("family", ["waypoints", "circle", "figure_eight", "line", "goto"])
+def test_references_start_at_rest_at_the_origin_and_are_smooth(family):
+    task = "goto" if family == "goto" else "path"
+    cfg = make_config(task=task, trajectory=family)
+    n = cfg.episode_steps + 101
+    pose, vel = draw_reference(cfg, np.random.default_rng(1), n)
+    assert pose.shape == vel.shape == (n, 3)
+    np.testing.assert_allclose(pose[0, :2], 0.0, atol=1e-12)
+    np.testing.assert_allclose(vel[0], 0.0, atol=1e-12)  # every family starts at rest
+    # Velocity is the derivative of the pose: central differences at 100 Hz agree to O(dt²·jerk).
+    dt = 1.0 / cfg.control_hz
+    fd = (pose[2:] - pose[:-2]) / (2 * dt)
+    np.testing.assert_allclose(fd, vel[1:-1], atol=5e-3)
+    speed = np.hypot(vel[:, 0], vel[:, 1])
+    assert speed.max() < 2.0 * cfg.ref_speed + 1e-9  # quintic peaks are 1.875x the mean speed
+    assert np.all(np.abs(pose[:, :2]) <= cfg.arena_half_size)  # stays in the arena
+
+
+def test_reference_draws_are_seeded():
+    cfg = make_config()
+    a = draw_reference(cfg, np.random.default_rng(5), 500)[0]
+    b = draw_reference(cfg, np.random.default_rng(5), 500)[0]
+    c = draw_reference(cfg, np.random.default_rng(6), 500)[0]
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
