@@ -7,7 +7,7 @@ tables (cheap and identical for single and vectorised environments).
 | family | path | speed |
 |---|---|---|
 | ``waypoints`` | rest-to-rest quintics through random waypoints in the arena | peak ≈ 1.9·ref_speed per segment |
-| ``circle`` | circle of radius 0.25–0.45 arena half-size through the start, random direction | ref_speed after a 1 s smooth ramp |
+| ``circle`` | circle through the start, radius 0.25–0.45·arena_half_size | ref_speed after a 1 s ramp |
 | ``figure_eight`` | lemniscate of Gerono of random size through the start | ≈ ref_speed after a 1 s ramp |
 | ``line`` | the paper's straight line at constant heading, quintic time scaling | mean ref_speed |
 | ``goto`` | one quintic to a random goal pose (Phunopas & Inoue 2018), then hold | mean ≈ ref_speed |
