@@ -224,12 +224,11 @@ def _robot_substep(b, dt, state, wheels, sp, wp, ext, out_force, out_slip):
     r0 = dt * q0
     r1 = dt * q1
     r2 = dt * q2
-    dv0 = (c00 * r0 + c01 * r1 + c02 * r2) / det
-    dv1 = (c01 * r0 + c11 * r1 + c12 * r2) / det
-    dv2 = (c02 * r0 + c12 * r1 + c22 * r2) / det
-    out_force[b, 0] = m * dv0 / dt
-    out_force[b, 1] = m * dv1 / dt
-    out_force[b, 2] = inertia * dv2 / dt
+    inv = 1.0 / det  # one division instead of three: divisions dominate this kernel's arithmetic
+    inv_dt = 1.0 / dt
+    out_force[b, 0] = m * ((c00 * r0 + c01 * r1 + c02 * r2) * inv) * inv_dt
+    out_force[b, 1] = m * ((c01 * r0 + c11 * r1 + c12 * r2) * inv) * inv_dt
+    out_force[b, 2] = inertia * ((c02 * r0 + c12 * r1 + c22 * r2) * inv) * inv_dt
 
 
 @numba.njit(cache=True)
