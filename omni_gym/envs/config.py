@@ -19,6 +19,7 @@ from omni_gym.sensors import SensorConfig
 
 TASKS = ("path", "goto")
 TRAJECTORIES = ("waypoints", "circle", "figure_eight", "line", "goto")
+REF_HEADINGS = ("forward", "tangent", "random")
 OBS_MODES = ("state", "sensors")
 ACTION_MODES = ("wheels", "twist")
 RENDER_MODES = (None, "rgb_array", "human")
@@ -33,6 +34,7 @@ class EnvConfig:
     friction: str = "roller_gap"
     task: str = "path"
     trajectory: str = "waypoints"
+    ref_heading: str = "forward"  # reference heading along the path: forward (+y along it), tangent, random
     obs_mode: str = "state"
     action_mode: str = "twist"
     actuation: str = "ideal"
@@ -116,6 +118,7 @@ def make_config(**kwargs) -> EnvConfig:
     _choice("friction", cfg.friction, FRICTION_MODELS)
     _choice("task", cfg.task, TASKS)
     _choice("trajectory", cfg.trajectory, TRAJECTORIES)
+    _choice("ref_heading", cfg.ref_heading, REF_HEADINGS)
     _choice("obs_mode", cfg.obs_mode, OBS_MODES)
     _choice("action_mode", cfg.action_mode, ACTION_MODES)
     _choice("actuation", cfg.actuation, ACTUATIONS)

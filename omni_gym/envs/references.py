@@ -2,14 +2,16 @@
 
 Every family starts at rest at the robot's start pose (the reference pose at t = 0) and is sampled
 at the control rate over the episode plus the longest look-ahead, so that observations only index
-tables (cheap and identical for single and vectorised environments).
+tables (cheap and identical for single and vectorised environments). ``ref_heading`` sets the heading
+along the path: ``forward`` (default: the body +y axis, the robots' front, points along the path),
+``tangent`` (body +x along the path) or ``random``.
 
 | family | path | speed |
 |---|---|---|
 | ``waypoints`` | rest-to-rest quintics through random waypoints in the arena | peak ≈ 1.9·ref_speed per segment |
 | ``circle`` | circle through the start, radius 0.25–0.45·arena_half_size | ref_speed after a 1 s ramp |
 | ``figure_eight`` | lemniscate of Gerono of random size through the start | ≈ ref_speed after a 1 s ramp |
-| ``line`` | the paper's straight line at constant heading, quintic time scaling | mean ref_speed |
+| ``line`` | the paper's straight line, quintic time scaling, constant heading | mean ref_speed |
 | ``goto`` | one quintic to a random goal pose (Phunopas & Inoue 2018), then hold | mean ≈ ref_speed |
 """
 
@@ -85,6 +87,11 @@ def draw_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int) -> 
     h = cfg.arena_half_size
     fam = cfg.trajectory
     ramp = None
+    # Heading rule: body x along the path ("tangent"), body +y along it ("forward": the front of both
+    # preset robots, between the front wheels of williams2002), or random constant headings.
+    offset = -math.pi / 2 if cfg.ref_heading == "forward" else 0.0
+    const_heading = rng.uniform(-math.pi, math.pi) if cfg.ref_heading == "random" else 0.0
+    heading = const_heading if cfg.ref_heading == "random" else "tangent"
     if fam == "waypoints":
         start = np.array([0.0, 0.0, 0.0])
         pts = [start]
@@ -100,7 +107,14 @@ def draw_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int) -> 
                 if np.all(np.abs(xy) <= 0.7 * h):
                     break
             xy = np.clip(xy, -0.7 * h, 0.7 * h)
-            turn = rng.uniform(-math.pi / 2, math.pi / 2)
+            if cfg.ref_heading == "random":
+                turn = rng.uniform(-math.pi / 2, math.pi / 2)
+            else:  # arrive facing along the segment (tangent) or with the forward (+y) axis along it
+                target = math.atan2(xy[1] - prev[1], xy[0] - prev[0]) + offset
+                if len(pts) == 1:  # the start pose already faces the first segment
+                    pts[0] = np.array([0.0, 0.0, target])
+                    prev = pts[0]
+                turn = (target - prev[2] + math.pi) % (2.0 * math.pi) - math.pi
             pts.append(np.array([xy[0], xy[1], prev[2] + turn]))
             durations.append(15.0 / 8.0 * max(math.hypot(*(xy - prev[:2])) / peak, abs(turn) / yaw_rate))
             total += durations[-1]
@@ -116,13 +130,13 @@ def draw_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int) -> 
         # Start at the origin with the tangent heading 0: centre to the left (ccw) or right (cw).
         center = (0.0, -radius) if clockwise else (0.0, radius)
         phase = math.pi / 2 if clockwise else -math.pi / 2
-        traj = Circle(center, radius, period, phase=phase, clockwise=clockwise, heading="tangent",
+        traj = Circle(center, radius, period, phase=phase, clockwise=clockwise, heading=heading,
                       laps=T / period + 1)
         ramp = RAMP_SECONDS
     elif fam == "figure_eight":
         a = rng.uniform(0.5, 0.8) * h
         period = _lemniscate_length(a) / cfg.ref_speed
-        traj = FigureEight((0.0, 0.0), a, period, clockwise=bool(rng.integers(2)), heading="tangent",
+        traj = FigureEight((0.0, 0.0), a, period, clockwise=bool(rng.integers(2)), heading=heading,
                            laps=T / period + 1)
         ramp = RAMP_SECONDS
     elif fam == "line":
@@ -130,11 +144,15 @@ def draw_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int) -> 
         ang = rng.uniform(-math.pi, math.pi)
         dist = min(cfg.ref_speed * motion, 0.9 * h)
         goal = (dist * math.cos(ang), dist * math.sin(ang))
-        traj = StraightLine((0.0, 0.0), goal, motion, heading=0.0)
+        line_heading = const_heading if cfg.ref_heading == "random" else ang + offset
+        traj = StraightLine((0.0, 0.0), goal, motion, heading=line_heading)
     else:  # goto
         motion = max(T - SETTLE_SECONDS, 0.5)
         ang = rng.uniform(-math.pi, math.pi)
         dist = min(cfg.ref_speed * motion, 0.8 * h) * rng.uniform(0.6, 1.0)
         goal = (dist * math.cos(ang), dist * math.sin(ang), rng.uniform(-math.pi / 2, math.pi / 2))
         traj = Quintic((0.0, 0.0, 0.0), goal, motion)
-    return _sample(traj, t, ramp)
+    pose, vel = _sample(traj, t, ramp)
+    if fam in ("circle", "figure_eight") and cfg.ref_heading != "random":
+        pose[:, 2] += offset  # tangent heading, turned so the chosen body axis points along the path
+    return pose, vel
