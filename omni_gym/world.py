@@ -26,13 +26,16 @@ from pymunk import batch as pmbatch
 
 from omni_gym.kernel import (
     N_WH,
+    PARALLEL_MIN_ROBOTS,
     WH_ANGLE,
     WH_CMD,
     WH_INT,
     WH_LOAD,
     WH_SPEED,
     substep,
+    substep_parallel,
     warm_up,
+    warm_up_parallel,
 )
 from omni_gym.liftoff import ContactProcess
 from omni_gym.loads import wheel_loads
@@ -80,10 +83,12 @@ class World:
         dt: physics substep [s].
         actuation: wheel actuation shared by all robots.
         arena: walls and obstacles, replicated in each robot's arena.
+        parallel: share the force kernel among threads (default: from 256 robots on).
     """
 
     def __init__(self, models: SimModel | list[SimModel], n_robots: int = 1, dt: float = DEFAULT_DT,
-                 actuation: Actuation | None = None, arena: Arena | None = None) -> None:
+                 actuation: Actuation | None = None, arena: Arena | None = None,
+                 parallel: bool | None = None) -> None:
         model_list = list(models) if isinstance(models, (list, tuple)) else [models] * int(n_robots)
         if not model_list:
             raise ValueError("World needs at least one robot")
@@ -126,7 +131,10 @@ class World:
         self._build_space(model_list)
         for j, m in enumerate(model_list):
             self.set_model(j, m)
-        warm_up()
+        # Threaded force kernel for large batches (bit-identical results); None chooses by size.
+        self.parallel = B >= PARALLEL_MIN_ROBOTS if parallel is None else bool(parallel)
+        self._kernel = substep_parallel if self.parallel else substep
+        warm_up_parallel() if self.parallel else warm_up()
 
     # --- pickling: rebuild the space, then restore every state variable exactly ------------------
 
@@ -136,7 +144,7 @@ class World:
     def __getstate__(self) -> dict:
         self._read_state()
         return {
-            "init": (list(self.models), self.dt, self.actuation, self.arena),
+            "init": (list(self.models), self.dt, self.actuation, self.arena, self.parallel),
             "arrays": {k: getattr(self, k).copy() for k in self._STATE_ARRAYS},
             "bodies": self._state_view.copy(),
             "tick": self.tick,
@@ -145,8 +153,8 @@ class World:
         }
 
     def __setstate__(self, state: dict) -> None:
-        models, dt, actuation, arena = state["init"]
-        self.__init__(models, dt=dt, actuation=actuation, arena=arena)
+        models, dt, actuation, arena, parallel = state["init"]
+        self.__init__(models, dt=dt, actuation=actuation, arena=arena, parallel=parallel)
         for key, value in state["arrays"].items():
             getattr(self, key)[...] = value
         for body, row in zip(self.bodies, state["bodies"], strict=True):
@@ -406,13 +414,14 @@ class World:
         n_set = set_arr.num
         state = self._state_view
         wheels, sp, wp, ext, force, slip = self.wheels, self.sp, self.wp, self.ext_force, self._force_view, self.slip
+        kernel = self._kernel
         for _ in range(count):
             if self.tick >= self._next_switch_tick:
                 self._advance_contacts(self.tick)
             get_arr.num = 0
             get_int.num = 0
             each_body(cspace, get_iter, get_req)
-            substep(dt, state, wheels, sp, wp, ext, force, slip)
+            kernel(dt, state, wheels, sp, wp, ext, force, slip)
             set_arr.num = 0
             each_body(cspace, set_iter, set_req)
             set_arr.num = n_set

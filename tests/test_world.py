@@ -178,7 +178,8 @@ def test_large_batch_matches_lone_robots_bit_for_bit():
     model = load_model("phunopas2018", "carpet", "roller_gap")
     rng = np.random.default_rng(4)
     twists = rng.uniform(-1, 1, size=(64, 3)) * [0.3, 0.3, 1.5]
-    batch = World(model, n_robots=64)
+    batch = World(model, n_robots=64, parallel=True)  # the threaded kernel, as large batches use
+    assert batch.parallel and not World(model).parallel
     batch.set_commands(np.array([model.robot.wheel_matrix() @ tw for tw in twists]))  # same arithmetic as alone
     batch.step(0.2)
     for j in (0, 17, 63):

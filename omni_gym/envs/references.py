@@ -77,6 +77,51 @@ def _lemniscate_length(half_width: float) -> float:
     return float(np.sum(np.hypot(np.diff(x), np.diff(y))))
 
 
+def _waypoint_reference(cfg: EnvConfig, rng: np.random.Generator, t: np.ndarray,
+                        offset: float) -> tuple[np.ndarray, np.ndarray]:
+    """Rest-to-rest quintics through random waypoints until the segments fill the episode.
+
+    Waypoints lie 0.4–0.9 arena half-sizes apart, inside the arena's inner 70 %; each segment lasts
+    as long as QuinticWaypoints would make it (peak speed 1.875·ref_speed, yaw rate ≤ 1 rad/s). Candidate
+    steps are drawn in blocks and the loop runs on Python floats: resets are frequent in training
+    (thousands per second in a large vector) and building arrays per waypoint cost more than a step.
+    """
+    h = cfg.arena_half_size
+    inner = 0.7 * h
+    peak, yaw_rate = 1.875 * cfg.ref_speed, 1.0
+    x = y = heading = 0.0
+    pts, durations, total = [[0.0, 0.0, 0.0]], [], 0.0
+    block = rng.uniform(size=(64, 3)).tolist()
+    used = 0
+    while total < cfg.episode_seconds and len(pts) <= 50:
+        for _ in range(100):
+            if used == len(block):
+                block, used = rng.uniform(size=(64, 3)).tolist(), 0
+            u_ang, u_dist, turn_draw = block[used]
+            ang = math.pi * (2.0 * u_ang - 1.0)
+            dist = (0.4 + 0.5 * u_dist) * h
+            used += 1
+            nx, ny = x + dist * math.cos(ang), y + dist * math.sin(ang)
+            if abs(nx) <= inner and abs(ny) <= inner:
+                break
+        nx, ny = min(max(nx, -inner), inner), min(max(ny, -inner), inner)
+        if cfg.ref_heading == "random":
+            turn = math.pi * (turn_draw - 0.5)
+        else:  # arrive facing along the segment (tangent) or with the forward (+y) axis along it
+            target = math.atan2(ny - y, nx - x) + offset
+            if len(pts) == 1:  # the start pose already faces the first segment
+                heading = target
+                pts[0][2] = target
+            turn = (target - heading + math.pi) % (2.0 * math.pi) - math.pi
+        durations.append(15.0 / 8.0 * max(math.hypot(nx - x, ny - y) / peak, abs(turn) / yaw_rate))
+        total += durations[-1]
+        x, y, heading = nx, ny, heading + turn
+        pts.append([x, y, heading])
+    pose, vel = np.empty((len(t), 3)), np.empty((len(t), 3))
+    _sample_rest_to_rest(np.array(pts), np.array(durations), t, pose, vel)
+    return pose, vel
+
+
 def draw_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
     """(poses (n_samples, 3), world velocities (n_samples, 3)) at t = k / control_hz.
 
@@ -93,36 +138,7 @@ def draw_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int) -> 
     const_heading = rng.uniform(-math.pi, math.pi) if cfg.ref_heading == "random" else 0.0
     heading = const_heading if cfg.ref_heading == "random" else "tangent"
     if fam == "waypoints":
-        start = np.array([0.0, 0.0, 0.0])
-        pts = [start]
-        peak, yaw_rate, total, durations = 1.875 * cfg.ref_speed, 1.0, 0.0, []
-        # Waypoints at 0.4–0.9 of the arena half size from each other, inside the arena's inner 70 %,
-        # until the segments (each as long as QuinticWaypoints makes it) fill the episode.
-        while total < T and len(pts) <= 50:
-            prev = pts[-1]
-            for _ in range(100):
-                ang = rng.uniform(-math.pi, math.pi)
-                dist = rng.uniform(0.4, 0.9) * h
-                xy = prev[:2] + dist * np.array([math.cos(ang), math.sin(ang)])
-                if np.all(np.abs(xy) <= 0.7 * h):
-                    break
-            xy = np.clip(xy, -0.7 * h, 0.7 * h)
-            if cfg.ref_heading == "random":
-                turn = rng.uniform(-math.pi / 2, math.pi / 2)
-            else:  # arrive facing along the segment (tangent) or with the forward (+y) axis along it
-                target = math.atan2(xy[1] - prev[1], xy[0] - prev[0]) + offset
-                if len(pts) == 1:  # the start pose already faces the first segment
-                    pts[0] = np.array([0.0, 0.0, target])
-                    prev = pts[0]
-                turn = (target - prev[2] + math.pi) % (2.0 * math.pi) - math.pi
-            pts.append(np.array([xy[0], xy[1], prev[2] + turn]))
-            durations.append(15.0 / 8.0 * max(math.hypot(*(xy - prev[:2])) / peak, abs(turn) / yaw_rate))
-            total += durations[-1]
-        # The same rest-to-rest quintics as trajectories.QuinticWaypoints, evaluated by a compiled loop:
-        # resets are frequent in training and building the objects cost more than the physics of a step.
-        pose, vel = np.empty((n_samples, 3)), np.empty((n_samples, 3))
-        _sample_rest_to_rest(np.array(pts), np.array(durations), t, pose, vel)
-        return pose, vel
+        return _waypoint_reference(cfg, rng, t, offset)
     elif fam == "circle":
         radius = rng.uniform(0.25, 0.45) * h  # the circle passes through the start: it spans 2·radius
         clockwise = bool(rng.integers(2))
