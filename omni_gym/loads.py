@@ -46,13 +46,20 @@ def static_loads(positions: np.ndarray, com: np.ndarray, mass: float, gravity: f
     loads = np.zeros(n)
     if not mask.any():
         return loads
-    rel = p[mask] - np.asarray(com, dtype=float)
-    A = np.vstack([np.ones(mask.sum()), rel[:, 0], rel[:, 1]])
-    b = np.array([mass * gravity, 0.0, 0.0])
-    sol = np.linalg.lstsq(A, b, rcond=None)[0]
-    sol = np.clip(sol, 0.0, None)
+    sol = np.clip(balance_loads(p[mask], com, mass * gravity), 0.0, None)
     total = sol.sum()
     # All-negative solutions cannot happen for a positive weight; guard anyway: share equally.
     sol = sol * (mass * gravity / total) if total > 0 else np.full(sol.shape, mass * gravity / sol.size)
     loads[mask] = sol
     return loads
+
+
+def balance_loads(positions: np.ndarray, com: np.ndarray, weight: float) -> np.ndarray:
+    """Least-norm (or least-squares) loads [N], unclipped, with Σ N_i = weight and Σ N_i (p_i − com) = 0.
+
+    positions (k, 2) [m] and com (2,) [m] in the body frame; weight = m·g [N]. A negative entry
+    means the centre of mass lies outside the support polygon of these wheels.
+    """
+    rel = np.asarray(positions, dtype=float) - np.asarray(com, dtype=float)
+    A = np.vstack([np.ones(len(rel)), rel[:, 0], rel[:, 1]])
+    return np.linalg.lstsq(A, np.array([weight, 0.0, 0.0]), rcond=None)[0]

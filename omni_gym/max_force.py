@@ -30,6 +30,7 @@ import numpy as np
 from scipy.optimize import linprog
 
 from omni_gym.friction import Surface
+from omni_gym.loads import balance_loads
 from omni_gym.robot import GRAVITY, RobotSpec
 
 __all__ = ["max_static_force", "max_force_curve", "static_loads"]
@@ -98,11 +99,10 @@ def static_loads(robot: RobotSpec, gravity: float = GRAVITY) -> np.ndarray:
     """
     if not (math.isfinite(gravity) and gravity > 0):
         raise ValueError(f"gravity must be a positive number [m/s²], got {gravity}")
+    weight = robot.mass * gravity
+    N = balance_loads(robot.positions(), robot.com, weight)
     rel = robot.positions() - np.asarray(robot.com, dtype=float)
-    A = np.vstack([np.ones(robot.n_wheels), rel.T])
-    b = np.array([robot.mass * gravity, 0.0, 0.0])
-    N = np.linalg.lstsq(A, b, rcond=None)[0]
-    if not np.allclose(A @ N, b, rtol=1e-9, atol=1e-9 * robot.mass * gravity):
+    if not np.allclose([N.sum(), N @ rel[:, 0], N @ rel[:, 1]], [weight, 0.0, 0.0], rtol=1e-9, atol=1e-9 * weight):
         raise ValueError(f"robot {robot.name!r}: wheels cannot carry the weight without a moment (collinear?)")
     if np.any(N < -1e-9 * robot.mass * gravity):
         raise ValueError(f"robot {robot.name!r}: com lies outside the support polygon (loads {N.tolist()})")
