@@ -21,9 +21,11 @@ test: $(STAMP)
 demo: $(STAMP)
 	$(PY) benchmarks/paper_replication.py --out benchmarks/results
 	$(PY) benchmarks/max_force.py --out benchmarks/results
+	$(PY) benchmarks/demo_episodes.py --out benchmarks/results/demo
 
 bench: $(STAMP)
 	$(PY) benchmarks/convergence.py --out benchmarks/results
+	$(PY) benchmarks/throughput.py --out benchmarks/results
 
 lint: $(STAMP)
 	$(PY) -m ruff check .

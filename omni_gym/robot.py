@@ -177,16 +177,7 @@ def phunopas2018() -> RobotSpec:
     Drive directions follow the paper's eq. (3): wheel i has w_i = (−sin α_i vx + cos α_i vy + R ω)/r.
     """
     R = 0.10
-    mass = 3.0
-    wheels = tangential_wheels(R, [math.pi / 4 + k * math.pi / 2 for k in range(4)])
-    return RobotSpec(
-        name="phunopas2018",
-        wheels=wheels,
-        wheel_radius=0.05,
-        mass=mass,
-        inertia=0.5 * mass * R**2,
-        rollers=8,
-        roller_fraction=0.9,
+    return regular(4, radius=R, wheel_radius=0.05, mass=3.0, offset=math.pi / 4, name="phunopas2018").with_changes(
         body_radius=R + 0.02,
         assumptions={
             "mass": "3.0 kg: not given in the paper; a small indoor four-wheeled base.",

@@ -22,50 +22,12 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
+from omni_gym.checks import finite_array, finite_scalar, nonnegative, positive, wrap_angle
+
 TWO_PI = 2.0 * math.pi
 
 
 # --- validation helpers ---------------------------------------------------------------------------
-
-
-def _finite_scalar(name: str, value: float) -> float:
-    """``value`` as a float; ValueError naming ``name`` if it is not a finite real number."""
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a finite number, got {value!r}") from None
-    if not math.isfinite(x):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    return x
-
-
-def _nonnegative(name: str, value: float) -> float:
-    """``value`` as a float; ValueError naming ``name`` unless finite and >= 0."""
-    x = _finite_scalar(name, value)
-    if x < 0:
-        raise ValueError(f"{name} must be >= 0, got {value!r}")
-    return x
-
-
-def _positive(name: str, value: float) -> float:
-    """``value`` as a float; ValueError naming ``name`` unless finite and > 0."""
-    x = _finite_scalar(name, value)
-    if x <= 0:
-        raise ValueError(f"{name} must be > 0, got {value!r}")
-    return x
-
-
-def _finite_array(name: str, value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
-    """``value`` as a float array of exactly ``shape``; ValueError naming ``name`` otherwise."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a numeric array of shape {shape}, got {value!r}") from None
-    if arr.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite (no NaN/inf), got {arr}")
-    return arr
 
 
 def _check_rng(rng: np.random.Generator) -> np.random.Generator:
@@ -81,12 +43,6 @@ def _child_rngs(rng: np.random.Generator, n: int) -> list[np.random.Generator]:
     return [np.random.default_rng(int(s)) for s in seeds]
 
 
-def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
-    """Angle(s) [rad] wrapped to the half-open interval (−π, π]; works element-wise on arrays."""
-    a = np.asarray(angle, dtype=float)
-    wrapped = a - TWO_PI * np.ceil((a - math.pi) / TWO_PI)
-    wrapped = np.where(wrapped <= -math.pi, wrapped + TWO_PI, wrapped)
-    return float(wrapped) if wrapped.ndim == 0 else wrapped
 
 
 def specific_force_body(acc_world: np.ndarray, theta: float | np.ndarray) -> np.ndarray:
@@ -145,10 +101,10 @@ class SensorConfig:
         cpr = self.counts_per_rev
         if isinstance(cpr, bool) or not isinstance(cpr, (int, np.integer)) or cpr < 1:
             raise ValueError(f"counts_per_rev must be a positive integer, got {cpr!r}")
-        _positive("camera_rate_hz", self.camera_rate_hz)
+        positive("camera_rate_hz", self.camera_rate_hz)
         for f in fields(self):
             if f.name.endswith("_std"):
-                _nonnegative(f.name, getattr(self, f.name))
+                nonnegative(f.name, getattr(self, f.name))
 
     @classmethod
     def noiseless(cls, **overrides: float) -> SensorConfig:
@@ -183,7 +139,7 @@ class WheelEncoders:
 
     def counts(self, wheel_angles: np.ndarray) -> np.ndarray:
         """Integer counts ⌊θ_i/q⌋ for true wheel angles θ_i [rad], shape (n_wheels,)."""
-        angles = _finite_array("wheel_angles", wheel_angles, (self.n_wheels,))
+        angles = finite_array("wheel_angles", wheel_angles, (self.n_wheels,))
         return np.floor(angles / self.quantum).astype(np.int64)
 
     def measure(self, wheel_angles: np.ndarray) -> np.ndarray:
@@ -200,9 +156,9 @@ class Gyroscope:
 
     def __init__(self, rng: np.random.Generator, noise_std: float = 0.005, bias_std: float = 0.01,
                  bias_walk_std: float = 1e-4) -> None:
-        self.noise_std = _nonnegative("noise_std", noise_std)
-        self.bias_std = _nonnegative("bias_std", bias_std)
-        self.bias_walk_std = _nonnegative("bias_walk_std", bias_walk_std)
+        self.noise_std = nonnegative("noise_std", noise_std)
+        self.bias_std = nonnegative("bias_std", bias_std)
+        self.bias_walk_std = nonnegative("bias_walk_std", bias_walk_std)
         self.bias = 0.0
         self.reset(rng)
 
@@ -213,11 +169,11 @@ class Gyroscope:
 
     def measure(self, yaw_rate: float, dt: float | None = None) -> float:
         """One gyro reading [rad/s] of the true yaw rate ``yaw_rate`` [rad/s]; ``dt`` [s] since the last."""
-        rate = _finite_scalar("yaw_rate", yaw_rate)
+        rate = finite_scalar("yaw_rate", yaw_rate)
         if self.bias_walk_std > 0:
             if dt is None:
                 raise ValueError("dt is required when bias_walk_std > 0")
-            step = _positive("dt", dt)
+            step = positive("dt", dt)
             self.bias += float(self._rng.normal(0.0, self.bias_walk_std * math.sqrt(step)))
         return rate + self.bias + float(self._rng.normal(0.0, self.noise_std))
 
@@ -226,7 +182,7 @@ class Compass:
     """Heading sensor: true heading θ [rad] → θ + N(0, noise_std²), wrapped to (−π, π]."""
 
     def __init__(self, rng: np.random.Generator, noise_std: float = 0.05) -> None:
-        self.noise_std = _nonnegative("noise_std", noise_std)
+        self.noise_std = nonnegative("noise_std", noise_std)
         self.reset(rng)
 
     def reset(self, rng: np.random.Generator) -> None:
@@ -235,7 +191,7 @@ class Compass:
 
     def measure(self, heading: float) -> float:
         """One heading reading [rad] in (−π, π] (world frame, from world x to body x)."""
-        theta = _finite_scalar("heading", heading)
+        theta = finite_scalar("heading", heading)
         return wrap_angle(theta + float(self._rng.normal(0.0, self.noise_std)))
 
 
@@ -247,8 +203,8 @@ class Accelerometer:
     """
 
     def __init__(self, rng: np.random.Generator, noise_std: float = 0.05, bias_std: float = 0.0) -> None:
-        self.noise_std = _nonnegative("noise_std", noise_std)
-        self.bias_std = _nonnegative("bias_std", bias_std)
+        self.noise_std = nonnegative("noise_std", noise_std)
+        self.bias_std = nonnegative("bias_std", bias_std)
         self.bias = np.zeros(2)
         self.reset(rng)
 
@@ -259,7 +215,7 @@ class Accelerometer:
 
     def measure(self, acc_body: np.ndarray) -> np.ndarray:
         """One reading [m/s²], body frame, shape (2,)."""
-        acc = _finite_array("acc_body", acc_body, (2,))
+        acc = finite_array("acc_body", acc_body, (2,))
         return acc + self.bias + self._rng.normal(0.0, self.noise_std, size=2)
 
 
@@ -276,9 +232,9 @@ class CameraTracker:
 
     def __init__(self, rng: np.random.Generator, rate_hz: float = 10.0, position_std: float = 0.005,
                  heading_std: float = 0.02, t0: float = 0.0) -> None:
-        self.rate_hz = _positive("rate_hz", rate_hz)
-        self.position_std = _nonnegative("position_std", position_std)
-        self.heading_std = _nonnegative("heading_std", heading_std)
+        self.rate_hz = positive("rate_hz", rate_hz)
+        self.position_std = nonnegative("position_std", position_std)
+        self.heading_std = nonnegative("heading_std", heading_std)
         self.reset(rng, t0)
 
     @property
@@ -294,13 +250,13 @@ class CameraTracker:
     def reset(self, rng: np.random.Generator, t0: float = 0.0) -> None:
         """Take ``rng`` as the noise source; the first fix is due at ``t0`` [s]."""
         self._rng = _check_rng(rng)
-        self._t0 = _finite_scalar("t0", t0)
+        self._t0 = finite_scalar("t0", t0)
         self._k = 0
 
     def measure(self, t: float, pose: np.ndarray) -> np.ndarray | None:
         """A noisy fix (x, y, θ) [m, m, rad] (θ wrapped to (−π, π]) if one is due at ``t`` [s], else None."""
-        now = _finite_scalar("t", t)
-        true_pose = _finite_array("pose", pose, (3,))
+        now = finite_scalar("t", t)
+        true_pose = finite_array("pose", pose, (3,))
         elapsed = (now - self._t0) / self.period
         if elapsed < self._k - self._TOLERANCE:
             return None
@@ -374,9 +330,9 @@ class SensorSuite:
             yaw_rate: true yaw rate θ̇ [rad/s].
             acc_body: true body-frame acceleration (a_x, a_y) [m/s²] at the accelerometer.
         """
-        true_pose = _finite_array("pose", pose, (3,))
+        true_pose = finite_array("pose", pose, (3,))
         return SensorReadings(
-            t=_finite_scalar("t", t),
+            t=finite_scalar("t", t),
             wheel_angles=self.encoders.measure(wheel_angles),
             gyro=self.gyro.measure(yaw_rate, dt),
             compass=self.compass.measure(true_pose[2]),

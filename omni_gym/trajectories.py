@@ -23,6 +23,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from omni_gym.checks import finite_array, finite_scalar, positive, wrap_angle
 from omni_gym.kinematics import forward, inverse, world_to_body
 from omni_gym.robot import RobotSpec
 
@@ -30,39 +31,6 @@ TWO_PI = 2.0 * math.pi
 
 
 # --- validation helpers ---------------------------------------------------------------------------
-
-
-def _finite_scalar(name: str, value: float) -> float:
-    """``value`` as a float; ValueError naming ``name`` if it is not a finite real number."""
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a finite number, got {value!r}") from None
-    if not math.isfinite(x):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    return x
-
-
-def _positive(name: str, value: float) -> float:
-    """``value`` as a float; ValueError naming ``name`` unless finite and > 0."""
-    x = _finite_scalar(name, value)
-    if x <= 0:
-        raise ValueError(f"{name} must be > 0, got {value!r}")
-    return x
-
-
-def _finite_array(name: str, value: np.ndarray, shape: tuple[int | None, ...]) -> np.ndarray:
-    """``value`` as a finite float array matching ``shape`` (None: any length); ValueError otherwise."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a numeric array of shape {shape}, got {value!r}") from None
-    if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape, strict=True)):
-        shown = tuple("n" if s is None else s for s in shape)
-        raise ValueError(f"{name} must have shape {shown}, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite (no NaN/inf), got {arr}")
-    return arr
 
 
 def _times(t: float | np.ndarray) -> np.ndarray:
@@ -79,12 +47,9 @@ def _heading_option(heading: float | str) -> float | str:
         if heading != "tangent":
             raise ValueError(f"heading must be a number [rad] or 'tangent', got {heading!r}")
         return heading
-    return _finite_scalar("heading", heading)
+    return finite_scalar("heading", heading)
 
 
-def _wrap(angle: float | np.ndarray) -> float | np.ndarray:
-    """Angle(s) [rad] wrapped to (−π, π]."""
-    return angle - TWO_PI * np.ceil((np.asarray(angle) - math.pi) / TWO_PI)
 
 
 def _stack(x: np.ndarray, y: np.ndarray, theta: np.ndarray) -> np.ndarray:
@@ -154,12 +119,12 @@ class Quintic(Trajectory):
 
     def __init__(self, start_pose: np.ndarray, goal_pose: np.ndarray, duration: float,
                  shortest_turn: bool = False) -> None:
-        self.start_pose = _finite_array("start_pose", start_pose, (3,))
-        goal = _finite_array("goal_pose", goal_pose, (3,)).copy()
+        self.start_pose = finite_array("start_pose", start_pose, (3,))
+        goal = finite_array("goal_pose", goal_pose, (3,)).copy()
         if shortest_turn:
-            goal[2] = self.start_pose[2] + _wrap(goal[2] - self.start_pose[2])
+            goal[2] = self.start_pose[2] + wrap_angle(goal[2] - self.start_pose[2])
         self.goal_pose = goal
-        self.duration = _positive("duration", duration)
+        self.duration = positive("duration", duration)
         self.coefficients = quintic_coefficients(self.start_pose, self.goal_pose, self.duration)
 
     def sample(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -187,15 +152,15 @@ class QuinticWaypoints(Trajectory):
 
     def __init__(self, waypoints: np.ndarray, segment_durations: Sequence[float] | None = None,
                  speed: float | None = None, yaw_rate: float = 1.0, shortest_turn: bool = False) -> None:
-        wp = _finite_array("waypoints", waypoints, (None, 3))
+        wp = finite_array("waypoints", waypoints, (None, 3))
         if len(wp) < 2:
             raise ValueError(f"waypoints must hold at least 2 poses, got {len(wp)}")
         if (segment_durations is None) == (speed is None):
             raise ValueError("give exactly one of segment_durations and speed")
         if speed is not None:
-            segment_durations = self._durations_from_speed(wp, _positive("speed", speed),
-                                                           _positive("yaw_rate", yaw_rate), shortest_turn)
-        durations = _finite_array("segment_durations", segment_durations, (len(wp) - 1,))
+            segment_durations = self._durations_from_speed(wp, positive("speed", speed),
+                                                           positive("yaw_rate", yaw_rate), shortest_turn)
+        durations = finite_array("segment_durations", segment_durations, (len(wp) - 1,))
         if np.any(durations <= 0):
             raise ValueError(f"segment_durations must all be > 0, got {durations}")
         self.waypoints = wp
@@ -212,7 +177,7 @@ class QuinticWaypoints(Trajectory):
         """Segment durations [s] giving peak linear speed ``speed`` and yaw rate at most ``yaw_rate``."""
         dist = np.hypot(*np.diff(wp[:, :2], axis=0).T)
         turn = np.diff(wp[:, 2])
-        turn = np.abs(_wrap(turn) if shortest_turn else turn)
+        turn = np.abs(wrap_angle(turn) if shortest_turn else turn)
         durations = 15.0 / 8.0 * np.maximum(dist / speed, turn / yaw_rate)
         if np.any(durations <= 0):
             i = int(np.argmin(durations))
@@ -284,9 +249,9 @@ class StepVelocity(Trajectory):
         if not isinstance(robot, RobotSpec):
             raise ValueError(f"robot must be a RobotSpec, got {robot!r}")
         self.robot = robot
-        self.wheel_speeds_cmd = _finite_array("wheel_speeds", wheel_speeds, (robot.n_wheels,))
-        self.duration = _positive("duration", duration)
-        self.start_pose = _finite_array("start_pose", start_pose, (3,))
+        self.wheel_speeds_cmd = finite_array("wheel_speeds", wheel_speeds, (robot.n_wheels,))
+        self.duration = positive("duration", duration)
+        self.start_pose = finite_array("start_pose", start_pose, (3,))
         self.twist_body = forward(robot, self.wheel_speeds_cmd)
 
     @classmethod
@@ -300,18 +265,18 @@ class StepVelocity(Trajectory):
         """
         if not isinstance(robot, RobotSpec):
             raise ValueError(f"robot must be a RobotSpec, got {robot!r}")
-        dist = _finite_scalar("distance", distance)
+        dist = finite_scalar("distance", distance)
         if dist < 0:
             raise ValueError(f"distance must be >= 0 (use direction for the sense), got {distance!r}")
-        T = _positive("duration", duration)
-        th = _finite_scalar("heading", heading)
-        u = _finite_array("direction", direction, (2,))
+        T = positive("duration", duration)
+        th = finite_scalar("heading", heading)
+        u = finite_array("direction", direction, (2,))
         norm = math.hypot(*u)
         if norm == 0:
             raise ValueError("direction must be a non-zero 2-vector")
         v_world = np.array([u[0], u[1], 0.0]) * (dist / T / norm)
         speeds = inverse(robot, world_to_body(v_world, th))
-        p0 = _finite_array("start_position", start_position, (2,))
+        p0 = finite_array("start_position", start_position, (2,))
         return cls(speeds, T, robot, start_pose=(p0[0], p0[1], th))
 
     def wheel_commands(self, t: float | np.ndarray) -> np.ndarray:
@@ -345,8 +310,8 @@ class StraightLine(Trajectory):
 
     def __init__(self, start: Sequence[float], goal: Sequence[float], duration: float,
                  heading: float | str = 0.0) -> None:
-        p0 = _finite_array("start", start, (2,))
-        p1 = _finite_array("goal", goal, (2,))
+        p0 = finite_array("start", start, (2,))
+        p1 = finite_array("goal", goal, (2,))
         heading = _heading_option(heading)
         if heading == "tangent":
             if np.allclose(p0, p1, rtol=0.0, atol=0.0):
@@ -372,12 +337,12 @@ class _PeriodicPath(Trajectory):
 
     def __init__(self, center: Sequence[float], period: float, phase: float, clockwise: bool,
                  heading: float | str, laps: float) -> None:
-        self.center = _finite_array("center", center, (2,))
-        self.period = _positive("period", period)
-        self.phase = _finite_scalar("phase", phase)
+        self.center = finite_array("center", center, (2,))
+        self.period = positive("period", period)
+        self.phase = finite_scalar("phase", phase)
         self.clockwise = bool(clockwise)
         self.heading = _heading_option(heading)
-        self.laps = _positive("laps", laps)
+        self.laps = positive("laps", laps)
         self.duration = self.laps * self.period
         self.rate = (-1.0 if self.clockwise else 1.0) * TWO_PI / self.period  # φ̇ [rad/s]
 
@@ -426,7 +391,7 @@ class Circle(_PeriodicPath):
 
     def __init__(self, center: Sequence[float], radius: float, period: float, phase: float = 0.0,
                  clockwise: bool = False, heading: float | str = "tangent", laps: float = 1.0) -> None:
-        self.radius = _positive("radius", radius)
+        self.radius = positive("radius", radius)
         super().__init__(center, period, phase, clockwise, heading, laps)
 
     def _path(self, phi: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -449,7 +414,7 @@ class FigureEight(_PeriodicPath):
     def __init__(self, center: Sequence[float] = (0.0, 0.0), half_width: float = 1.0, period: float = 20.0,
                  phase: float = 0.0, clockwise: bool = False, heading: float | str = "tangent",
                  laps: float = 1.0) -> None:
-        self.half_width = _positive("half_width", half_width)
+        self.half_width = positive("half_width", half_width)
         super().__init__(center, period, phase, clockwise, heading, laps)
 
     def _path(self, phi: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -461,7 +426,7 @@ class FigureEight(_PeriodicPath):
         # (left lobe), staying within [−5π/4, π/4]; centring the branch cut at −π/2 ± π keeps it
         # continuous: −π/2 + wrap(atan2(cos 2φ, cos φ) + π/2).
         raw = np.arctan2(np.cos(2 * phi), np.cos(phi))
-        return -math.pi / 2.0 + _wrap(raw + math.pi / 2.0)
+        return -math.pi / 2.0 + wrap_angle(raw + math.pi / 2.0)
 
 
 # --- random waypoints ----------------------------------------------------------------------------
@@ -483,15 +448,15 @@ def random_waypoints(rng: np.random.Generator, n: int, arena_half_size: float, m
         raise ValueError(f"rng must be a numpy.random.Generator, got {rng!r}")
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise ValueError(f"n must be a positive integer, got {n!r}")
-    half = _positive("arena_half_size", arena_half_size) - _finite_scalar("margin", margin)
+    half = positive("arena_half_size", arena_half_size) - finite_scalar("margin", margin)
     if half <= 0 or margin < 0:
         raise ValueError(f"margin must be in [0, arena_half_size), got {margin!r}")
-    sep = _finite_scalar("min_separation", min_separation)
+    sep = finite_scalar("min_separation", min_separation)
     if sep < 0:
         raise ValueError(f"min_separation must be >= 0, got {min_separation!r}")
     if not isinstance(heading, str) or heading != "random":
         heading = _heading_option(heading)
-    first = None if start is None else _finite_array("start", start, (3,))
+    first = None if start is None else finite_array("start", start, (3,))
     xy = _random_positions(rng, n, half, sep, None if first is None else first[:2], max_tries)
     theta = _waypoint_headings(rng, xy, heading)
     if first is not None:

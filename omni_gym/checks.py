@@ -1,0 +1,58 @@
+"""Argument checks shared by the core modules: one-line ValueErrors that name the argument."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+TWO_PI = 2.0 * math.pi
+
+
+def finite_scalar(name: str, value: float) -> float:
+    """``value`` as a float; ValueError naming ``name`` if it is not a finite real number."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a finite number, got {value!r}") from None
+    if not math.isfinite(x):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+    return x
+
+
+def nonnegative(name: str, value: float) -> float:
+    """``value`` as a float; ValueError naming ``name`` unless finite and >= 0."""
+    x = finite_scalar(name, value)
+    if x < 0:
+        raise ValueError(f"{name} must be >= 0, got {value!r}")
+    return x
+
+
+def positive(name: str, value: float) -> float:
+    """``value`` as a float; ValueError naming ``name`` unless finite and > 0."""
+    x = finite_scalar(name, value)
+    if x <= 0:
+        raise ValueError(f"{name} must be > 0, got {value!r}")
+    return x
+
+
+def finite_array(name: str, value: np.ndarray, shape: tuple[int | None, ...]) -> np.ndarray:
+    """``value`` as a finite float array matching ``shape`` (None: any length); ValueError otherwise."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a numeric array of shape {shape}, got {value!r}") from None
+    if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape, strict=True)):
+        shown = tuple("n" if s is None else s for s in shape)
+        raise ValueError(f"{name} must have shape {shown}, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite (no NaN/inf), got {arr}")
+    return arr
+
+
+def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
+    """Angle(s) [rad] wrapped to the half-open interval (−π, π]; works element-wise on arrays."""
+    a = np.asarray(angle, dtype=float)
+    wrapped = a - TWO_PI * np.ceil((a - math.pi) / TWO_PI)
+    wrapped = np.where(wrapped <= -math.pi, wrapped + TWO_PI, wrapped)
+    return float(wrapped) if wrapped.ndim == 0 else wrapped
