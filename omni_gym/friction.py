@@ -54,10 +54,13 @@ class Surface:
                 "mu_gap": self.mu_gap, "k": self.k}
 
 
-# Williams et al. (2002), Table I.
+# Williams et al. (2002), Table I; "grip" is ours: an idealised floor on which the wheels do not slip
+# along their drive direction (μ'_W = 2, far above any force the robots need) and the rollers turn
+# freely (μ'_T = 0), for no-slip baselines. Stiffer than the others: N·μ·(2/π)·k/m ≈ 3000 /s.
 SURFACES = {
     "paper": Surface("paper", mu_drive=0.26, mu_transverse=0.09, mu_gap=0.47),
     "carpet": Surface("carpet", mu_drive=0.25, mu_transverse=0.15, mu_gap=0.56),
+    "grip": Surface("grip", mu_drive=2.0, mu_transverse=0.0, mu_gap=2.0),
 }
 
 

@@ -46,3 +46,27 @@ def test_reference_draws_are_seeded():
     c = draw_reference(cfg, np.random.default_rng(6), 500)[0]
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c)
+
+
+def test_sensor_observation_decodes_to_physical_units():
+    import gymnasium as gym
+
+    import omni_gym  # noqa: F401
+    from omni_gym.envs.decode import SensorObsDecoder
+
+    env = gym.make("OmniPathFollow-Phunopas-v0", obs_mode="sensors", sensor_noise=0.0, lift_rate=0.0)
+    decode = SensorObsDecoder.for_env(env)
+    obs, info = env.reset(seed=3)
+    for _ in range(30):
+        obs, _, _, _, info = env.step(np.array([0.3, -0.2, 0.4]))
+    s = decode(obs)
+    core = env.unwrapped.core
+    # Noiseless sensors: reference and compass come back to float32 precision (1e-6 of their scale).
+    np.testing.assert_allclose(s.ref_pose[:2], info["reference_pose"][:2], atol=1e-5)
+    assert abs(s.compass - info["pose"][2]) < 1e-5
+    assert abs(s.gyro - info["velocity"][2]) < 1e-4 * 3.0
+    np.testing.assert_allclose(s.prev_action, [0.3, -0.2, 0.4], atol=1e-6)
+    # Encoder rates are the quantised angle change over 10 ms: within one count per period of the truth.
+    quantum = 2 * np.pi / 2048
+    true_rates = core.world.wheel_speed[0]
+    assert np.all(np.abs(s.encoder_rates - true_rates) <= quantum / 0.01 + 1e-3)
