@@ -41,6 +41,14 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--dt", type=float, default=None, help="physics substep [s] (default 0.0005)")
     sim.add_argument("--actuation", choices=("ideal", "servo"), default="ideal", help="wheel actuation")
     sim.add_argument("--seed", type=int, default=0, help="seed for random effects (wheel lift-off)")
+
+    ev = sub.add_parser("evaluate", help="evaluate a policy on held-out seeds (mean and 95%% CI per metric)")
+    ev.add_argument("--policy", required=True, help="open-loop, odometry-pid, ekf-pid or a saved SB3 model path")
+    ev.add_argument("--env", required=True, help="environment id, e.g. OmniPathFollow-Phunopas-v0")
+    ev.add_argument("--episodes", type=int, required=True, help="number of episodes (>= 1)")
+    ev.add_argument("--seed", type=int, required=True, help="first seed; episode i uses seed + i")
+    ev.add_argument("--env-kwargs", default=None, help="gym.make keywords as a JSON object")
+    ev.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     return parser
 
 
@@ -81,10 +89,26 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from agents.evaluate import evaluate, format_table
+
+    kwargs = {}
+    if args.env_kwargs is not None:
+        try:
+            kwargs = json.loads(args.env_kwargs)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"--env-kwargs is not valid JSON: {exc}") from None
+        if not isinstance(kwargs, dict):
+            raise ValueError(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
+    result = evaluate(args.policy, args.env, args.episodes, args.seed, kwargs)
+    print(json.dumps(result) if args.json else format_table(result))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    handlers = {"model": _cmd_model_show, "simulate": _cmd_simulate}
+    handlers = {"model": _cmd_model_show, "simulate": _cmd_simulate, "evaluate": _cmd_evaluate}
     try:
         return handlers[args.command](args)
     except (ValueError, OSError) as exc:

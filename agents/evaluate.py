@@ -1,0 +1,226 @@
+"""Evaluate a policy on an omni-gym environment over held-out seeds, with 95 % confidence intervals.
+
+Episode i runs with ``env.reset(seed=seed + i)``. Per-episode metrics come from the ground truth in
+``info`` (the policies never see it):
+
+* ``tracking_rmse`` [m]: √(mean of info["tracking_error"]²) over the steps of the episode (after each
+  action; the reset state, on the reference, is not counted). An episode that ends early (lost or
+  collided) is averaged over the steps it ran: its final error tells that it was lost.
+* ``final_position_error`` [m]: info["tracking_error"] at the last step.
+* ``final_heading_error`` [rad]: |info["heading_error"]| at the last step.
+* ``success``: info["is_success"] at the last step and the episode was not terminated early.
+
+Aggregates: mean with a two-sided 95 % Student-t interval (mean ± t₀.₉₇₅,ₙ₋₁·s/√n; None for n = 1)
+and the success rate with a 95 % Wilson score interval.
+
+Scripted policies (:data:`agents.policies.POLICY_NAMES`) run with ``obs_mode="sensors"`` and
+``action_mode="twist"``; asking for other modes in ``env_kwargs`` is an error.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import os
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from agents.policies import POLICY_NAMES, make_policy
+
+METRICS = ("tracking_rmse", "final_position_error", "final_heading_error")
+Z95 = 1.959963984540054  # standard normal 97.5 % quantile
+
+
+@dataclass
+class Episode:
+    """One evaluated episode; the trajectories are filled only with ``record=True``."""
+
+    seed: int
+    tracking_rmse: float
+    final_position_error: float
+    final_heading_error: float
+    success: bool
+    terminated: bool
+    steps: int
+    t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    pose: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # true pose (x, y, θ)
+    reference: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    estimate: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # NaN where the policy has none
+    contact: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=bool))
+
+    def metrics(self) -> dict:
+        return {"seed": self.seed, "tracking_rmse": self.tracking_rmse,
+                "final_position_error": self.final_position_error, "final_heading_error": self.final_heading_error,
+                "success": self.success, "terminated": self.terminated, "steps": self.steps}
+
+
+def run_episode(env, policy, seed: int, record: bool = False) -> Episode:
+    """Run one episode of ``policy`` (a scripted policy object) on ``env`` from ``env.reset(seed=seed)``.
+
+    With ``record`` the episode keeps, at every step k = 0…K, the time, true pose, reference pose, the
+    policy's estimate after acting on observation k (NaN for open-loop) and the wheel contacts.
+    """
+    obs, info = env.reset(seed=seed)
+    policy.reset(obs)
+    dt = env.unwrapped.cfg.control_dt
+    sq_sum, steps = 0.0, 0
+    rows = []
+
+    def keep(info_) -> None:
+        est = policy.estimate if policy.estimate is not None else np.full(3, np.nan)
+        rows.append((steps * dt, info_["pose"], info_["reference_pose"], np.array(est, dtype=float),
+                     info_["contact"]))
+
+    while True:
+        action = policy.act(obs)
+        if record:
+            keep(info)
+        obs, _, terminated, truncated, info = env.step(action)
+        steps += 1
+        sq_sum += info["tracking_error"] ** 2
+        if terminated or truncated:
+            break
+    if record:  # the estimate of the last pose: one more (unused) action updates it
+        policy.act(obs)
+        keep(info)
+    ep = Episode(seed=int(seed), tracking_rmse=math.sqrt(sq_sum / steps),
+                 final_position_error=float(info["tracking_error"]),
+                 final_heading_error=abs(float(info["heading_error"])),
+                 success=bool(info["is_success"]) and not terminated, terminated=bool(terminated), steps=steps)
+    if record:
+        ep.t = np.array([r[0] for r in rows])
+        ep.pose = np.array([r[1] for r in rows])
+        ep.reference = np.array([r[2] for r in rows])
+        ep.estimate = np.array([r[3] for r in rows])
+        ep.contact = np.array([r[4] for r in rows])
+    return ep
+
+
+def mean_ci(values: np.ndarray, level: float = 0.95) -> dict:
+    """Mean, sample std and the two-sided Student-t confidence interval of the mean (None if n < 2)."""
+    from scipy import stats
+
+    x = np.asarray(values, dtype=float)
+    n = len(x)
+    mean = float(np.mean(x))
+    if n < 2:
+        return {"mean": mean, "std": None, "ci95": None}
+    sd = float(np.std(x, ddof=1))
+    half = float(stats.t.ppf(0.5 + level / 2.0, n - 1)) * sd / math.sqrt(n)
+    return {"mean": mean, "std": sd, "ci95": [mean - half, mean + half]}
+
+
+def wilson_ci(successes: int, n: int, z: float = Z95) -> list[float]:
+    """Wilson score interval for a binomial proportion (95 % with the default z)."""
+    if n < 1:
+        raise ValueError("wilson_ci needs n >= 1")
+    p = successes / n
+    denom = 1.0 + z * z / n
+    centre = (p + z * z / (2 * n)) / denom
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
+    return [max(0.0, centre - half), min(1.0, centre + half)]
+
+
+def summarize(episodes: list[Episode]) -> dict:
+    """Aggregate metrics (mean and 95 % CI) and the per-episode values."""
+    out = {m: mean_ci(np.array([getattr(e, m) for e in episodes])) for m in METRICS}
+    wins = sum(e.success for e in episodes)
+    out["success_rate"] = {"mean": wins / len(episodes), "successes": wins, "ci95": wilson_ci(wins, len(episodes))}
+    out["terminated_rate"] = sum(e.terminated for e in episodes) / len(episodes)
+    out["per_episode"] = {k: [e.metrics()[k] for e in episodes] for k in ("seed", *METRICS, "success", "terminated")}
+    return out
+
+
+def make_env(env_id: str, env_kwargs: dict | None = None):
+    """``gym.make(env_id, obs_mode="sensors", action_mode="twist", **env_kwargs)`` with clear ValueErrors."""
+    import gymnasium as gym
+
+    import omni_gym  # noqa: F401  (registers the ids)
+    from omni_gym.envs import ENV_IDS
+
+    if not isinstance(env_kwargs or {}, dict):
+        raise ValueError(f"env_kwargs must be a dict (a JSON object), got {env_kwargs!r}")
+    kwargs = dict(env_kwargs or {})
+    for key, need in (("obs_mode", "sensors"), ("action_mode", "twist")):
+        if kwargs.get(key, need) != need:
+            raise ValueError(f"scripted policies run with {key}={need!r}; got {key}={kwargs[key]!r} in env_kwargs")
+        kwargs[key] = need
+    module, _, bare_id = env_id.rpartition(":")  # "omni_gym:ID" imports the module, as gym.make does
+    try:
+        if module:
+            importlib.import_module(module)
+        spec = gym.spec(bare_id)
+    except (gym.error.Error, ImportError) as exc:
+        raise ValueError(f"unknown environment id {env_id!r} ({exc}); omni-gym ids: {', '.join(ENV_IDS)}") from None
+    if not str(spec.entry_point).startswith("omni_gym."):
+        raise ValueError(f"environment {env_id!r} is not an omni-gym environment; omni-gym ids: {', '.join(ENV_IDS)}")
+    try:
+        env = gym.make(env_id, **kwargs)
+    except TypeError as exc:
+        raise ValueError(f"bad env_kwargs for {env_id}: {exc}") from None
+    # The registered TimeLimit (e.g. 800 steps for OmniGoToPose-v0) would cut a longer episode_seconds
+    # short; the environment truncates at the end of its reference by itself, so match the two.
+    steps = env.unwrapped.cfg.episode_steps
+    if env.spec is not None and env.spec.max_episode_steps != steps:
+        env.close()
+        env = gym.make(env_id, max_episode_steps=steps, **kwargs)
+    return env
+
+
+def evaluate(policy: str, env_id: str, episodes: int, seed: int, env_kwargs: dict | None = None,
+             progress: bool | None = None) -> dict:
+    """Run ``episodes`` episodes of ``policy`` on seeds seed, seed+1, …; return the summary dict.
+
+    Args:
+        policy: one of :data:`~agents.policies.POLICY_NAMES`, or a path to a saved SB3 model (not yet
+            supported: ValueError).
+        env_id: a registered omni-gym id.
+        episodes: number of episodes (≥ 1).
+        seed: first seed.
+        env_kwargs: extra ``gym.make`` keywords.
+        progress: tqdm bar on stderr (None: only when stderr is a terminal).
+
+    Returns a JSON-serialisable dict: ``policy``, ``env_id``, ``env_kwargs``, ``episodes``, ``seeds``
+    ([first, last]), per metric {mean, std, ci95}, ``success_rate`` {mean, successes, ci95},
+    ``terminated_rate`` and ``per_episode`` lists.
+    """
+    if policy not in POLICY_NAMES:
+        if os.path.exists(policy) or policy.endswith(".zip"):
+            raise ValueError(f"policy {policy!r}: loading SB3 models is not implemented yet "
+                             f"(scripted policies: {', '.join(POLICY_NAMES)})")
+        raise ValueError(f"unknown policy {policy!r}; choose one of {', '.join(POLICY_NAMES)} or a saved model path")
+    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
+        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    from tqdm import tqdm
+
+    env = make_env(env_id, env_kwargs)
+    try:
+        pol = make_policy(policy, env)
+        eps = [run_episode(env, pol, int(seed) + i)
+               for i in tqdm(range(episodes), desc=f"{policy} on {env_id}", file=sys.stderr, disable=progress is False
+                             or (progress is None and not sys.stderr.isatty()), leave=False)]
+    finally:
+        env.close()
+    return {"policy": policy, "env_id": env_id, "env_kwargs": dict(env_kwargs or {}), "episodes": episodes,
+            "seeds": [int(seed), int(seed) + episodes - 1], **summarize(eps)}
+
+
+def format_table(result: dict) -> str:
+    """A small text table of the summary (mean and 95 % CI per metric)."""
+    kw = f", {result['env_kwargs']}" if result["env_kwargs"] else ""
+    lines = [f"{result['policy']} on {result['env_id']}, {result['episodes']} episodes, seeds "
+             f"{result['seeds'][0]}–{result['seeds'][1]}{kw}",
+             f"{'metric':<26}{'mean':>10}   95% CI"]
+    units = {"tracking_rmse": "m", "final_position_error": "m", "final_heading_error": "rad"}
+    for m in METRICS:
+        r = result[m]
+        ci = "n/a" if r["ci95"] is None else f"[{r['ci95'][0]:.4f}, {r['ci95'][1]:.4f}]"
+        lines.append(f"{m + ' [' + units[m] + ']':<26}{r['mean']:>10.4f}   {ci}")
+    s = result["success_rate"]
+    lines.append(f"{'success rate':<26}{s['mean']:>10.3f}   [{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}] (Wilson)")
+    lines.append(f"{'terminated early':<26}{result['terminated_rate']:>10.3f}")
+    return "\n".join(lines)

@@ -1,0 +1,186 @@
+"""Scripted baseline policies for the omni-gym environments with ``obs_mode="sensors"``.
+
+Every policy reads only the sensor observation (decoded by :class:`~omni_gym.envs.decode.SensorObsDecoder`),
+never ``info``, and is deterministic given the observations:
+
+    policy = make_policy("ekf-pid", env)
+    obs, info = env.reset(seed=0)
+    policy.reset(obs)
+    while True:
+        obs, reward, terminated, truncated, info = env.step(policy.act(obs))
+        ...
+
+* ``open-loop``: feed-forward only. The reference world velocity is rotated into the body frame by
+  the *reference* heading (at mid-period, see below) and sent as the twist, i.e. wheel speeds
+  W·R(θ_ref)ᵀ·ṗ_ref — Phunopas & Inoue (2018) without their filter. Nothing corrects slip.
+* ``odometry-pid``: dead reckoning — the body translation (vx, vy) from the encoder rates by
+  least-squares forward kinematics over all wheels (W⁺·w; a policy cannot know which wheel is lifted),
+  the yaw rate from the gyro reading at the end of the period (the wheel speeds are set at the start
+  of each period and the body follows within milliseconds, so the end reading is the period's rate;
+  averaging both ends would lag by ω·dt/2), minus a zero-rate offset taken from the reset reading,
+  when the robot is at rest (one sample, so the offset keeps the gyro's white-noise error, 0.005 rad/s,
+  instead of the 0.01 rad/s turn-on bias spread), integrated from the start pose (the reference pose
+  at reset: episodes start on the reference) — and :class:`~agents.pid.PathPID` on that estimate.
+* ``ekf-pid``: :class:`agents.ekf.OmniEKF` (encoders, gyro, compass, accelerometer, camera fixes) and
+  the same PID on its pose.
+
+A constant body twist held for one control period moves the robot along an arc; rotating the world
+velocity by the heading at mid-period (θ + ω·dt/2) makes the straight-line chord match it to second
+order. All three policies do this, so the no-slip condition measures control, not discretisation.
+
+``policy.estimate`` is the current pose estimate (x, y, θ) (None for open-loop); ``policy.twist`` the
+last commanded body twist [m/s, m/s, rad/s].
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from agents.pid import PathPID, PIDGains
+from omni_gym.envs.decode import SensorObs, SensorObsDecoder
+
+POLICY_NAMES = ("open-loop", "odometry-pid", "ekf-pid")
+
+
+class ScriptedPolicy:
+    """Common machinery: decoding, twist → action (twist or wheel actions), the reset/act protocol."""
+
+    name = "scripted"
+
+    def __init__(self, env) -> None:
+        u = env.unwrapped
+        cfg = getattr(u, "cfg", None)
+        if cfg is None or not hasattr(u, "core"):
+            raise ValueError(f"policy {self.name!r} needs an omni-gym environment, got {type(u).__name__}")
+        if cfg.obs_mode != "sensors":
+            raise ValueError(f"policy {self.name!r} needs obs_mode='sensors', got {cfg.obs_mode!r}")
+        self.cfg = cfg
+        self.robot = u.core.robot
+        self.decode = SensorObsDecoder.for_env(env)
+        self.dt = cfg.control_dt
+        self.twist_mode = cfg.action_mode == "twist"
+        self.W = self.robot.wheel_matrix()
+        self.twist_scale = np.array([cfg.max_speed, cfg.max_speed, cfg.max_yaw_rate])
+        self.wheel_scale = float(u.core.wheel_scale)
+        self.action_shape = env.action_space.shape
+        self.estimate: np.ndarray | None = None
+        self.twist = np.zeros(3)
+        self._started = False
+
+    def reset(self, obs: np.ndarray) -> None:
+        """Start an episode from its first observation (the robot is at rest on the reference)."""
+        self._started = False
+        self.twist = np.zeros(3)
+        self._reset(self.decode(obs))
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """Action (float32, the env's action shape, within [−1, 1]) for the observation ``obs``."""
+        s = self.decode(obs)
+        if self._started:  # every observation after the reset one closes one control period
+            self._advance(s)
+        self._started = True
+        self.twist = self._twist(s)
+        return self._to_action(self.twist)
+
+    def _to_action(self, twist: np.ndarray) -> np.ndarray:
+        if self.twist_mode:
+            a = twist / self.twist_scale
+        else:
+            a = self.W @ twist / self.wheel_scale
+        return np.clip(a, -1.0, 1.0).astype(np.float32).reshape(self.action_shape)
+
+    # Subclass hooks.
+    def _reset(self, s: SensorObs) -> None:
+        pass
+
+    def _advance(self, s: SensorObs) -> None:
+        """Update the state estimate with the period that ``s`` closes."""
+
+    def _twist(self, s: SensorObs) -> np.ndarray:
+        raise NotImplementedError
+
+
+class OpenLoopPolicy(ScriptedPolicy):
+    """Feed-forward body twist R(θ_ref + ω_ref·dt/2)ᵀ·ṗ_ref; no feedback, no estimate."""
+
+    name = "open-loop"
+
+    def _twist(self, s: SensorObs) -> np.ndarray:
+        vx_w, vy_w, om = s.ref_velocity
+        mid = s.ref_pose[2] + 0.5 * om * self.dt
+        c, si = math.cos(mid), math.sin(mid)
+        return np.array([c * vx_w + si * vy_w, -si * vx_w + c * vy_w, om])
+
+
+class PIDPolicy(ScriptedPolicy):
+    """A pose estimator (subclass) followed by :class:`~agents.pid.PathPID`."""
+
+    def __init__(self, env, gains: PIDGains | None = None) -> None:
+        super().__init__(env)
+        self.pid = PathPID(self.cfg.max_speed, self.cfg.max_yaw_rate, self.dt, gains)
+
+    def reset(self, obs: np.ndarray) -> None:
+        self.pid.reset()
+        super().reset(obs)
+
+    def _twist(self, s: SensorObs) -> np.ndarray:
+        return self.pid.update(self.estimate, s.ref_pose, s.ref_velocity)
+
+
+class OdometryPIDPolicy(PIDPolicy):
+    """Dead reckoning (encoders by least-squares forward kinematics, gyro yaw rate) + PID."""
+
+    name = "odometry-pid"
+
+    def __init__(self, env, gains: PIDGains | None = None) -> None:
+        super().__init__(env, gains)
+        self._pinv = np.linalg.pinv(self.W)  # (3, n): W⁺, least-squares twist from wheel speeds
+        self.gyro_offset = 0.0  # zero-rate offset [rad/s]
+
+    def _reset(self, s: SensorObs) -> None:
+        self.estimate = np.array(s.ref_pose, dtype=float)
+        self.gyro_offset = s.gyro  # at rest: the reading is bias + noise
+
+    def _advance(self, s: SensorObs) -> None:
+        vx, vy, _ = self._pinv @ s.encoder_rates  # mean body velocity over the period
+        om = s.gyro - self.gyro_offset
+        x, y, th = self.estimate
+        mid = th + 0.5 * om * self.dt
+        c, si = math.cos(mid), math.sin(mid)
+        self.estimate = np.array([x + (c * vx - si * vy) * self.dt, y + (si * vx + c * vy) * self.dt,
+                                  th + om * self.dt])
+
+
+class EKFPIDPolicy(PIDPolicy):
+    """:class:`agents.ekf.OmniEKF` + PID; the filter starts at rest at the reset reference pose."""
+
+    name = "ekf-pid"
+
+    def __init__(self, env, gains: PIDGains | None = None) -> None:
+        super().__init__(env, gains)
+        from agents.ekf import EKFConfig, OmniEKF
+
+        self.ekf = OmniEKF(self.robot, EKFConfig.for_env(env))
+
+    def _reset(self, s: SensorObs) -> None:
+        self.ekf.reset(np.array(s.ref_pose, dtype=float))
+        self.estimate = np.array(self.ekf.pose, dtype=float)
+
+    def _advance(self, s: SensorObs) -> None:
+        self.ekf.process(s, self.dt)
+        self.estimate = np.array(self.ekf.pose, dtype=float)
+
+
+_POLICIES = {"open-loop": OpenLoopPolicy, "odometry-pid": OdometryPIDPolicy, "ekf-pid": EKFPIDPolicy}
+
+
+def make_policy(name: str, env, gains: PIDGains | None = None) -> ScriptedPolicy:
+    """The scripted policy ``name`` (one of :data:`POLICY_NAMES`) for ``env`` (obs_mode='sensors')."""
+    if name not in _POLICIES:
+        raise ValueError(f"unknown policy {name!r}; choose one of {', '.join(POLICY_NAMES)}")
+    cls = _POLICIES[name]
+    if gains is not None and not issubclass(cls, PIDPolicy):
+        raise ValueError(f"policy {name!r} takes no PID gains")
+    return cls(env) if gains is None else cls(env, gains)
