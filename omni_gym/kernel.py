@@ -266,22 +266,11 @@ def substep_parallel(dt, state, wheels, sp, wp, ext, out_force, out_slip):
 PARALLEL_MIN_ROBOTS = 256
 
 
-def warm_up() -> None:
-    """Compile (or load from cache) the kernel on tiny inputs, so the first real step is not slow."""
-    from omni_gym.model import N_SP, N_WP
-
-    z = np.zeros
-    sp = z((1, N_SP))
-    sp[0, SP_MASS] = sp[0, SP_INERTIA] = sp[0, SP_K] = sp[0, SP_KIN_RATIO] = sp[0, SP_VS] = 1.0
-    sp[0, SP_PITCH] = 1.0
-    substep(1e-3, z((1, 6)), z((1, 3, N_WH)), sp, z((1, 3, N_WP)), z((1, 3)), z((1, 3)), z((1, 3, 2)))
-
-
-def warm_up_parallel() -> None:
-    """Compile (or load from cache) the threaded kernel."""
+def warm_up(kernel=substep) -> None:
+    """Compile (or load from cache) ``kernel`` on tiny inputs, so the first real step is not slow."""
     from omni_gym.model import N_SP, N_WP
 
     z = np.zeros
     sp = z((2, N_SP))
     sp[:, SP_MASS] = sp[:, SP_INERTIA] = sp[:, SP_K] = sp[:, SP_KIN_RATIO] = sp[:, SP_VS] = sp[:, SP_PITCH] = 1.0
-    substep_parallel(1e-3, z((2, 6)), z((2, 3, N_WH)), sp, z((2, 3, N_WP)), z((2, 3)), z((2, 3)), z((2, 3, 2)))
+    kernel(1e-3, z((2, 6)), z((2, 3, N_WH)), sp, z((2, 3, N_WP)), z((2, 3)), z((2, 3)), z((2, 3, 2)))

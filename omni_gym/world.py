@@ -35,7 +35,6 @@ from omni_gym.kernel import (
     substep,
     substep_parallel,
     warm_up,
-    warm_up_parallel,
 )
 from omni_gym.liftoff import ContactProcess
 from omni_gym.loads import wheel_loads
@@ -127,14 +126,14 @@ class World:
         self.contact_processes: list[ContactProcess | None] = [None] * B
         self._switch_tick = np.full(B, _NEVER, dtype=np.int64)  # global tick of each robot's next contact switch
         self._next_switch_tick = _NEVER
-        self.models: list[SimModel] = []
+        self.models: list[SimModel] = list(model_list)
         self._build_space(model_list)
         for j, m in enumerate(model_list):
             self.set_model(j, m)
         # Threaded force kernel for large batches (bit-identical results); None chooses by size.
         self.parallel = B >= PARALLEL_MIN_ROBOTS if parallel is None else bool(parallel)
         self._kernel = substep_parallel if self.parallel else substep
-        warm_up_parallel() if self.parallel else warm_up()
+        warm_up(self._kernel)
 
     # --- pickling: rebuild the space, then restore every state variable exactly ------------------
 
@@ -256,10 +255,7 @@ class World:
         body.mass = sp[SP_MASS]
         body.moment = sp[SP_INERTIA]
         body.center_of_gravity = tuple(model.com)
-        if len(self.models) <= j:
-            self.models.append(model)
-        else:
-            self.models[j] = model
+        self.models[j] = model
         self._update_loads(j)
 
     # --- state access --------------------------------------------------------------------------

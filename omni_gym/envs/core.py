@@ -291,34 +291,22 @@ class TaskCore:
     def truncated(self) -> np.ndarray:
         return self.step_count >= self.cfg.episode_steps
 
-    def infos(self) -> dict[str, np.ndarray]:
-        """Ground truth for every robot (never part of the observation), as arrays over robots."""
-        k = self.step_count
-        err = self.err
+    def infos(self, robots: int | slice = slice(None)) -> dict[str, np.ndarray]:
+        """Ground truth (never part of the observation) for ``robots``: arrays over robots for a slice."""
+        err = self.err[robots]
+        cfg = self.cfg
         return {
-            "pose": self.true[:, 0:3].copy(),
-            "velocity": self.true[:, 3:6].copy(),
-            "reference_pose": self.ref_pose[np.arange(self.B), k],
-            "tracking_error": err[:, 0].copy(),
-            "heading_error": err[:, 1].copy(),
-            "slip": self.world.slip.copy(),
-            "contact": self.world.contact.copy(),
-            "collided": self.world.collided.copy(),
-            "is_success": (err[:, 0] <= self.cfg.success_distance) & (np.abs(err[:, 1]) <= self.cfg.success_heading),
+            "pose": self.true[robots, 0:3].copy(),
+            "velocity": self.true[robots, 3:6].copy(),
+            "reference_pose": self.ref_pose[np.arange(self.B)[robots], self.step_count[robots]].copy(),
+            "tracking_error": err[..., 0].copy(),
+            "heading_error": err[..., 1].copy(),
+            "slip": self.world.slip[robots].copy(),
+            "contact": self.world.contact[robots].copy(),
+            "collided": self.world.collided[robots].copy(),
+            "is_success": (err[..., 0] <= cfg.success_distance) & (np.abs(err[..., 1]) <= cfg.success_heading),
         }
 
     def info(self, j: int) -> dict:
-        """:meth:`infos` of robot j, with plain Python scalars (built directly: it is on the step path)."""
-        err = self.err[j]
-        e_pos, e_head = float(err[0]), float(err[1])
-        return {
-            "pose": self.true[j, 0:3].copy(),
-            "velocity": self.true[j, 3:6].copy(),
-            "reference_pose": self.ref_pose[j, self.step_count[j]].copy(),
-            "tracking_error": e_pos,
-            "heading_error": e_head,
-            "slip": self.world.slip[j].copy(),
-            "contact": self.world.contact[j].copy(),
-            "collided": bool(self.world.collided[j]),
-            "is_success": e_pos <= self.cfg.success_distance and abs(e_head) <= self.cfg.success_heading,
-        }
+        """:meth:`infos` of robot j, with plain Python scalars."""
+        return {key: v.item() if np.ndim(v) == 0 else v for key, v in self.infos(j).items()}
