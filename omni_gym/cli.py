@@ -49,6 +49,11 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--seed", type=int, required=True, help="first seed; episode i uses seed + i")
     ev.add_argument("--env-kwargs", default=None, help="gym.make keywords as a JSON object")
     ev.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+
+    show.set_defaults(handler=_cmd_model_show)
+    sim.set_defaults(handler=_cmd_simulate)
+    ev.set_defaults(handler=_cmd_evaluate)
+    # Further subcommands register here with their own set_defaults(handler=...).
     return parser
 
 
@@ -108,9 +113,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    handlers = {"model": _cmd_model_show, "simulate": _cmd_simulate, "evaluate": _cmd_evaluate}
     try:
-        return handlers[args.command](args)
+        return args.handler(args)
     except (ValueError, OSError) as exc:
         message = " ".join(str(exc).split())  # one line, whatever the source
         print(f"omni-gym: error: {message}", file=sys.stderr)
