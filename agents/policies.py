@@ -17,10 +17,14 @@ never ``info``, and is deterministic given the observations:
   least-squares forward kinematics over all wheels (W⁺·w; a policy cannot know which wheel is lifted),
   the yaw rate from the gyro reading at the end of the period (the wheel speeds are set at the start
   of each period and the body follows within milliseconds, so the end reading is the period's rate;
-  averaging both ends would lag by ω·dt/2), minus a zero-rate offset taken from the reset reading,
-  when the robot is at rest (one sample, so the offset keeps the gyro's white-noise error, 0.005 rad/s,
-  instead of the 0.01 rad/s turn-on bias spread), integrated from the start pose (the reference pose
-  at reset: episodes start on the reference) — and :class:`~agents.pid.PathPID` on that estimate.
+  averaging both ends would lag by ω·dt/2), minus a zero-rate offset: first the reset reading, at
+  rest, then refined at every rest point of the reference (gyro against the encoders' yaw rate, where
+  slip vanishes; fused by variance, see :class:`OdometryPIDPolicy`) — integrated from the start pose
+  (the reference pose at reset: episodes start on the reference) — and :class:`~agents.pid.PathPID`
+  on that estimate. The wheels are velocity-controlled, so the encoders read the commanded speeds
+  whether a wheel grips, slips or is lifted: dead reckoning sees heading slip (through the gyro) but
+  not translational slip, and under slip it is no better than open-loop on position
+  (``benchmarks/results/baselines.md``).
 * ``ekf-pid``: :class:`agents.ekf.OmniEKF` (encoders, gyro, compass, accelerometer, camera fixes) and
   the same PID on its pose.
 
@@ -134,17 +138,67 @@ class OdometryPIDPolicy(PIDPolicy):
 
     name = "odometry-pid"
 
+    # Gyro offset tracking: near the reference's rest points (rest-to-rest segments stop at every
+    # waypoint) wheel forces, hence slip, vanish, so the encoders' yaw rate is the true one and
+    # gyro − encoder yaw rate measures the gyro's offset. Each contiguous rest window gives one such
+    # measurement: summed over the window, the quantised encoder angles telescope (error: two uniform
+    # quantisation errors per wheel, whatever the window's length). The gate uses the reference, not
+    # the noisy encoder rates (gating on those would select quantisation errors). Windows are fused
+    # with the reset reading by a scalar Kalman filter, so quantisation never spoils a better prior
+    # (e.g. with noiseless sensors).
+    CALIB_SPEED = 0.03  # m/s: reference speed below which a period counts as near-standstill
+    CALIB_YAW_RATE = 0.1  # rad/s: same for the reference yaw rate
+
     def __init__(self, env, gains: PIDGains | None = None) -> None:
         super().__init__(env, gains)
         self._pinv = np.linalg.pinv(self.W)  # (3, n): W⁺, least-squares twist from wheel speeds
-        self.gyro_offset = 0.0  # zero-rate offset [rad/s]
+        sc = self.cfg.sensor_config()
+        quantum = 2.0 * math.pi / sc.counts_per_rev
+        # Yaw-angle variance of one window's quantisation error [rad²]: per wheel, the difference of two
+        # uniform errors has variance q²/6.
+        self._window_q_var = float(np.sum(self._pinv[2] ** 2)) * quantum**2 / 6.0
+        self._gyro_var = sc.gyro_noise_std**2  # [rad²/s²] per reading
+        self._walk_var = sc.gyro_bias_walk_std**2  # [rad²/s³]
+        self.gyro_offset = 0.0  # zero-rate offset estimate [rad/s]
+        self.gyro_offset_var = 0.0  # its variance [rad²/s²]
+        self._win_sum = 0.0  # Σ (gyro − encoder yaw rate)·dt over the current rest window [rad]
+        self._win_n = 0  # periods in it
+        self._calib_ref = np.zeros(3)  # reference velocity at the start of the period being closed
+        self._last_gyro = 0.0  # gyro reading at the start of that period [rad/s]
 
     def _reset(self, s: SensorObs) -> None:
         self.estimate = np.array(s.ref_pose, dtype=float)
         self.gyro_offset = s.gyro  # at rest: the reading is bias + noise
+        self.gyro_offset_var = self._gyro_var
+        self._win_sum, self._win_n = 0.0, 0
+        self._calib_ref = np.array(s.ref_velocity, dtype=float)
+        self._last_gyro = s.gyro
+
+    def _close_window(self) -> None:
+        """Fuse the finished rest window's offset measurement into the estimate."""
+        if self._win_n == 0:
+            return
+        span = self._win_n * self.dt
+        z = self._win_sum / span
+        r = self._window_q_var / span**2 + self._gyro_var / self._win_n
+        gain = self.gyro_offset_var / (self.gyro_offset_var + r) if self.gyro_offset_var + r > 0 else 0.0
+        self.gyro_offset += gain * (z - self.gyro_offset)
+        self.gyro_offset_var *= 1.0 - gain
+        self._win_sum, self._win_n = 0.0, 0
 
     def _advance(self, s: SensorObs) -> None:
-        vx, vy, _ = self._pinv @ s.encoder_rates  # mean body velocity over the period
+        vx, vy, om_enc = self._pinv @ s.encoder_rates  # mean body twist over the period
+        self.gyro_offset_var += self._walk_var * self.dt
+        ref = self._calib_ref
+        if math.hypot(ref[0], ref[1]) < self.CALIB_SPEED and abs(ref[2]) < self.CALIB_YAW_RATE:
+            # The encoders give the period's mean rate; so does the mean of the gyro at its two ends
+            # (the end reading alone is ahead by ω̇·dt/2, which does not cancel over a short window).
+            self._win_sum += (0.5 * (s.gyro + self._last_gyro) - om_enc) * self.dt
+            self._win_n += 1
+        else:
+            self._close_window()
+        self._calib_ref = np.array(s.ref_velocity, dtype=float)
+        self._last_gyro = s.gyro
         om = s.gyro - self.gyro_offset
         x, y, th = self.estimate
         mid = th + 0.5 * om * self.dt
