@@ -133,8 +133,12 @@ def summarize(episodes: list[Episode]) -> dict:
     return out
 
 
-def make_env(env_id: str, env_kwargs: dict | None = None):
-    """``gym.make(env_id, obs_mode="sensors", action_mode="twist", **env_kwargs)`` with clear ValueErrors."""
+def make_env(env_id: str, env_kwargs: dict | None = None, obs_mode: str = "sensors"):
+    """``gym.make(env_id, obs_mode=obs_mode, action_mode="twist", **env_kwargs)`` with clear ValueErrors.
+
+    ``obs_mode`` is "sensors" for the scripted policies; an SB3 model trained on ``"state"`` (a privileged
+    upper bound) asks for that.
+    """
     import gymnasium as gym
 
     import omni_gym  # noqa: F401  (registers the ids)
@@ -143,9 +147,9 @@ def make_env(env_id: str, env_kwargs: dict | None = None):
     if not isinstance(env_kwargs or {}, dict):
         raise ValueError(f"env_kwargs must be a dict (a JSON object), got {env_kwargs!r}")
     kwargs = dict(env_kwargs or {})
-    for key, need in (("obs_mode", "sensors"), ("action_mode", "twist")):
+    for key, need in (("obs_mode", obs_mode), ("action_mode", "twist")):
         if kwargs.get(key, need) != need:
-            raise ValueError(f"scripted policies run with {key}={need!r}; got {key}={kwargs[key]!r} in env_kwargs")
+            raise ValueError(f"this policy runs with {key}={need!r}; got {key}={kwargs[key]!r} in env_kwargs")
         kwargs[key] = need
     module, _, bare_id = env_id.rpartition(":")  # "omni_gym:ID" imports the module, as gym.make does
     try:
@@ -174,8 +178,8 @@ def evaluate(policy: str, env_id: str, episodes: int, seed: int, env_kwargs: dic
     """Run ``episodes`` episodes of ``policy`` on seeds seed, seed+1, …; return the summary dict.
 
     Args:
-        policy: one of :data:`~agents.policies.POLICY_NAMES`, or a path to a saved SB3 model (not yet
-            supported: ValueError).
+        policy: one of :data:`~agents.policies.POLICY_NAMES`, or a trained model directory (``meta.json``
+            + model zip, see :mod:`agents.sb3_policy`; it builds the environment and wrapper it needs).
         env_id: a registered omni-gym id.
         episodes: number of episodes (≥ 1).
         seed: first seed.
@@ -186,10 +190,10 @@ def evaluate(policy: str, env_id: str, episodes: int, seed: int, env_kwargs: dic
     ([first, last]), per metric {mean, std, ci95}, ``success_rate`` {mean, successes, ci95},
     ``terminated_rate`` and ``per_episode`` lists.
     """
-    if policy not in POLICY_NAMES:
-        if os.path.exists(policy) or policy.endswith(".zip"):
-            raise ValueError(f"policy {policy!r}: loading SB3 models is not implemented yet "
-                             f"(scripted policies: {', '.join(POLICY_NAMES)})")
+    if policy not in POLICY_NAMES and not os.path.isdir(policy):
+        if policy.endswith(".zip") or os.path.exists(policy):
+            raise ValueError(f"policy {policy!r}: a trained model is evaluated from its directory (meta.json + "
+                             "model zip, e.g. agents/models/<name>), not from a file")
         raise ValueError(f"unknown policy {policy!r}; choose one of {', '.join(POLICY_NAMES)} or a saved model path")
     if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
@@ -197,9 +201,15 @@ def evaluate(policy: str, env_id: str, episodes: int, seed: int, env_kwargs: dic
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     from tqdm import tqdm
 
-    env = make_env(env_id, env_kwargs)
+    if policy in POLICY_NAMES:
+        env = make_env(env_id, env_kwargs)
+    else:  # a trained model directory: it knows its observation mode and wrapper
+        from agents.sb3_policy import build
+
+        env, pol = build(policy, env_id, env_kwargs)
     try:
-        pol = make_policy(policy, env)
+        if policy in POLICY_NAMES:
+            pol = make_policy(policy, env)
         eps = [run_episode(env, pol, int(seed) + i)
                for i in tqdm(range(episodes), desc=f"{policy} on {env_id}", file=sys.stderr, disable=progress is False
                              or (progress is None and not sys.stderr.isatty()), leave=False)]

@@ -53,8 +53,28 @@ def build_parser() -> argparse.ArgumentParser:
     show.set_defaults(handler=_cmd_model_show)
     sim.set_defaults(handler=_cmd_simulate)
     ev.set_defaults(handler=_cmd_evaluate)
+    tr = sub.add_parser("train", help="train an SB3 agent (ppo, sac, td3) with hyperparameters from agents/hyperparams")
+    _add_train_options(tr)
+    tr.set_defaults(handler=_cmd_train)
     # Further subcommands register here with their own set_defaults(handler=...).
     return parser
+
+
+def _add_train_options(p: argparse.ArgumentParser) -> None:
+    from agents.train import build_arg_parser  # argparse only; the heavy imports happen in the handler
+
+    build_arg_parser(p)
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    from agents.train import command_line, run_from_args
+
+    meta = run_from_args(args, command_line("omni-gym train", args))
+    best = meta.get("best") or {}
+    rmse = best.get("val_tracking_rmse")
+    note = f"; best validation tracking RMSE {rmse:.4f} m at {best['timesteps']} steps" if rmse is not None else ""
+    print(f"trained {meta['timesteps']} steps in {meta['wall_time_s']:.0f} s{note} -> {args.out}")
+    return 0
 
 
 def _cmd_model_show(args: argparse.Namespace) -> int:

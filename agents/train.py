@@ -1,0 +1,513 @@
+"""Train an SB3 agent (PPO, SAC or TD3) on an omni-gym environment; ``omni-gym train`` and ``python -m agents.train``.
+
+    omni-gym train --algo ppo --env OmniPathFollow-Phunopas-v0 --timesteps 2000000 --seed 0 \\
+                   --out agents/models/ppo-residual [--env-kwargs JSON] [--hyperparams FILE] [--n-envs N]
+                   [--vec-env dummy|subproc] [--eval-freq STEPS] [--eval-episodes K] [--checkpoint-freq STEPS]
+                   [--tensorboard DIR] [--progress | --no-progress] [--max-minutes M]
+
+Hyperparameters come from ``agents/hyperparams/<algo>.yml`` in the RL Zoo layout: a top-level key per
+environment id, with ``n_timesteps``, ``policy``, ``n_envs``, ``normalize`` (bool, or a string such as
+``"{'norm_obs': True, 'norm_reward': False}"``), ``policy_kwargs`` (a Python expression string that may
+use ``nn``), ``learning_rate`` (a number or ``lin_<x>`` for a linear schedule), ``noise_type`` /
+``noise_std`` (TD3, SAC) and any other constructor argument of the algorithm. Our own keys:
+
+* ``env_kwargs`` (dict): ``gym.make`` keywords for training (domain randomisation lives here);
+  ``--env-kwargs`` is merged over them.
+* ``env_wrapper``: one of :data:`agents.wrappers.WRAPPERS`; ``residual_scale``: its residual bound;
+  ``reward``: ``env`` or ``tracking`` (see :class:`agents.wrappers.EKFFeatures`).
+* ``sensor_noise_range``: ``[lo, hi]``, sensor noise scaled by U(lo, hi) per episode.
+* ``residual_init``: the actor's last layer is scaled by this factor (and its bias zeroed) at the start,
+  so a residual policy starts as its baseline; ``init_log_std`` sets SAC's initial log std.
+
+The output directory receives ``model.zip`` (the checkpoint with the lowest validation tracking RMSE;
+the final one if there is no evaluation), ``final_model.zip``, ``vecnormalize.pkl`` (for ``model.zip``,
+when normalising), ``meta.json`` (how to rebuild the environment and wrapper, the exact command, seed,
+git commit, timesteps, wall time), ``curve.csv`` / ``curve.png`` (training curve: validation tracking
+RMSE and reward against timesteps) and ``checkpoints/``.
+
+Seeds: training environment i is reset first with ``seed + i`` (then unseeded, continuing its own
+generator); validation episodes use seeds ``VALIDATION_SEED``…; the benchmarks use 10 000 and up, so
+the three never share an episode.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import math
+import os
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HYPERPARAM_DIR = Path(__file__).resolve().parent / "hyperparams"
+ALGOS = ("ppo", "sac", "td3")
+VALIDATION_SEED = 5000  # validation episodes; training envs use small seeds, benchmarks 10 000+
+OWN_KEYS = ("n_timesteps", "policy", "n_envs", "normalize", "env_kwargs", "env_wrapper", "residual_scale", "reward",
+            "sensor_noise_range", "residual_init", "init_log_std", "noise_type", "noise_std", "policy_kwargs",
+            "learning_rate")
+
+
+def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict:
+    """The YAML entry for ``env_id`` in ``path`` (default ``agents/hyperparams/<algo>.yml``)."""
+    import yaml
+
+    if algo not in ALGOS:
+        raise ValueError(f"unknown algo {algo!r}; choose one of {', '.join(ALGOS)}")
+    path = Path(path) if path is not None else HYPERPARAM_DIR / f"{algo}.yml"
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{path}: not valid YAML ({' '.join(str(exc).split())})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: must map environment ids to hyperparameters")
+    bare = env_id.rpartition(":")[2]
+    if bare not in data:
+        raise ValueError(f"{path}: no entry for {bare!r} (entries: {', '.join(map(str, data))})")
+    hp = data[bare]
+    if not isinstance(hp, dict):
+        raise ValueError(f"{path}: key {bare!r}: must be a mapping of hyperparameters")
+    return dict(hp)
+
+
+def _policy_kwargs(text, where: str) -> dict:
+    """Evaluate an RL-Zoo ``policy_kwargs`` string with only ``dict``, ``nn`` and literals in scope."""
+    if text is None:
+        return {}
+    if isinstance(text, dict):
+        return dict(text)
+    import torch.nn as nn
+
+    try:
+        tree = ast.parse(str(text), mode="eval")
+        for node in ast.walk(tree):  # names allowed: dict, nn, True/False/None; attributes only on nn
+            if isinstance(node, ast.Name) and node.id not in ("dict", "nn"):
+                raise ValueError(f"name {node.id!r} not allowed")
+            if isinstance(node, ast.Call) and not (isinstance(node.func, ast.Name) and node.func.id == "dict"):
+                raise ValueError("only dict(...) calls are allowed")
+        value = eval(compile(tree, where, "eval"), {"__builtins__": {}}, {"dict": dict, "nn": nn})  # noqa: S307
+    except (SyntaxError, ValueError, AttributeError) as exc:
+        raise ValueError(f"{where}: policy_kwargs {text!r}: {exc}") from None
+    if not isinstance(value, dict):
+        raise ValueError(f"{where}: policy_kwargs must evaluate to a dict, got {type(value).__name__}")
+    return value
+
+
+def _learning_rate(value, where: str):
+    if isinstance(value, str):
+        if value.startswith("lin_"):
+            start = float(value[4:])
+            return lambda progress_remaining: progress_remaining * start
+        try:
+            return float(value)
+        except ValueError:
+            raise ValueError(f"{where}: learning_rate {value!r} must be a number or lin_<number>") from None
+    return float(value)
+
+
+def _normalize(value, where: str) -> dict | None:
+    if value in (None, False):
+        return None
+    if value is True:
+        return {}
+    if isinstance(value, str):
+        try:
+            value = ast.literal_eval(value)
+        except (ValueError, SyntaxError):
+            raise ValueError(f"{where}: normalize {value!r} must be a bool or a dict string") from None
+    if not isinstance(value, dict):
+        raise ValueError(f"{where}: normalize must be a bool or a dict, got {value!r}")
+    return dict(value)
+
+
+def make_train_env(env_id: str, env_kwargs: dict, wrapper: str, residual_scale: float,
+                   sensor_noise_range=None, reward: str = "env"):
+    """One training/evaluation environment: :func:`agents.evaluate.make_env` (with the obs mode the wrapper
+    needs) and the wrapper."""
+    from agents.evaluate import make_env
+    from agents.wrappers import wrap_env
+
+    kw = dict(env_kwargs)
+    obs_mode = kw.pop("obs_mode", "sensors")  # "state": a privileged upper bound (no wrapper)
+    env = make_env(env_id, kw, obs_mode=obs_mode)
+    return wrap_env(env, wrapper, residual_scale, sensor_noise_range, reward)
+
+
+class _EnvFactory:
+    """Picklable environment constructor for SubprocVecEnv."""
+
+    def __init__(self, env_id: str, env_kwargs: dict, wrapper: str, residual_scale: float, noise, reward) -> None:
+        self.args = (env_id, env_kwargs, wrapper, residual_scale, noise, reward)
+
+    def __call__(self):
+        from stable_baselines3.common.monitor import Monitor
+
+        import omni_gym  # noqa: F401
+
+        return Monitor(make_train_env(*self.args))
+
+
+def git_commit() -> str | None:
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).resolve().parents[1],
+                             capture_output=True, text=True, timeout=10)
+        return out.stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def _init_residual(model, algo: str, factor: float, init_log_std: float | None) -> None:
+    """Scale the actor's output layer by ``factor`` and zero its bias: the initial action is ≈ 0."""
+    import torch
+
+    with torch.no_grad():
+        if algo == "ppo":
+            layers = [model.policy.action_net]
+        elif algo == "sac":
+            layers = [model.actor.mu]
+        else:
+            layers = [model.actor.mu[-2]]
+        for layer in layers:
+            layer.weight.mul_(factor)
+            layer.bias.zero_()
+        if algo == "sac" and init_log_std is not None:
+            model.actor.log_std.weight.mul_(factor)
+            model.actor.log_std.bias.fill_(init_log_std)
+        if algo == "td3":
+            model.actor_target.load_state_dict(model.actor.state_dict())
+
+
+def train(algo: str, env_id: str, timesteps: int | None, seed: int, out: str | Path, env_kwargs: dict | None = None,
+          hyperparams: str | Path | None = None, n_envs: int | None = None, vec_env: str = "dummy",
+          eval_freq: int = 50_000, eval_episodes: int = 5, checkpoint_freq: int = 0, tensorboard: str | None = None,
+          progress: bool | None = None, max_minutes: float | None = None, command: str | None = None,
+          threads: int = 1) -> dict:
+    """Train and save into ``out``; returns the meta dict written to ``out/meta.json``.
+
+    Args: see the module docstring; ``eval_freq`` and ``checkpoint_freq`` count environment steps over
+    all environments (0 disables); ``max_minutes`` stops training early (the meta says so).
+    """
+    import torch
+    from stable_baselines3 import PPO, SAC, TD3
+    from stable_baselines3.common.noise import NormalActionNoise
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+
+    from agents.evaluate import make_env
+
+    if algo not in ALGOS:
+        raise ValueError(f"unknown algo {algo!r}; choose one of {', '.join(ALGOS)}")
+    if vec_env not in ("dummy", "subproc"):
+        raise ValueError(f"unknown vec_env {vec_env!r}; choose dummy or subproc")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    if env_kwargs is not None and not isinstance(env_kwargs, dict):
+        raise ValueError(f"env_kwargs must be a dict (a JSON object), got {env_kwargs!r}")
+    where = str(hyperparams or HYPERPARAM_DIR / f"{algo}.yml")
+    hp = load_hyperparams(algo, env_id, hyperparams)
+    n_timesteps = int(float(timesteps if timesteps is not None else hp.get("n_timesteps", 0)))
+    if n_timesteps < 1:
+        raise ValueError(f"timesteps must be >= 1, got {n_timesteps} (--timesteps or n_timesteps in {where})")
+    n = int(n_envs if n_envs is not None else hp.get("n_envs", 1))
+    if n < 1:
+        raise ValueError(f"n_envs must be >= 1, got {n}")
+    kw = dict(hp.get("env_kwargs") or {})
+    kw.update(env_kwargs or {})
+    wrapper = str(hp.get("env_wrapper", "none"))
+    residual_scale = float(hp.get("residual_scale", 0.3))
+    noise = hp.get("sensor_noise_range")
+    noise = None if noise is None else [float(v) for v in noise]
+    norm = _normalize(hp.get("normalize"), where)
+    extra = {k: v for k, v in hp.items() if k not in OWN_KEYS}
+    torch.set_num_threads(max(1, int(threads)))
+
+    # Build one env in this process first: bad kwargs or wrapper fail here with a clear ValueError
+    # (before anything is written).
+    reward = str(hp.get("reward", "env"))
+    probe = make_train_env(env_id, kw, wrapper, residual_scale, noise, reward)
+    probe.close()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    factories = [_EnvFactory(env_id, kw, wrapper, residual_scale, noise, reward) for _ in range(n)]
+    venv = SubprocVecEnv(factories, start_method="spawn") if vec_env == "subproc" else DummyVecEnv(factories)
+    venv.seed(seed)
+    if norm is not None:
+        venv = VecNormalize(venv, gamma=float(hp.get("gamma", 0.99)), **norm)
+
+    cls = {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
+    args = dict(extra)
+    args["policy_kwargs"] = _policy_kwargs(hp.get("policy_kwargs"), where)
+    if "learning_rate" in hp:
+        args["learning_rate"] = _learning_rate(hp["learning_rate"], where)
+    if hp.get("noise_type") is not None:
+        if hp["noise_type"] != "normal":
+            raise ValueError(f"{where}: noise_type {hp['noise_type']!r}: only 'normal' is supported")
+        dim = venv.action_space.shape[0]
+        args["action_noise"] = NormalActionNoise(np.zeros(dim), float(hp.get("noise_std", 0.1)) * np.ones(dim))
+    try:
+        model = cls(hp.get("policy", "MlpPolicy"), venv, seed=seed, device="cpu", verbose=0,
+                    tensorboard_log=tensorboard, **args)
+    except TypeError as exc:
+        raise ValueError(f"{where}: bad hyperparameter for {algo}: {exc}") from None
+    if hp.get("residual_init") is not None:
+        _init_residual(model, algo, float(hp["residual_init"]), hp.get("init_log_std"))
+
+    meta = {
+        "algo": algo, "env_id": env_id, "train_env_kwargs": kw, "wrapper": wrapper, "residual_scale": residual_scale,
+        "sensor_noise_range": noise, "obs_mode": kw.get("obs_mode", "sensors"), "seed": seed, "n_envs": n,
+        "vec_env": vec_env, "reward": reward,
+        "hyperparams_file": os.path.relpath(where, Path(__file__).resolve().parents[1]) if hyperparams is None
+        else str(hyperparams), "hyperparams": hp, "requested_timesteps": n_timesteps,
+        "validation_seeds": [VALIDATION_SEED, VALIDATION_SEED + eval_episodes - 1] if eval_freq > 0 else None,
+        "vecnormalize": "vecnormalize.pkl" if norm is not None else None, "model": "model.zip",
+        "command": command, "git_commit": git_commit(), "torch_threads": torch.get_num_threads(),
+    }
+    # Validation: the training conditions without domain randomisation (e.g. the id's defaults).
+    val_kw = {k: v for k, v in kw.items() if not k.startswith("randomize_") and k != "obs_mode"}
+    meta["validation_env_kwargs"] = val_kw
+    callback = _Training(out, meta, env_id, eval_freq, eval_episodes, checkpoint_freq, n_timesteps, progress,
+                         max_minutes, lambda: make_env(env_id, val_kw, obs_mode=meta["obs_mode"]))
+    t0 = time.time()
+    try:
+        model.learn(total_timesteps=n_timesteps, callback=callback, progress_bar=False,
+                    tb_log_name=f"{algo}_{seed}")
+    finally:
+        callback.close()
+        venv.close()
+    wall = time.time() - t0
+    model.save(out / "final_model.zip")
+    if norm is not None:
+        if not callback.best_saved:
+            venv.save(str(out / "vecnormalize.pkl"))
+        venv.save(str(out / "final_vecnormalize.pkl"))
+    if not callback.best_saved:
+        model.save(out / "model.zip")
+    meta.update(timesteps=int(model.num_timesteps), wall_time_s=round(wall, 1), stopped_early=callback.stopped,
+                best=callback.best, curve=callback.rows)
+    _write_json(out / "meta.json", {k: v for k, v in meta.items() if k != "curve"})
+    callback.write_curve()
+    return meta
+
+
+def _write_json(path: Path, data: dict) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2, default=str) + "\n")
+    os.replace(tmp, path)
+
+
+def _Training(*args, **kwargs):
+    """The training callback (:class:`_TrainingMixin` on SB3's BaseCallback; imported late: SB3 takes seconds)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    cls = type("TrainingCallback", (_TrainingMixin, BaseCallback), {})
+    return cls(*args, **kwargs)
+
+
+class _TrainingMixin:
+    """Progress bar, periodic validation (tracking RMSE on fixed seeds, best model kept), checkpoints, time limit."""
+
+    def __init__(self, out: Path, meta: dict, env_id: str, eval_freq: int, eval_episodes: int, checkpoint_freq: int,
+                 total: int, progress: bool | None, max_minutes: float | None, base_env) -> None:
+        super().__init__()
+        self.out, self.meta, self.env_id = out, meta, env_id
+        self.eval_freq, self.eval_episodes, self.checkpoint_freq = eval_freq, eval_episodes, checkpoint_freq
+        self.total, self.max_minutes = total, max_minutes
+        self.show = progress if progress is not None else sys.stderr.isatty()
+        self.rows: list[dict] = []
+        self.best: dict | None = None
+        self.best_saved = False
+        self.stopped = False
+        self._base_env = base_env
+        self._eval_env = None
+        self._next_eval = 0
+        self._next_ckpt = checkpoint_freq
+        self._bar = None
+        self._t0 = time.time()
+
+    def _on_training_start(self) -> None:
+        from tqdm import tqdm
+
+        self._t0 = time.time()
+        self._bar = tqdm(total=self.total, desc=f"train {self.meta['algo']}", file=sys.stderr, unit="step",
+                         disable=not self.show, smoothing=0.05)
+        if self.eval_freq > 0:
+            self._validate()  # the untrained policy (for a residual agent: the baseline)
+            self._next_eval = self.eval_freq
+
+    def _on_step(self) -> bool:
+        steps = self.num_timesteps
+        if self._bar is not None:
+            self._bar.update(steps - self._bar.n)
+        if self.eval_freq > 0 and steps >= self._next_eval:
+            self._validate()
+            self._next_eval += self.eval_freq
+        if self.checkpoint_freq > 0 and steps >= self._next_ckpt:
+            (self.out / "checkpoints").mkdir(exist_ok=True)
+            self.model.save(self.out / "checkpoints" / f"model_{steps}.zip")
+            self._next_ckpt += self.checkpoint_freq
+        if self.max_minutes is not None and time.time() - self._t0 > 60.0 * self.max_minutes:
+            self.stopped = True
+            return False
+        return True
+
+    def _validate(self) -> None:
+        from agents.evaluate import run_episode
+        from agents.sb3_policy import SB3Policy
+        from agents.wrappers import wrap_env
+
+        if self._eval_env is None:
+            self._eval_env = wrap_env(self._base_env(), self.meta["wrapper"], self.meta["residual_scale"])
+        vn = self.model.get_vec_normalize_env()
+        pol = SB3Policy(self.model, vn, self._eval_env)
+        eps = [run_episode(self._eval_env, pol, VALIDATION_SEED + i) for i in range(self.eval_episodes)]
+        rmse = float(np.mean([e.tracking_rmse for e in eps]))
+        row = {"timesteps": int(self.num_timesteps), "wall_s": round(time.time() - self._t0, 1),
+               "val_tracking_rmse": rmse, "val_final_error": float(np.mean([e.final_position_error for e in eps])),
+               "val_success": float(np.mean([e.success for e in eps])),
+               "train_ep_reward": self._train_reward()}
+        self.rows.append(row)
+        if self.best is None or rmse < self.best["val_tracking_rmse"]:
+            self.best = dict(row)
+            self.model.save(self.out / "model.zip")
+            if vn is not None:
+                vn.save(str(self.out / "vecnormalize.pkl"))
+            self.best_saved = True
+        self.write_curve()
+        if self._bar is not None and self.show:
+            self._bar.set_postfix(val_rmse=f"{rmse:.4f}", best=f"{self.best['val_tracking_rmse']:.4f}")
+        print(json.dumps(row), file=sys.stderr if self.show else sys.stdout, flush=True)
+
+    def _train_reward(self) -> float | None:
+        buf = getattr(self.model, "ep_info_buffer", None)
+        if not buf:
+            return None
+        return float(np.mean([e["r"] for e in buf]))
+
+    def write_curve(self) -> None:
+        """curve.csv and curve.png (validation tracking RMSE and training episode reward vs timesteps)."""
+        if not self.rows:
+            return
+        from omni_gym.io import write_csv_atomic
+
+        cols = ["timesteps", "wall_s", "val_tracking_rmse", "val_final_error", "val_success", "train_ep_reward"]
+        data = np.array([[math.nan if r[c] is None else r[c] for c in cols] for r in self.rows], dtype=float)
+        write_csv_atomic(self.out / "curve.csv", cols, data)
+        _plot_curve(self.out / "curve.png", data, self.meta)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+        if self._eval_env is not None:
+            self._eval_env.close()
+
+
+def _plot_curve(path: Path, data: np.ndarray, meta: dict) -> None:
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
+    ax[0].plot(data[:, 0], data[:, 2], "o-", ms=3)
+    ax[0].set_xlabel("timesteps")
+    ax[0].set_ylabel("validation tracking RMSE [m]")
+    ax[0].grid(alpha=0.3)
+    ax[1].plot(data[:, 0], data[:, 5], "o-", ms=3, color="C1")
+    ax[1].set_xlabel("timesteps")
+    ax[1].set_ylabel("training episode reward (mean of last 100)")
+    ax[1].grid(alpha=0.3)
+    fig.suptitle(f"{meta['algo']} / {meta['wrapper']} on {meta['env_id']} (seed {meta['seed']})")
+    fig.tight_layout()
+    tmp = path.with_name(path.stem + ".tmp.png")
+    fig.savefig(tmp, dpi=100)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
+    """Arguments of ``omni-gym train`` (also used by ``python -m agents.train``)."""
+    p = parser or argparse.ArgumentParser(prog="python -m agents.train", description=__doc__.splitlines()[0])
+    p.add_argument("--algo", required=True, choices=ALGOS, help="SB3 algorithm")
+    p.add_argument("--env", required=True, help="environment id, e.g. OmniPathFollow-Phunopas-v0")
+    p.add_argument("--timesteps", type=float, default=None, help="environment steps (default: n_timesteps in YAML)")
+    p.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    p.add_argument("--out", required=True, help="output directory (model.zip, meta.json, curve.csv, ...)")
+    p.add_argument("--env-kwargs", default=None, help="gym.make keywords as a JSON object (merged over the YAML's)")
+    p.add_argument("--hyperparams", default=None, help="YAML file (default agents/hyperparams/<algo>.yml)")
+    p.add_argument("--n-envs", type=int, default=None, help="parallel environments (default: n_envs in YAML)")
+    p.add_argument("--vec-env", choices=("dummy", "subproc"), default="dummy", help="vectorisation (default dummy)")
+    p.add_argument("--eval-freq", type=int, default=50_000, help="validation every N steps (0: none; default 50000)")
+    p.add_argument("--eval-episodes", type=int, default=5, help="validation episodes (default 5)")
+    p.add_argument("--checkpoint-freq", type=int, default=0, help="checkpoint every N steps (0: none)")
+    p.add_argument("--tensorboard", default=None, help="TensorBoard log directory (needs tensorboard)")
+    p.add_argument("--max-minutes", type=float, default=None, help="stop training after this wall time")
+    p.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    bar = p.add_mutually_exclusive_group()
+    bar.add_argument("--progress", dest="progress", action="store_true", default=None, help="always show the bar")
+    bar.add_argument("--no-progress", dest="progress", action="store_false", help="never show the bar")
+    return p
+
+
+def command_line(prog: str, args: argparse.Namespace) -> str:
+    """The full command (every option spelled out) that reproduces ``args``; recorded in meta.json."""
+    parts = [prog, "--algo", args.algo, "--env", args.env]
+    if args.timesteps is not None:
+        parts += ["--timesteps", str(int(args.timesteps))]
+    parts += ["--seed", str(args.seed), "--out", args.out]
+    for opt, value in (("--env-kwargs", args.env_kwargs), ("--hyperparams", args.hyperparams),
+                       ("--n-envs", args.n_envs), ("--tensorboard", args.tensorboard),
+                       ("--max-minutes", args.max_minutes)):
+        if value is not None:
+            parts += [opt, str(value)]
+    parts += ["--vec-env", args.vec_env, "--eval-freq", str(args.eval_freq), "--eval-episodes",
+              str(args.eval_episodes), "--checkpoint-freq", str(args.checkpoint_freq), "--threads", str(args.threads)]
+    return " ".join([prog, *(shlex.quote(x) for x in parts[1:])])
+
+
+def run_from_args(args: argparse.Namespace, command: str | None = None) -> dict:
+    """Validate parsed arguments and call :func:`train`."""
+    kwargs = None
+    if args.env_kwargs is not None:
+        try:
+            kwargs = json.loads(args.env_kwargs)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"--env-kwargs is not valid JSON: {exc}") from None
+        if not isinstance(kwargs, dict):
+            raise ValueError(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
+    if args.timesteps is not None and (not math.isfinite(args.timesteps) or args.timesteps < 1):
+        raise ValueError(f"--timesteps must be >= 1, got {args.timesteps}")
+    if args.eval_freq < 0 or args.eval_episodes < 1 or args.checkpoint_freq < 0:
+        raise ValueError("--eval-freq and --checkpoint-freq must be >= 0 and --eval-episodes >= 1")
+    if args.tensorboard is not None:
+        try:
+            import tensorboard  # noqa: F401
+        except ImportError:
+            raise ValueError("--tensorboard needs the tensorboard package (pip install tensorboard)") from None
+    command = command or command_line("python -m agents.train", args)
+    return train(args.algo, args.env, None if args.timesteps is None else int(args.timesteps), args.seed, args.out,
+                 kwargs, args.hyperparams, args.n_envs, args.vec_env, args.eval_freq, args.eval_episodes,
+                 args.checkpoint_freq, args.tensorboard, args.progress, args.max_minutes, command, args.threads)
+
+
+def main(argv: list[str] | None = None) -> int:
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    argv = sys.argv[1:] if argv is None else argv
+    args = build_arg_parser().parse_args(argv)
+    try:
+        meta = run_from_args(args)
+    except (ValueError, OSError) as exc:
+        print(f"agents.train: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
+    best = meta.get("best") or {}
+    print(f"trained {meta['timesteps']} steps in {meta['wall_time_s']:.0f} s; best validation tracking RMSE "
+          f"{best.get('val_tracking_rmse', float('nan')):.4f} m at {best.get('timesteps')} steps -> {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,222 @@
+"""Observation and action wrappers that let SB3 agents use only what a real robot has.
+
+* :class:`EKFFeatures` (``residual-ekf-pid`` / ``ekf-features``): runs the ``ekf-pid`` baseline
+  (:class:`agents.policies.EKFPIDPolicy`: the EKF, its slip/lift-off detector and the PID) inside the
+  environment and gives the agent, instead of the raw sensor vector, what the filter knows:
+
+  ====================  ===========================================================  ============
+  features              quantity                                                     scale
+  ====================  ===========================================================  ============
+  0–1                   reference − estimated position, estimated body frame           / 0.05 m
+  2                     heading error wrap(θ_ref − θ̂)                                  / 0.1 rad
+  3–5                   estimated body twist vx, vy, ω                                 / max_speed, / max_yaw_rate
+  6–8                   reference world velocity in the estimated body frame, ω_ref    / max_speed, / max_yaw_rate
+  9–17                  reference at +0.25, +0.5, +1.0 s: body-frame offset, heading   / 0.5 m, / π
+  18–20                 EKF standard deviation of x, y, θ                              / 0.01 m, / 0.02 rad
+  21…20+n               detector belief that wheel i slips or is lifted                0…1
+  21+n…20+2n            wheels the filter used this step (1) or rejected (0)           0/1
+  21+2n…20+3n           encoder rate − W·(estimated twist) per wheel                    / w_max
+  21+3n…23+3n           the PID's body twist (the baseline's action)                   / action scale
+  24+3n…26+3n           the PID's integral terms in the estimated body frame            / their limits
+  27+3n…29+3n           the agent's previous action                                    [−1, 1]
+  ====================  ===========================================================  ============
+
+  Every feature is clipped to ±10. The estimate frame is the filter's, never the truth.
+
+  With ``residual_scale`` = s > 0 (``residual-ekf-pid``), the agent's action a ∈ [−1, 1]³ is a
+  *residual*: the environment receives clip(a_PID + s·a, −1, 1), so a = 0 is exactly ``ekf-pid``
+  and the agent can move the twist by at most s of its range. With ``residual_scale`` = 0
+  (``ekf-features``) the agent's action is the whole twist and the PID only supplies features.
+
+  Reward: ``reward="env"`` keeps the environment's; ``reward="tracking"`` replaces it with
+
+      r = 0.5·exp(−(e/0.05 m)²) + 0.5·exp(−e/0.1 m) − 0.02·mean(a²)
+
+  (e the true tracking error from ``info``, a the agent's action). The benchmark metric is the RMS of
+  e, so the reward concentrates on e: its slope at e = 4.5 cm, where ekf-pid sits under slip and
+  lift-off, is 2.5× the environment reward's, and it ignores the heading term. It stays positive, so
+  getting lost early never pays; the small action term keeps the residual at zero where it does not
+  help. The reward is a training signal only: the policy never sees e.
+
+* :class:`SensorNoiseRandomizer`: draws a sensor-noise scale from U(lo, hi) at every reset (the
+  environments fix ``sensor_noise`` at construction; this domain randomisation sits outside them).
+  The draw comes from a generator seeded by the reset seed (and continued by unseeded resets), so a
+  seed still fixes the episode.
+
+Both need ``obs_mode="sensors"`` and ``action_mode="twist"``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import fields, replace
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+WRAPPERS = ("none", "residual-ekf-pid", "ekf-features")
+REWARDS = ("env", "tracking")
+POS_SCALE = 0.05  # m: tracking errors of a few cm are what the agent must act on
+HEAD_SCALE = 0.1  # rad
+LOOK_SCALE = 0.5  # m
+STD_POS_SCALE = 0.01  # m: the EKF's position std is a few mm with camera fixes
+STD_HEAD_SCALE = 0.02  # rad
+CLIP = 10.0
+NOISE_SALT = 0x5E17  # mixes the reset seed into the noise-scale generator (independent of the env's draws)
+
+
+def _check_env(env: gym.Env, who: str) -> None:
+    cfg = getattr(env.unwrapped, "cfg", None)
+    if cfg is None:
+        raise ValueError(f"{who} needs an omni-gym environment, got {type(env.unwrapped).__name__}")
+    if cfg.obs_mode != "sensors" or cfg.action_mode != "twist":
+        raise ValueError(f"{who} needs obs_mode='sensors' and action_mode='twist', got obs_mode={cfg.obs_mode!r}, "
+                         f"action_mode={cfg.action_mode!r}")
+
+
+class EKFFeatures(gym.Wrapper):
+    """EKF-estimate observation and (optionally) a bounded residual on the ekf-pid action; see the module doc.
+
+    Args:
+        env: an omni-gym environment with ``obs_mode="sensors"``, ``action_mode="twist"``.
+        residual_scale: s in [0, 1]: the agent's action moves the PID action by at most s (0: the agent
+            gives the whole action).
+    """
+
+    def __init__(self, env: gym.Env, residual_scale: float = 0.3, reward: str = "env") -> None:
+        super().__init__(env)
+        _check_env(env, "EKFFeatures")
+        if not (isinstance(residual_scale, (int, float)) and 0.0 <= residual_scale <= 1.0):
+            raise ValueError(f"residual_scale must be a number in [0, 1], got {residual_scale!r}")
+        if reward not in REWARDS:
+            raise ValueError(f"unknown reward {reward!r}; choose one of {', '.join(REWARDS)}")
+        self.reward_mode = reward
+        from agents.policies import make_policy
+
+        self.residual_scale = float(residual_scale)
+        self.base = make_policy("ekf-pid", env)
+        cfg = env.unwrapped.cfg
+        self.n = self.base.robot.n_wheels
+        self.twist_scale = np.array([cfg.max_speed, cfg.max_speed, cfg.max_yaw_rate])
+        self.wheel_scale = float(env.unwrapped.core.wheel_scale)
+        self.dim = 30 + 3 * self.n
+        self.observation_space = spaces.Box(-CLIP, CLIP, shape=(self.dim,), dtype=np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+        self.base_action = np.zeros(3)
+        self.prev_action = np.zeros(3)
+        self._rates = np.zeros(self.n)
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """The EKF's pose estimate (x, y, θ) [m, m, rad], world frame."""
+        return self.base.estimate
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.prev_action = np.zeros(3)
+        self.base.reset(obs)
+        return self._observe(obs), info
+
+    def step(self, action):
+        a = np.clip(np.asarray(action, dtype=float).reshape(3), -1.0, 1.0)
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action contains NaN or infinity: {a.tolist()}")
+        self.prev_action = a
+        if self.residual_scale > 0:
+            total = np.clip(self.base_action + self.residual_scale * a, -1.0, 1.0)
+        else:
+            total = a
+        obs, reward, terminated, truncated, info = self.env.step(total.astype(np.float32))
+        if self.reward_mode == "tracking":
+            e = float(info["tracking_error"])
+            reward = 0.5 * math.exp(-((e / 0.05) ** 2)) + 0.5 * math.exp(-e / 0.1) - 0.02 * float(np.mean(a * a))
+        return self._observe(obs), reward, terminated, truncated, info
+
+    def _observe(self, obs: np.ndarray) -> np.ndarray:
+        """Advance the baseline (EKF + PID) with ``obs`` and build the feature vector."""
+        base = self.base
+        self.base_action = np.asarray(base.act(obs), dtype=float).reshape(3)  # the ekf-pid action, in [-1, 1]
+        s = base.decode(obs)
+        ekf, pid = base.ekf, base.pid
+        x, y, th = ekf.pose
+        c, si = math.cos(th), math.sin(th)
+
+        def body(dx: float, dy: float) -> tuple[float, float]:
+            return c * dx + si * dy, -si * dx + c * dy
+
+        ex, ey = body(s.ref_pose[0] - x, s.ref_pose[1] - y)
+        eth = _wrap(s.ref_pose[2] - th)
+        rvx, rvy = body(s.ref_velocity[0], s.ref_velocity[1])
+        look = []
+        for lx, ly, lth in s.lookahead:
+            bx, by = body(lx - x, ly - y)
+            look += [bx / LOOK_SCALE, by / LOOK_SCALE, _wrap(lth - th) / math.pi]
+        std = np.sqrt(np.maximum(np.diag(ekf.P)[0:3], 0.0))
+        innov = (np.asarray(s.encoder_rates) - base.W @ ekf.body_twist) / self.wheel_scale
+        ix, iy = body(pid.integral[0], pid.integral[1])
+        ilim = pid._ilim
+        f = np.concatenate([
+            [ex / POS_SCALE, ey / POS_SCALE, eth / HEAD_SCALE],
+            ekf.body_twist / self.twist_scale,
+            [rvx / self.twist_scale[0], rvy / self.twist_scale[1], s.ref_velocity[2] / self.twist_scale[2]],
+            look,
+            [std[0] / STD_POS_SCALE, std[1] / STD_POS_SCALE, std[2] / STD_HEAD_SCALE],
+            ekf.wheel_belief, ekf.wheels_used.astype(float), innov,
+            base.twist / self.twist_scale,
+            [ix / ilim[0], iy / ilim[1], pid.integral[2] / ilim[2]],
+            self.prev_action,
+        ])
+        return np.clip(f, -CLIP, CLIP).astype(np.float32)
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+class SensorNoiseRandomizer(gym.Wrapper):
+    """Scales every sensor noise level by U(lo, hi) at each reset (domain randomisation; see the module doc)."""
+
+    def __init__(self, env: gym.Env, scale_range: tuple[float, float]) -> None:
+        super().__init__(env)
+        _check_env(env, "SensorNoiseRandomizer")
+        try:
+            lo, hi = (float(v) for v in scale_range)
+        except (TypeError, ValueError):
+            raise ValueError(f"sensor-noise range must be a (low, high) pair, got {scale_range!r}") from None
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 <= lo <= hi <= 10.0):
+            raise ValueError(f"sensor-noise range must satisfy 0 <= low <= high <= 10, got {scale_range!r}")
+        self.range = (lo, hi)
+        core = env.unwrapped.core
+        self._nominal = core.sensor_config
+        self._rng = np.random.default_rng(NOISE_SALT)
+        self.scale = 1.0
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if seed is not None:
+            self._rng = np.random.default_rng([NOISE_SALT, int(seed)])
+        self.scale = float(self._rng.uniform(*self.range))
+        nominal = self._nominal
+        scaled = {f.name: getattr(nominal, f.name) * self.scale for f in fields(nominal) if f.name.endswith("_std")}
+        # The core hands this config to the SensorSuite it builds at every reset (omni_gym.envs.core).
+        self.env.unwrapped.core.sensor_config = replace(nominal, **scaled)
+        return self.env.reset(seed=seed, options=options)
+
+
+def wrap_env(env: gym.Env, name: str = "none", residual_scale: float = 0.3,
+             sensor_noise_range: tuple[float, float] | None = None, reward: str = "env") -> gym.Env:
+    """Apply the sensor-noise randomiser (if a range is given) and the named wrapper (one of :data:`WRAPPERS`).
+
+    ``reward`` ("env" or "tracking", see :class:`EKFFeatures`) needs an EKF wrapper unless it is "env".
+    """
+    if name not in WRAPPERS:
+        raise ValueError(f"unknown wrapper {name!r}; choose one of {', '.join(WRAPPERS)}")
+    if sensor_noise_range is not None:
+        env = SensorNoiseRandomizer(env, sensor_noise_range)
+    if name == "residual-ekf-pid":
+        env = EKFFeatures(env, residual_scale, reward)
+    elif name == "ekf-features":
+        env = EKFFeatures(env, 0.0, reward)
+    elif reward != "env":
+        raise ValueError(f"reward {reward!r} needs an EKF wrapper (residual-ekf-pid or ekf-features)")
+    return env

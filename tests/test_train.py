@@ -1,0 +1,193 @@
+"""Training SB3 agents: the wrappers, the hyperparameter files and a smoke run of each algorithm end to end.
+
+Seeds: the tests use seeds below 10 000 (benchmarks report from 10 000).
+"""
+
+import json
+import math
+
+import numpy as np
+import pytest
+import torch
+import yaml
+
+from agents.evaluate import evaluate, make_env, run_episode
+from agents.policies import make_policy
+from agents.train import ALGOS, HYPERPARAM_DIR, load_hyperparams, train
+from agents.wrappers import EKFFeatures, SensorNoiseRandomizer, wrap_env
+from omni_gym.cli import main
+
+ENV = "OmniPathFollow-Phunopas-v0"
+SHORT = {"episode_seconds": 1.0}
+
+torch.set_num_threads(1)
+
+
+# --- wrappers -------------------------------------------------------------------------------------
+
+
+def test_zero_residual_is_exactly_ekf_pid():
+    """Action 0 of the residual wrapper sends the ekf-pid action: same episode, bit for bit."""
+    env = make_env(ENV, {"episode_seconds": 3.0})
+    base = run_episode(env, make_policy("ekf-pid", env), 7)
+    wrapped = wrap_env(make_env(ENV, {"episode_seconds": 3.0}), "residual-ekf-pid")
+    obs, _ = wrapped.reset(seed=7)
+    assert obs.shape == wrapped.observation_space.shape and wrapped.observation_space.contains(obs)
+    sq, steps = 0.0, 0
+    while True:
+        obs, _, terminated, truncated, info = wrapped.step(np.zeros(3, dtype=np.float32))
+        sq += info["tracking_error"] ** 2
+        steps += 1
+        if terminated or truncated:
+            break
+    assert steps == base.steps
+    assert math.sqrt(sq / steps) == base.tracking_rmse  # identical arithmetic on identical numbers
+
+
+def test_residual_is_bounded_and_added_to_the_pid_action():
+    env = wrap_env(make_env(ENV, SHORT), "residual-ekf-pid", residual_scale=0.3)
+    env.reset(seed=3)
+    for a in (np.ones(3), -np.ones(3), np.array([5.0, -5.0, 0.5])):  # out-of-range actions are clipped to ±1
+        base = env.base_action.copy()
+        env.step(a.astype(np.float32))
+        sent = env.unwrapped.core.prev_action[0]  # the clipped action the environment received
+        expected = np.clip(base + 0.3 * np.clip(a, -1, 1), -1, 1)
+        assert np.allclose(sent, expected, atol=1e-6)  # float32 round trip of the action (~1e-7)
+
+
+def test_ekf_features_gives_the_whole_action_to_the_agent():
+    env = wrap_env(make_env(ENV, SHORT), "ekf-features")
+    env.reset(seed=3)
+    env.step(np.array([0.5, -0.25, 0.1], dtype=np.float32))
+    assert np.allclose(env.unwrapped.core.prev_action[0], [0.5, -0.25, 0.1], atol=1e-6)
+
+
+def test_ekf_features_estimate_is_the_filter_pose():
+    env = wrap_env(make_env(ENV, SHORT), "residual-ekf-pid")
+    _, info = env.reset(seed=4)
+    for _ in range(50):
+        _, _, _, _, info = env.step(np.zeros(3, dtype=np.float32))
+    assert np.array_equal(env.estimate, env.base.ekf.pose)
+    # The filter tracks the true pose to centimetres on a 0.5 s stretch (camera fixes: 5 mm std).
+    assert np.linalg.norm(env.estimate[:2] - np.asarray(info["pose"])[:2]) < 0.03
+
+
+def test_sensor_noise_randomizer_draws_per_seed_and_scales_the_sensors():
+    env = SensorNoiseRandomizer(make_env(ENV, SHORT), (0.5, 1.5))
+    scales = []
+    for seed in (1, 2, 1):
+        env.reset(seed=seed)
+        scales.append(env.scale)
+        gyro_std = env.unwrapped.core.sensors[0].config.gyro_noise_std
+        assert gyro_std == pytest.approx(0.005 * env.scale, rel=1e-12)  # SensorConfig default 0.005 rad/s
+    assert scales[0] == scales[2] != scales[1]
+    assert all(0.5 <= s <= 1.5 for s in scales)
+
+
+@pytest.mark.parametrize("bad, match", [
+    ({"obs_mode": "state"}, "obs_mode='sensors'"),
+])
+def test_wrappers_reject_other_modes(bad, match):
+    import gymnasium as gym
+
+    import omni_gym  # noqa: F401
+
+    env = gym.make(ENV, **bad)
+    with pytest.raises(ValueError, match=match):
+        EKFFeatures(env)
+    with pytest.raises(ValueError, match="unknown wrapper 'x'"):
+        wrap_env(make_env(ENV, SHORT), "x")
+    with pytest.raises(ValueError, match="residual_scale"):
+        EKFFeatures(make_env(ENV, SHORT), residual_scale=2.0)
+
+
+# --- hyperparameter files -------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_committed_hyperparams_have_the_zoo_keys(algo):
+    hp = load_hyperparams(algo, ENV)
+    for key in ("n_timesteps", "policy", "n_envs", "env_wrapper"):
+        assert key in hp
+    assert hp["env_wrapper"] == "residual-ekf-pid"
+    # Domain randomisation is on for every committed configuration.
+    assert {"randomize_friction", "randomize_mass", "randomize_lift_rate"} <= set(hp["env_kwargs"])
+
+
+def test_hyperparams_errors_name_file_and_key(tmp_path):
+    f = tmp_path / "hp.yml"
+    f.write_text("Other-v0: {n_timesteps: 10}\n")
+    with pytest.raises(ValueError, match=r"hp.yml: no entry for 'OmniPathFollow-Phunopas-v0'"):
+        load_hyperparams("ppo", ENV, f)
+    f.write_text("a: [1, 2\n")
+    with pytest.raises(ValueError, match="hp.yml: not valid YAML"):
+        load_hyperparams("ppo", ENV, f)
+    f.write_text(f"{ENV}: {{n_timesteps: 10, policy_kwargs: \"dict(x=__import__('os'))\"}}\n")
+    with pytest.raises(ValueError, match="policy_kwargs"):
+        train("ppo", ENV, 10, 0, tmp_path / "out", SHORT, f, n_envs=1, eval_freq=0, progress=False)
+
+
+# --- smoke runs -----------------------------------------------------------------------------------
+
+
+def _small_yaml(algo: str, path) -> None:
+    """The committed configuration with batch sizes and warm-up shrunk to fit a few thousand steps."""
+    data = yaml.safe_load((HYPERPARAM_DIR / f"{algo}.yml").read_text())
+    hp = data[ENV]
+    hp["n_envs"] = 2
+    if algo == "ppo":
+        hp.update(n_steps=256, batch_size=128, n_epochs=2)
+    else:
+        hp.update(learning_starts=200, batch_size=64, buffer_size=5000)
+    path.write_text(yaml.safe_dump(data))
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_train_smoke_and_evaluate_end_to_end(algo, tmp_path, capsys):
+    """Train a few thousand steps through the CLI, then evaluate the directory through the CLI."""
+    hp = tmp_path / "hp.yml"
+    _small_yaml(algo, hp)
+    out = tmp_path / "model"
+    assert main(["train", "--algo", algo, "--env", ENV, "--timesteps", "2000", "--seed", "1", "--out", str(out),
+                 "--hyperparams", str(hp), "--env-kwargs", json.dumps(SHORT), "--eval-freq", "1000",
+                 "--eval-episodes", "1", "--no-progress"]) == 0
+    capsys.readouterr()
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["algo"] == algo and meta["seed"] == 1 and meta["timesteps"] >= 2000
+    assert meta["command"].startswith("omni-gym train") and "--seed 1" in meta["command"]
+    assert meta["wrapper"] == "residual-ekf-pid" and meta["wall_time_s"] > 0
+    assert (out / "model.zip").is_file() and (out / "vecnormalize.pkl").is_file()
+    curve = np.genfromtxt(out / "curve.csv", delimiter=",", names=True)
+    assert list(curve["timesteps"]) == [0, 1000, 2000]  # validation at the start and every 1000 steps
+    assert (out / "curve.png").is_file()
+
+    assert main(["evaluate", "--policy", str(out), "--env", ENV, "--episodes", "2", "--seed", "11",
+                 "--env-kwargs", json.dumps(SHORT), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["episodes"] == 2 and result["policy"] == str(out)
+    assert all(math.isfinite(v) for v in result["per_episode"]["tracking_rmse"])
+
+
+def test_train_rejects_bad_input_in_one_line(tmp_path, capsys):
+    for args, expected in (
+        (["--env-kwargs", "{x"], "--env-kwargs is not valid JSON"),
+        (["--env-kwargs", '{"surface": "ice"}'], "invalid surface='ice'"),
+        (["--timesteps", "0"], "--timesteps must be >= 1"),
+    ):
+        assert main(["train", "--algo", "ppo", "--env", ENV, "--seed", "0", "--out", str(tmp_path / "m"),
+                     "--no-progress", *args]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("omni-gym: error: ") and expected in err[0], err
+
+
+def test_evaluate_rejects_a_model_file_or_missing_meta(tmp_path):
+    with pytest.raises(ValueError, match="evaluated from its directory"):
+        evaluate(str(tmp_path / "model.zip"), ENV, 1, 0)
+    with pytest.raises(ValueError, match="meta.json: missing"):
+        evaluate(str(tmp_path), ENV, 1, 0)
+    (tmp_path / "meta.json").write_text("{not json")
+    with pytest.raises(ValueError, match="meta.json: not valid JSON"):
+        evaluate(str(tmp_path), ENV, 1, 0)
+    (tmp_path / "meta.json").write_text(json.dumps({"algo": "dqn", "model": "m.zip", "wrapper": "none"}))
+    with pytest.raises(ValueError, match="unknown algorithm 'dqn'"):
+        evaluate(str(tmp_path), ENV, 1, 0)
