@@ -191,3 +191,28 @@ def test_evaluate_rejects_a_model_file_or_missing_meta(tmp_path):
     (tmp_path / "meta.json").write_text(json.dumps({"algo": "dqn", "model": "m.zip", "wrapper": "none"}))
     with pytest.raises(ValueError, match="unknown algorithm 'dqn'"):
         evaluate(str(tmp_path), ENV, 1, 0)
+
+
+@pytest.mark.parametrize("lost", [0.5, 1e-6])
+def test_squared_reward_is_the_squared_tracking_error_with_a_lost_penalty(lost):
+    """reward="squared": −(e/0.1 m)² − 0.01·mean(a²) per step, minus 50 steps at the lost distance when lost."""
+    env = wrap_env(make_env(ENV, {**SHORT, "lost_distance": lost}), "residual-ekf-pid", reward="squared")
+    env.reset(seed=6)
+    a = np.array([0.5, -0.5, 0.0], dtype=np.float32)
+    _, r, terminated, _, info = env.step(a)
+    expected = -((info["tracking_error"] / 0.1) ** 2) - 0.01 * np.mean(a.astype(float) ** 2)
+    # With lost_distance = 1 µm the first step ends the episode (the robot moves more than that).
+    assert terminated == (lost < 1e-3)
+    if terminated:
+        expected -= 50 * (lost / 0.1) ** 2
+    assert r == pytest.approx(expected, rel=1e-12, abs=1e-15)
+
+
+def test_tracking_reward_is_bounded_and_positive():
+    env = wrap_env(make_env(ENV, SHORT), "residual-ekf-pid", reward="tracking")
+    env.reset(seed=6)
+    for _ in range(20):
+        _, r, *_ = env.step(np.ones(3, dtype=np.float32))
+        assert -0.02 <= r <= 1.0  # 0.5 + 0.5 at e = 0; the action term costs at most 0.02
+    with pytest.raises(ValueError, match="needs an EKF wrapper"):
+        wrap_env(make_env(ENV, SHORT), "none", reward="squared")
