@@ -56,6 +56,24 @@ def build_parser() -> argparse.ArgumentParser:
     tr = sub.add_parser("train", help="train an SB3 agent (ppo, sac, td3) with hyperparameters from agents/hyperparams")
     _add_train_options(tr)
     tr.set_defaults(handler=_cmd_train)
+    gp = sub.add_parser("gap", help="find, name and add the effect missing from a dataset's nominal model")
+    gp.add_argument("dataset", help="dataset folder (dataset.json + runs/*.csv, see docs/formats.md)")
+    gp.add_argument("--out", required=True, help="report folder (result.json, report.md, plots)")
+    gp.add_argument("--json", action="store_true", help="print result.json")
+    gp.add_argument("--seed", type=int, default=0, help="seed of folds, designs and bootstraps")
+    gp.add_argument("--no-plots", action="store_true", help="skip the plots")
+    gp.set_defaults(handler=_cmd_gap)
+    sy = sub.add_parser("synth", help="write a dataset with a hidden effect (truth to DATASET.truth.json)")
+    sy.add_argument("--model", required=True, help="nominal model: preset name or model JSON file")
+    _add_model_options(sy)
+    sy.add_argument("--hidden", required=True, help="EFFECT[:JSON params], none, or viscous_drag[:{\"c\": N.s/m}]")
+    sy.add_argument("--runs", type=int, default=10, help="number of runs")
+    sy.add_argument("--duration", type=float, default=5.0, help="seconds per run")
+    sy.add_argument("--noise", type=float, default=0.001, help="tracker noise sigma [m] (heading: sigma / lever)")
+    sy.add_argument("--seed", type=int, default=0, help="seed of maneuvers, noise and random effects")
+    sy.add_argument("--observe", choices=("all", "end"), default="all", help="track every row or only end points")
+    sy.add_argument("--out", required=True, help="dataset folder to write")
+    sy.set_defaults(handler=_cmd_synth)
     # Further subcommands register here with their own set_defaults(handler=...).
     return parser
 
@@ -127,6 +145,30 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
             raise ValueError(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
     result = evaluate(args.policy, args.env, args.episodes, args.seed, kwargs)
     print(json.dumps(result) if args.json else format_table(result))
+    return 0
+
+
+def _cmd_gap(args: argparse.Namespace) -> int:
+    from omni_gym.discrepancy.workflow import gap
+
+    result = gap(args.dataset, args.out, seed=args.seed, plots=not args.no_plots)
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        g = result["gap"]
+        print(f"effect: {result['effect']} ({result['why']})")
+        print(f"held-out gap beyond noise: {1e3 * g['before']:.2f} mm -> {1e3 * g['after']:.2f} mm; "
+              f"report: {args.out}/report.md")
+    return 0
+
+
+def _cmd_synth(args: argparse.Namespace) -> int:
+    from omni_gym.discrepancy.synth import truth_path, write_synthetic
+    from omni_gym.model import load_model
+
+    model = load_model(args.model, args.surface, args.friction)
+    write_synthetic(args.out, model, args.hidden, args.runs, args.noise, args.seed, args.duration, args.observe)
+    print(f"wrote {args.out} ({args.runs} runs); truth in {truth_path(args.out)}")
     return 0
 
 

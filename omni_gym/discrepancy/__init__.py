@@ -1,0 +1,14 @@
+"""Model-discrepancy workflow: find where simulation and measurement disagree, name the missing effect.
+
+Modules (each one job):
+
+* :mod:`.dataset`: the dataset folder format (a contract, ``docs/formats.md``): read, validate, write.
+* :mod:`.synth`: datasets with a hidden effect, for testing the workflow where the truth is known.
+* :mod:`.simulate`: batched simulation of runs × candidate models in one :class:`~omni_gym.world.World`.
+* :mod:`.localise`: where the nominal model's residuals concentrate (multiple shooting).
+* :mod:`.explain`: fit every candidate effect, score on held-out runs, decide.
+* :mod:`.report`: ``result.json``, ``report.md`` and plots.
+* :mod:`.workflow`: :func:`gap`, the whole ``omni-gym gap`` command.
+
+Only the physics core is used (no environments, no agents).
+"""

@@ -1,0 +1,219 @@
+"""The dataset folder format (a contract, see ``docs/formats.md`` "Dataset"): read, validate, write.
+
+A dataset is a folder::
+
+    DATASET/dataset.json      {"model": MODEL JSON (the nominal model), "description": "..."}
+    DATASET/runs/*.csv        one run per file, header t,w1..wn[,enc1..encn],x,y,theta[,gyro]
+
+Columns: t [s] from 0, strictly increasing; w_i commanded wheel speeds [rad/s], each held until the
+next row (the last row ends the run); enc_i measured wheel angles [rad] (optional, all or none);
+x, y [m], theta [rad] the tracked world-frame pose of the geometric centre, cells empty where
+nothing was observed; gyro [rad/s] (optional). Every run starts at rest; an empty first pose means
+the origin (0, 0, 0).
+
+Every error is a one-line :class:`~omni_gym.io.InputError` naming the file and the row (row 1 is
+the header).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from omni_gym.io import InputError
+from omni_gym.model import SimModel
+
+
+@dataclass
+class Run:
+    """One run: times (K,) [s], commands (K, n) [rad/s], pose (K, 3) [m, m, rad] with NaN where not
+    observed, encoders (K, n) [rad] or None, gyro (K,) [rad/s] or None."""
+
+    name: str
+    t: np.ndarray
+    cmd: np.ndarray
+    pose: np.ndarray
+    enc: np.ndarray | None = None
+    gyro: np.ndarray | None = None
+
+    @property
+    def observed(self) -> np.ndarray:
+        """(K,) bool: rows with a complete measured pose."""
+        return np.all(np.isfinite(self.pose), axis=1)
+
+    @property
+    def start_pose(self) -> np.ndarray:
+        """Pose at t = 0 (the origin when the first row is empty)."""
+        p = self.pose[0]
+        return p.copy() if np.all(np.isfinite(p)) else np.zeros(3)
+
+
+@dataclass
+class Dataset:
+    """A loaded dataset: the nominal model (and its JSON as given), a description and the runs."""
+
+    path: Path
+    model: SimModel
+    model_json: dict
+    description: str
+    runs: list[Run]
+
+    @property
+    def n_wheels(self) -> int:
+        return self.model.n_wheels
+
+
+def run_header(n_wheels: int, encoders: bool, gyro: bool = False) -> list[str]:
+    """The CSV header of a run."""
+    head = ["t"] + [f"w{i + 1}" for i in range(n_wheels)]
+    if encoders:
+        head += [f"enc{i + 1}" for i in range(n_wheels)]
+    head += ["x", "y", "theta"]
+    if gyro:
+        head.append("gyro")
+    return head
+
+
+def load_dataset(folder: str | Path) -> Dataset:
+    """Read and validate a dataset folder; raise InputError (one line: file, row, what) on bad input."""
+    folder = Path(folder)
+    meta_path = folder / "dataset.json"
+    if not folder.is_dir():
+        raise InputError(f"{folder}: not a dataset folder (expected dataset.json and runs/*.csv)")
+    try:
+        meta = json.loads(meta_path.read_text())
+    except FileNotFoundError:
+        raise InputError(f"{meta_path}: file not found") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{meta_path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    if not isinstance(meta, dict) or "model" not in meta:
+        raise InputError(f"{meta_path}: expected an object with key 'model'")
+    model = SimModel.from_json(meta["model"], where=f"{meta_path}: model")
+    desc = meta.get("description", "")
+    if not isinstance(desc, str):
+        raise InputError(f"{meta_path}: 'description' must be a string")
+    files = sorted((folder / "runs").glob("*.csv"))
+    if not files:
+        raise InputError(f"{folder / 'runs'}: no run files (*.csv)")
+    runs = [read_run(f, model.n_wheels) for f in files]
+    return Dataset(path=folder, model=model, model_json=meta["model"], description=desc, runs=runs)
+
+
+def read_run(path: Path, n_wheels: int) -> Run:
+    """Read one run CSV (format in the module docstring)."""
+    try:
+        with path.open(newline="") as fh:
+            rows = [row for row in csv.reader(fh) if row and any(cell.strip() for cell in row)]
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"{path}: cannot read ({exc})") from None
+    if not rows:
+        raise InputError(f"{path}: row 1: empty file (expected a header)")
+    header = [h.strip() for h in rows[0]]
+    encoders = any(h.startswith("enc") for h in header)
+    gyro = bool(header) and header[-1] == "gyro"
+    expected = run_header(n_wheels, encoders, gyro)
+    if header != expected:
+        wheels = sum(1 for h in header if h.startswith("w") and h[1:].isdigit())
+        if wheels != n_wheels:
+            raise InputError(f"{path}: row 1: header has {wheels} wheel columns, the model has {n_wheels} wheels")
+        missing = [h for h in expected if h not in header]
+        what = f"missing column(s) {','.join(missing)}" if missing else f"unexpected columns {','.join(header)}"
+        raise InputError(f"{path}: row 1: {what}; expected {','.join(expected)}")
+    if len(rows) < 2:
+        raise InputError(f"{path}: row 2: no data rows after the header")
+    # Pose, encoder and gyro cells may be empty (not observed); time and commands may not.
+    may_be_empty = {h for h in expected if h in ("x", "y", "theta", "gyro") or h.startswith("enc")}
+    data = np.full((len(rows) - 1, len(expected)), np.nan)
+    for r, row in enumerate(rows[1:], start=2):
+        if len(row) != len(expected):
+            raise InputError(f"{path}: row {r}: expected {len(expected)} values, got {len(row)}")
+        for c, cell in enumerate(row):
+            col = expected[c]
+            if not cell.strip():
+                if col in may_be_empty:
+                    continue
+                raise InputError(f"{path}: row {r}: column {col}: empty cell")
+            try:
+                value = float(cell)
+            except ValueError:
+                raise InputError(f"{path}: row {r}: column {col}: not a number: {cell.strip()!r}") from None
+            if not math.isfinite(value):
+                raise InputError(f"{path}: row {r}: column {col}: value must be finite, got {cell.strip()}")
+            data[r - 2, c] = value
+    t = data[:, 0]
+    if t[0] != 0.0:
+        raise InputError(f"{path}: row 2: the first time must be 0, got {t[0]:g}")
+    bad = np.nonzero(np.diff(t) <= 0)[0]
+    if bad.size:
+        raise InputError(f"{path}: row {int(bad[0]) + 3}: times must be strictly increasing "
+                         f"({t[bad[0] + 1]:g} after {t[bad[0]]:g})")
+    pose = data[:, [expected.index("x"), expected.index("y"), expected.index("theta")]]
+    partial = np.nonzero(np.any(np.isfinite(pose), axis=1) & ~np.all(np.isfinite(pose), axis=1))[0]
+    if partial.size:
+        raise InputError(f"{path}: row {int(partial[0]) + 2}: x, y and theta must be all given or all empty")
+    if not np.any(np.isfinite(pose[1:, 0])):
+        raise InputError(f"{path}: row 2: no observed pose after t = 0 (nothing to compare with)")
+    return Run(
+        name=path.stem,
+        t=t.copy(),
+        cmd=data[:, 1:1 + n_wheels].copy(),
+        pose=pose.copy(),
+        enc=data[:, 1 + n_wheels:1 + 2 * n_wheels].copy() if encoders else None,
+        gyro=data[:, -1].copy() if gyro else None,
+    )
+
+
+def write_json_atomic(path: str | Path, data: dict) -> None:
+    """Write JSON through a temporary file and rename (never a partial file)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            json.dump(data, fh, indent=2)
+            fh.write("\n")
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _write_cells_atomic(path: Path, header: list[str], rows: np.ndarray) -> None:
+    """CSV with NaN written as an empty cell (not observed), through a temporary file and rename."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", newline="") as fh:
+            writer = csv.writer(fh)
+            writer.writerow(header)
+            for row in rows:
+                writer.writerow(["" if not math.isfinite(v) else repr(float(v)) for v in row])
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def write_dataset(folder: str | Path, model_json: dict, description: str, runs: list[Run]) -> None:
+    """Write a dataset folder (runs first, dataset.json last: a folder with dataset.json is complete)."""
+    folder = Path(folder)
+    (folder / "runs").mkdir(parents=True, exist_ok=True)
+    for run in runs:
+        n = run.cmd.shape[1]
+        cols = [run.t[:, None], run.cmd]
+        if run.enc is not None:
+            cols.append(run.enc)
+        cols.append(run.pose)
+        if run.gyro is not None:
+            cols.append(run.gyro[:, None])
+        _write_cells_atomic(folder / "runs" / f"{run.name}.csv",
+                            run_header(n, run.enc is not None, run.gyro is not None), np.column_stack(cols))
+    write_json_atomic(folder / "dataset.json", {"model": model_json, "description": description})

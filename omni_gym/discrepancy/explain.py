@@ -1,0 +1,547 @@
+"""Explain a gap: fit every candidate effect, score it on held-out runs, decide.
+
+Fitting is a batched, seeded, derivative-free search in each candidate's bounded parameter cube
+(the roller phases make the cost multimodal, so gradients alone would stall): a scrambled Sobol
+design shared by all fits, then shrinking local rounds around each fit's best point. Every point is
+simulated on every run in one world, giving a table SSE[point, run]. A fit on a set of runs is the
+point with the least SSE over those runs among the shared design and that fit's own refinements.
+
+Held-out scoring: K folds by run. Fold k's fit sees only the other runs; its SSE on the runs of
+fold k is that candidate's held-out error there. A candidate's held-out score is
+N·ln(SSE_heldout/N) + p·ln(N) (BIC form; N residual components, p parameters).
+
+Decision (thresholds in :data:`RULES`, why in ``docs/discrepancy.md``): a candidate must improve the
+held-out error significantly (paired bootstrap over runs); it is named if it removes most of the
+gap beyond tracker noise, else the outcome is ``unexplained``; ``none`` when nothing improves and
+the nominal residual is at the noise level.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import qmc
+
+from omni_gym.discrepancy.dataset import Dataset
+from omni_gym.discrepancy.simulate import FIT_DT, Job, pose_residual, simulate_jobs
+from omni_gym.model import SimModel
+
+RULES = {
+    "significance": 0.95,  # bootstrap share of run resamples in which the candidate beats nominal
+    "min_improvement": 0.05,  # least held-out MSE reduction (share of nominal MSE) that counts
+    "noise_margin": 0.3,  # MSE within (1 + margin)·σ̂² counts as noise-level
+    "min_gap_reduction": 0.5,  # least reduction of the excess RMS for a named effect
+    "ambiguity": 0.8,  # winner must beat a qualifying runner-up in this share of resamples
+}
+N_BOOT = 400
+LIFTOFF_SEEDS = 3  # seeds averaged for the random wheel_liftoff candidate
+
+
+@dataclass(frozen=True)
+class Dim:
+    """One fitted parameter: bounds [lo, hi] (log-spaced if ``log``; ``periodic`` wraps)."""
+
+    name: str
+    lo: float
+    hi: float
+    log: bool = False
+    periodic: bool = False
+
+    def value(self, u: float) -> float:
+        if self.log:
+            return float(math.exp(math.log(self.lo) + u * (math.log(self.hi) - math.log(self.lo))))
+        return float(self.lo + u * (self.hi - self.lo))
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A library effect with its fitted dimensions and how they map to the effect's parameters."""
+
+    name: str
+    dims: tuple[Dim, ...]
+    build: Callable[[list[float]], dict]
+    stochastic: bool = False
+
+    @property
+    def n_params(self) -> int:
+        return len(self.dims)
+
+    def params(self, u: np.ndarray) -> dict:
+        return self.build([d.value(float(x)) for d, x in zip(self.dims, u, strict=True)])
+
+
+def candidates(model: SimModel) -> list[Candidate]:
+    """The effect library as fit candidates for ``model`` (bounds wide enough for real robots)."""
+    n = model.n_wheels
+    pitch = 2 * math.pi / model.robot.rollers
+    lever = float(np.max(np.hypot(*model.robot.positions().T)))
+    c = 0.4 * lever  # the centre of mass well inside the support polygon
+    return [
+        Candidate("roller_gap", (Dim("mu_gap", 0.05, 1.5), Dim("roller_fraction", 0.6, 1.0),
+                                 *[Dim(f"phase{i + 1}", 0.0, pitch, periodic=True) for i in range(n)]),
+                  lambda v: {"mu_gap": v[0], "roller_fraction": v[1], "phase": list(v[2:])}),
+        Candidate("kinetic_friction", (Dim("ratio", 0.2, 1.0), Dim("v_s", 0.002, 0.3, log=True)),
+                  lambda v: {"ratio": v[0], "v_s": v[1]}),
+        Candidate("com_offset", (Dim("cx", -c, c), Dim("cy", -c, c)), lambda v: {"com": [v[0], v[1]]}),
+        Candidate("wheel_radius", tuple(Dim(f"scale{i + 1}", 0.85, 1.15) for i in range(n)),
+                  lambda v: {"scale": list(v)}),
+        Candidate("motor_lag", (Dim("tau", 0.001, 0.5, log=True),), lambda v: {"tau": v[0]}),
+        Candidate("wheel_liftoff", (Dim("lift_rate", 0.05, 5.0, log=True), Dim("recover_rate", 0.5, 50.0, log=True)),
+                  lambda v: {"lift_rate": v[0], "recover_rate": v[1]}, stochastic=True),
+    ]
+
+
+class Evaluator:
+    """SSE per run of parameter points, by batched simulation (one world per call)."""
+
+    def __init__(self, dataset: Dataset, lever: float, dt: float = FIT_DT, max_batch: int = 1500) -> None:
+        self.ds = dataset
+        self.lever = lever
+        self.dt = dt
+        self.max_batch = max_batch
+        self.simulated = 0  # robot-runs simulated (for the report)
+
+    def residuals(self, models: list[SimModel], seeds: int = 1, shooting: bool = False) -> list[list[np.ndarray]]:
+        """Per model, per run: residual (K, 3) [m] measured − simulated (mean over ``seeds`` seeds).
+
+        ``shooting``: simulate the windows of :func:`shooting_windows` instead (each from the measured
+        state at its start) and return, per run, the windows' residual rows stacked.
+        """
+        if shooting:
+            return self._shooting_residuals(models)
+        runs = self.ds.runs
+        jobs = [Job(m, r, seed=s) for m in models for s in range(seeds) for r in runs]
+        out: list[np.ndarray] = []
+        for i in range(0, len(jobs), self.max_batch):
+            out += [p for p, _ in simulate_jobs(jobs[i:i + self.max_batch], dt=self.dt)]
+        self.simulated += len(jobs)
+        res = []
+        R = len(runs)
+        for mi in range(len(models)):
+            per_run = []
+            for ri, run in enumerate(runs):
+                sims = [out[(mi * seeds + s) * R + ri] for s in range(seeds)]
+                mean = sims[0] if seeds == 1 else _mean_pose(sims)
+                per_run.append(pose_residual(run.pose, mean, self.lever))
+            res.append(per_run)
+        return res
+
+    def has_windows(self) -> bool:
+        """True when some run is observed densely enough for multiple shooting."""
+        if not hasattr(self, "_windows"):
+            self._windows = shooting_windows(self.ds)
+        return bool(self._windows)
+
+    def _shooting_residuals(self, models: list[SimModel]) -> list[list[np.ndarray]]:
+        if not hasattr(self, "_windows"):
+            self._windows = shooting_windows(self.ds)
+        wins = self._windows
+        jobs = [Job(m, self.ds.runs[ri], k0=k0, k1=k1, state0=st) for m in models for ri, k0, k1, st in wins]
+        out: list[np.ndarray] = []
+        for i in range(0, len(jobs), self.max_batch):
+            out += [p for p, _ in simulate_jobs(jobs[i:i + self.max_batch], dt=self.dt)]
+        self.simulated += len(jobs)
+        res = []
+        W = len(wins)
+        for mi in range(len(models)):
+            per_run: list[list[np.ndarray]] = [[np.zeros((1, 3))] for _ in self.ds.runs]
+            for wi, (ri, k0, k1, _) in enumerate(wins):
+                run = self.ds.runs[ri]
+                per_run[ri].append(pose_residual(run.pose[k0 + 1:k1 + 1], out[mi * W + wi][1:], self.lever))
+            res.append([np.vstack(x) for x in per_run])
+        return res
+
+    def sse(self, models: list[SimModel], seeds: int = 1, shooting: bool = False) -> np.ndarray:
+        """(P, R) sum of squared residual components [m²] over each run's observed rows after t = 0."""
+        return np.array([[_sse(r) for r in per_run] for per_run in self.residuals(models, seeds, shooting)])
+
+
+def shooting_windows(ds: Dataset, window: float = 1.0) -> list[tuple]:
+    """(run index, k0, k1, state0) windows of ``window`` s, each starting from the measured state.
+
+    state0: tracked pose, velocity from a local quadratic fit to the tracked poses, wheel angles
+    from the encoders (else the integrated commands), wheel speeds = the held command. Only
+    densely observed stretches qualify; runs observed sparsely contribute no window.
+    """
+    from omni_gym.discrepancy.localise import pose_rate, wheel_angles
+
+    out = []
+    n = ds.n_wheels
+    for ri, run in enumerate(ds.runs):
+        rate = pose_rate(run)
+        ang = wheel_angles(run)
+        k0 = 0
+        while k0 < len(run.t) - 2:
+            k1 = min(max(int(np.searchsorted(run.t, run.t[k0] + window - 1e-9)), k0 + 2), len(run.t) - 1)
+            if (k0 == 0 or run.observed[k0]) and np.all(np.isfinite(rate[k0]) | (k0 == 0)) \
+                    and run.observed[k0 + 1:k1 + 1].sum() >= 2:
+                pose = run.start_pose if k0 == 0 else run.pose[k0]
+                vel = np.zeros(3) if k0 == 0 else rate[k0]
+                speed = np.zeros(n) if k0 == 0 else run.cmd[k0 - 1]
+                out.append((ri, k0, k1, (pose, vel, ang[k0], speed)))
+            k0 = k1
+    return out
+
+
+def _mean_pose(sims: list[np.ndarray]) -> np.ndarray:
+    s = np.stack(sims)
+    out = s.mean(axis=0)
+    out[:, 2] = np.arctan2(np.sin(s[:, :, 2]).mean(axis=0), np.cos(s[:, :, 2]).mean(axis=0))
+    return out
+
+
+def _sse(r: np.ndarray) -> float:
+    r = r[1:]
+    r = r[np.all(np.isfinite(r), axis=1)]
+    return float(np.sum(r * r))
+
+
+def count_components(dataset: Dataset) -> np.ndarray:
+    """(R,) residual components per run (3 per observed row after t = 0)."""
+    return np.array([3 * int(run.observed[1:].sum()) for run in dataset.runs])
+
+
+def noise_estimate(residuals: list[np.ndarray], times: list[np.ndarray]) -> float | None:
+    """Tracker noise σ̂ [m] from second differences of residuals on consecutive, equally spaced rows.
+
+    A missing effect makes a smooth residual, white tracker noise a rough one: for white noise,
+    Δ²r has variance 6σ²; the median absolute value (÷ 0.6745) ignores the few rows where the
+    model error itself bends sharply (command steps). None when fewer than 20 such triples exist.
+    """
+    vals = []
+    for r, t in zip(residuals, times, strict=True):
+        ok = np.all(np.isfinite(r), axis=1)
+        dt = np.diff(t)
+        idx = np.flatnonzero(ok[:-2] & ok[1:-1] & ok[2:] & np.isclose(dt[:-1], dt[1:]))
+        if idx.size:
+            vals.append((r[idx] - 2 * r[idx + 1] + r[idx + 2]).ravel())
+    if not vals or sum(v.size for v in vals) < 60:
+        return None
+    d2 = np.concatenate(vals)
+    return float(np.median(np.abs(d2)) / 0.6745 / math.sqrt(6.0))
+
+
+@dataclass
+class FitResult:
+    """One candidate's fits: per fold and on all runs, with held-out errors and uncertainty."""
+
+    candidate: Candidate
+    u_all: np.ndarray
+    params_all: dict
+    sse_all: np.ndarray  # (R,) per-run SSE of the all-run fit
+    heldout: np.ndarray  # (R,) per-run SSE of the fold fit that did not see the run
+    fold_params: list[dict]
+    pool_u: np.ndarray  # points available to the all-run fit
+    pool_sse: np.ndarray  # their (P, R) SSE
+
+
+def make_folds(n_runs: int, rng: np.random.Generator, k: int = 3) -> np.ndarray:
+    """(R,) fold index of each run: K = min(k, R) folds of near-equal size, seeded order."""
+    k = min(k, n_runs)
+    order = rng.permutation(n_runs)
+    folds = np.empty(n_runs, dtype=int)
+    folds[order] = np.arange(n_runs) % k
+    return folds
+
+
+def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray,
+                  rng: np.random.Generator, iterations: int = 6, starts: int = 3, phase_grid: int = 32,
+                  phase_sweeps: int = 2, tick: Callable[[], None] | None = None) -> FitResult:
+    """Fit ``cand`` on every fold's training runs and on all runs (see the module docstring).
+
+    Start: the best ``starts`` points of a shared scrambled Sobol design (plus the effect's null
+    point, so a fit is never worse than nominal on its training runs). Periodic dimensions (roller
+    phases) are then searched on a grid. Then ``iterations`` batched Levenberg–Marquardt steps from
+    every start: forward-difference Jacobian (p points), three damping levels tried at once, the
+    best accepted if it lowers the training error. Each fit keeps every point it evaluated.
+    """
+    p = cand.n_params
+    K = int(folds.max()) + 1
+    seeds = LIFTOFF_SEEDS if cand.stochastic else 1
+    n0 = 16 if p <= 2 else 32 if p <= 4 else 64
+    design = qmc.Sobol(p, scramble=True, seed=rng).random(n0)
+    null = _null_point(cand, nominal)
+    if null is not None:
+        design = np.vstack([null, design])
+    if cand.name == "roller_gap":
+        # The nominal model's own beliefs as a start: its surface's μ'' and its roller fraction.
+        prior = np.full(p, 0.5)
+        prior[0] = np.clip((nominal.surface.mu_gap - cand.dims[0].lo) / (cand.dims[0].hi - cand.dims[0].lo), 0, 1)
+        prior[1] = np.clip((nominal.robot.roller_fraction - cand.dims[1].lo) / (cand.dims[1].hi - cand.dims[1].lo),
+                           0, 1)
+        design = np.vstack([prior, design[:1 + n0 // 4]])
+
+    def evaluate(us: np.ndarray, shooting: bool = False) -> tuple[np.ndarray, list[list[np.ndarray]]]:
+        res = ev.residuals([nominal.with_effect(cand.name, cand.params(u)) for u in us], seeds, shooting)
+        return np.array([[_sse(r) for r in per_run] for per_run in res]), res
+
+    design_sse, design_res = evaluate(design)
+    if tick:
+        tick()
+    # Targets 0..K-1: the folds' training runs; target K: all runs.
+    train = [folds != k for k in range(K)] + [np.ones(len(folds), dtype=bool)]
+    T = len(train)
+    pools_u = [[design] for _ in range(T)]
+    pools_sse = [[design_sse] for _ in range(T)]
+    periodic = [j for j, d in enumerate(cand.dims) if d.periodic]
+    # With periodic dimensions (phases) the search starts away from the null point, where phases do
+    # nothing, and from one start (the phase grid is the global search).
+    rows = np.arange(len(design)) if not periodic or null is None else np.flatnonzero(np.any(design != null, axis=1))
+    n_starts = 1 if periodic or cand.stochastic else starts
+    if cand.stochastic:
+        iterations = min(iterations, 2)  # the seed-averaged cost is jumpy: LM gains little there
+    states = []  # one local search per (target, start): dicts t, u, res, cost, lam
+    for t, mask in enumerate(train):
+        # Starts: the best design points that lie apart (0.3 in the unit cube), so that several
+        # basins are tried, not one basin several times.
+        chosen: list[int] = []
+        for i in rows[np.argsort(design_sse[rows][:, mask].sum(axis=1))]:
+            if len(chosen) == n_starts:
+                break
+            if all(np.max(np.abs(design[i] - design[c])) >= 0.3 for c in chosen):
+                chosen.append(int(i))
+        for i in chosen:
+            states.append({"t": t, "u": design[i].copy(), "res": design_res[i],
+                           "cost": float(design_sse[i, mask].sum()), "lam": 1e-2})
+    if periodic and ev.has_windows():
+        # Phases: the cost is multimodal in each (a gap passes once per roller pitch). On one long
+        # open-loop rollout a wrong phase of one wheel spoils the landscape of the others, so the
+        # phases are searched on the multiple-shooting cost (windows restarted from measured states:
+        # each wheel's gap contacts show up locally and the wheels nearly separate). Coordinate
+        # sweeps: grid one phase with the others fixed, for every fit at once, keep the best.
+        # Then back to the open-loop cost.
+        # The grid search runs once, on all runs; every fold fit then starts from its result and
+        # polishes all parameters on its own training runs only. This is the one place where a
+        # fold's held-out runs inform its fit (the choice among narrow phase basins): per-fold grid
+        # searches got caught in wrong basins with two thirds of the data (docs/discrepancy.md).
+        st_all = [st for st in states if st["t"] == K][0]
+        s_sse, _ = evaluate(st_all["u"][None, :], shooting=True)
+        st_all["scost"] = float(s_sse[0].sum())
+        for _ in range(phase_sweeps):
+            for j in periodic:
+                grid_u = np.tile(st_all["u"], (phase_grid, 1))
+                grid_u[:, j] = (np.arange(phase_grid) + 0.5) / phase_grid
+                grid_cost = evaluate(grid_u, shooting=True)[0].sum(axis=1)
+                g = int(np.argmin(grid_cost))
+                if grid_cost[g] < st_all["scost"]:
+                    st_all.update(u=grid_u[g].copy(), scost=float(grid_cost[g]))
+            if tick:
+                tick()
+        moved = np.array([st_all["u"]])
+        m_sse, m_res = evaluate(moved)
+        for st in states:
+            t = st["t"]
+            pools_u[t].append(moved)
+            pools_sse[t].append(m_sse)
+            cost = float(m_sse[0, train[t]].sum())
+            if cost < st["cost"] or st is st_all:
+                st.update(u=moved[0].copy(), res=m_res[0], cost=cost)
+    h = 3e-3 if not cand.stochastic else 2e-2  # unit-cube FD step (larger for the seed-averaged, jumpy cost)
+    damping = (0.1, 1.0, 10.0)
+    for st in states:
+        st["done"] = False
+    all_states = states
+    for _ in range(iterations):
+        # Searches that stopped improving leave the batch (the LM loop's main saving).
+        states = [st for st in all_states if not st["done"]]
+        if not states:
+            break
+        # Jacobians by forward differences, every local search in one batch.
+        fd, signs = [], []
+        for st in states:
+            sgn = np.where(st["u"] + h <= 1.0, 1.0, -1.0)
+            fd.append(st["u"] + np.diag(sgn * h))
+            signs.append(sgn)
+        fd_sse, fd_res = evaluate(np.concatenate(fd))
+        trials = []
+        for si, st in enumerate(states):
+            mask = train[st["t"]]
+            r0 = _stack(st["res"], mask)
+            J = np.column_stack([(_stack(fd_res[si * p + j], mask) - r0) / (signs[si][j] * h) for j in range(p)])
+            # r = measured − simulated(u); the Gauss–Newton step solves (JᵀJ + λ·diag JᵀJ) δ = −Jᵀr.
+            A = J.T @ J
+            g = J.T @ r0
+            dg = np.diag(A).copy() + 1e-12
+            for f in damping:
+                try:
+                    step = np.linalg.solve(A + st["lam"] * f * np.diag(dg), -g)
+                except np.linalg.LinAlgError:
+                    step = np.zeros(p)
+                trials.append(_to_cube(cand, st["u"] + step))
+        tr_u = np.array(trials)
+        tr_sse, tr_res = evaluate(tr_u)
+        nd = len(damping)
+        for si, st in enumerate(states):
+            t, mask = st["t"], train[st["t"]]
+            pools_u[t] += [fd[si], tr_u[nd * si:nd * si + nd]]
+            pools_sse[t] += [fd_sse[si * p:(si + 1) * p], tr_sse[nd * si:nd * si + nd]]
+            costs = tr_sse[nd * si:nd * si + nd][:, mask].sum(axis=1)
+            j = int(np.argmin(costs))
+            if costs[j] < st["cost"]:
+                # Converged when a tiny step gains less than 0.01 % of the cost (far below what
+                # matters for the decision thresholds of RULES).
+                st["done"] = bool(costs[j] > (1.0 - 1e-4) * st["cost"]
+                                  and np.max(np.abs(tr_u[nd * si + j] - st["u"])) < 1e-3)
+                st.update(u=tr_u[nd * si + j], res=tr_res[nd * si + j], cost=float(costs[j]),
+                          lam=max(st["lam"] * 0.3 * damping[j], 1e-6))
+            else:
+                st["lam"] *= 10.0
+                st["done"] = st["lam"] > 1e4
+        if tick:
+            tick()
+    pu = [np.vstack(x) for x in pools_u]
+    ps = [np.vstack(x) for x in pools_sse]
+    heldout = np.zeros(len(folds))
+    fold_params = []
+    for k in range(K):
+        i = int(np.argmin(ps[k][:, train[k]].sum(axis=1)))
+        heldout[folds == k] = ps[k][i, folds == k]
+        fold_params.append(cand.params(pu[k][i]))
+    i_all = int(np.argmin(ps[K].sum(axis=1)))
+    return FitResult(candidate=cand, u_all=pu[K][i_all], params_all=cand.params(pu[K][i_all]),
+                     sse_all=ps[K][i_all], heldout=heldout, fold_params=fold_params, pool_u=pu[K], pool_sse=ps[K])
+
+
+def _stack(per_run: list[np.ndarray], mask: np.ndarray) -> np.ndarray:
+    """Residual components of the runs in ``mask`` (observed rows after t = 0), flattened; NaN as 0."""
+    return np.concatenate([np.nan_to_num(r[1:]).ravel() for r, m in zip(per_run, mask, strict=True) if m])
+
+
+def _to_cube(cand: Candidate, u: np.ndarray) -> np.ndarray:
+    out = u.copy()
+    for j, d in enumerate(cand.dims):
+        out[j] = np.mod(out[j], 1.0) if d.periodic else np.clip(out[j], 0.0, 1.0)
+    return out
+
+
+def _null_point(cand: Candidate, nominal: SimModel) -> np.ndarray | None:
+    """Unit-cube point at which the effect changes nothing (None when the family has none)."""
+    lo = {d.name: d.lo for d in cand.dims}
+    hi = {d.name: d.hi for d in cand.dims}
+    if cand.name == "kinetic_friction":
+        null = {"ratio": 1.0}
+    elif cand.name == "roller_gap":
+        null = {"roller_fraction": 1.0}  # no rigid material: the initial model
+    elif cand.name == "com_offset":
+        null = {"cx": float(nominal.com[0]), "cy": float(nominal.com[1])}
+    elif cand.name == "motor_lag":
+        null = {"tau": lo["tau"]}
+    elif cand.name == "wheel_liftoff":
+        null = {"lift_rate": lo["lift_rate"], "recover_rate": hi["recover_rate"]}
+    elif cand.name == "wheel_radius":
+        null = {d.name: 1.0 for d in cand.dims}
+    else:
+        null = None
+    if null is None:
+        return None
+    u = np.full(cand.n_params, 0.5)
+    for j, d in enumerate(cand.dims):
+        if d.name in null:
+            v = null[d.name]
+            u[j] = ((math.log(v) - math.log(d.lo)) / (math.log(d.hi) - math.log(d.lo)) if d.log
+                    else (v - d.lo) / (d.hi - d.lo))
+    if cand.name == "kinetic_friction":
+        u[1] = 0.5  # v_s is irrelevant at ratio 1
+    return np.clip(u, 0.0, 1.0)
+
+
+def param_intervals(fit: FitResult, rng: np.random.Generator, n_boot: int = 200) -> dict:
+    """Bootstrap over runs: 5-95 % interval of each fitted dimension (refit = argmin over the pool)."""
+    R = fit.pool_sse.shape[1]
+    idx = rng.integers(0, R, (n_boot, R))
+    w = np.stack([np.bincount(row, minlength=R) for row in idx])  # (n_boot, R) run weights
+    best = np.argmin(w @ fit.pool_sse.T, axis=1)
+    vals = np.array([[d.value(float(x)) for d, x in zip(fit.candidate.dims, fit.pool_u[b], strict=True)]
+                     for b in best])
+    return {d.name: [float(np.percentile(vals[:, j], 5)), float(np.percentile(vals[:, j], 95))]
+            for j, d in enumerate(fit.candidate.dims)}
+
+
+def decide(nominal_sse: np.ndarray, fits: list[FitResult], n_comp: np.ndarray, sigma: float | None,
+           rng: np.random.Generator) -> dict:
+    """Rank candidates by penalised held-out score and choose the outcome (see module docstring).
+
+    Per-run Gaussian likelihood: run r with n_r residual components and held-out SSE_r contributes
+    n_r·ln(SSE_r/n_r); a candidate's score adds p·ln(N). Per-run variances keep one run that a
+    slightly-off fit sends onto a different path (stick-slip is that sensitive) from outweighing
+    all the others, as it would in one pooled sum of squares.
+    """
+    N = float(n_comp.sum())
+    R = len(n_comp)
+    n = np.maximum(n_comp, 1)
+    L0 = n * np.log(np.maximum(nominal_sse, 1e-30) / n)
+    mse0 = math.exp(L0.sum() / N)  # n-weighted geometric mean of the per-run MSE
+    noise_var = sigma**2 if sigma is not None else 0.0
+    boot = np.stack([np.bincount(row, minlength=R) for row in rng.integers(0, R, (N_BOOT, R))])
+    ranking = []
+    Ls = []
+    for f in fits:
+        L = n * np.log(np.maximum(f.heldout, 1e-30) / n)
+        Ls.append(L)
+        mse = math.exp(L.sum() / N)
+        gain = boot @ (L0 - L)  # (N_BOOT,) log-likelihood gain over nominal in each resample
+        ranking.append({
+            "effect": f.candidate.name,
+            "score": float(L.sum() + f.candidate.n_params * math.log(N)),
+            "heldout_rms": math.sqrt(mse),
+            "pooled_rms": math.sqrt(f.heldout.sum() / N),
+            "excess_rms": math.sqrt(max(mse - noise_var, 0.0)),
+            "improvement": 1.0 - mse / mse0 if mse0 > 0 else 0.0,
+            "p_better_than_nominal": float(np.mean(gain > 0)),
+            "n_params": f.candidate.n_params,
+            "params": f.params_all,
+        })
+    score0 = float(L0.sum())
+    order = sorted(range(len(fits)), key=lambda i: ranking[i]["score"])
+    for i in order:
+        ranking[i]["beats_nominal"] = bool(ranking[i]["score"] < score0
+                                           and ranking[i]["p_better_than_nominal"] >= RULES["significance"]
+                                           and ranking[i]["improvement"] >= RULES["min_improvement"])
+    # Stability: the share of run resamples in which each candidate has the best held-out likelihood.
+    wins = np.argmin(np.stack([boot @ L for L in Ls]), axis=0)
+    for i in range(len(fits)):
+        ranking[i]["stability"] = float(np.mean(wins == i))
+    excess0 = math.sqrt(max(mse0 - noise_var, 0.0))
+    nominal_at_noise = sigma is not None and mse0 <= noise_var * (1 + RULES["noise_margin"])
+    best = order[0]
+    rb = ranking[best]
+    out = {"nominal_rms": math.sqrt(mse0), "nominal_excess_rms": excess0, "noise": sigma, "score_nominal": score0,
+           "ranking": [ranking[i] for i in order], "best": rb["effect"]}
+    reduction = 1.0 - rb["excess_rms"] / excess0 if excess0 > 0 else 0.0
+    best_at_noise = sigma is not None and rb["heldout_rms"] ** 2 <= noise_var * (1 + RULES["noise_margin"])
+    if not rb["beats_nominal"]:
+        if nominal_at_noise or sigma is None:
+            out["effect"] = "none"
+            out["why"] = ("no candidate improves the held-out error significantly"
+                          + (" and the nominal residual is at the tracker-noise level" if nominal_at_noise else ""))
+        else:
+            out["effect"] = "unexplained"
+            out["why"] = (f"the nominal residual ({1e3 * math.sqrt(mse0):.2f} mm RMS) is well above the tracker "
+                          f"noise ({1e3 * sigma:.2f} mm) and no candidate improves it significantly")
+        return out
+    if reduction < RULES["min_gap_reduction"] and not best_at_noise:
+        out["effect"] = "unexplained"
+        out["why"] = (f"the best candidate, {rb['effect']}, removes only {100 * reduction:.0f} % of the gap beyond "
+                      f"noise on held-out runs (needs {100 * RULES['min_gap_reduction']:.0f} %)")
+        return out
+    out["effect"] = rb["effect"]
+    out["why"] = (f"{rb['effect']} removes {100 * reduction:.0f} % of the held-out gap beyond noise and beats "
+                  f"the nominal model in {100 * rb['p_better_than_nominal']:.0f} % of run resamples")
+    # Ambiguity: a qualifying runner-up that the winner does not beat reliably across resamples.
+    amb = []
+    for i in order[1:]:
+        ri = ranking[i]
+        if not ri["beats_nominal"]:
+            continue
+        red_i = 1.0 - ri["excess_rms"] / excess0 if excess0 > 0 else 0.0
+        pairwise = float(np.mean(boot @ (Ls[i] - Ls[best]) > 0))
+        if red_i >= RULES["min_gap_reduction"] and pairwise < RULES["ambiguity"]:
+            amb.append({"effect": ri["effect"], "p_winner_better": pairwise})
+    if amb:
+        out["ambiguous_with"] = amb
+        out["why"] += ("; cannot be told apart from " + ", ".join(a["effect"] for a in amb)
+                       + " on this data")
+    return out

@@ -1,0 +1,179 @@
+"""Datasets with a hidden effect: the nominal model is written, the truth goes to a separate file.
+
+``omni-gym synth`` simulates varied maneuvers (steps, ramps, rotations, diagonal moves, stops) with
+the nominal model plus a hidden effect, adds measurement noise, and writes a dataset folder whose
+``dataset.json`` holds only the nominal model. The truth (effect, parameters, noise, seed) goes to
+``DATASET.truth.json`` beside the folder, which the workflow never reads.
+
+Noise model (σ = ``noise`` [m]): tracker x, y with Gaussian σ; heading with σ / lever [rad], lever
+= the largest wheel-centre distance (so a heading error moves a wheel by about σ); encoders
+quantised to 2048 counts per revolution (a 512-line quadrature encoder).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from omni_gym.discrepancy.dataset import Run, write_dataset, write_json_atomic
+from omni_gym.discrepancy.simulate import Job, simulate_jobs
+from omni_gym.model import EFFECT_PARAMS, SimModel
+from omni_gym.world import DEFAULT_DT
+
+RATE = 50.0  # Hz, command and tracker rows
+COUNTS_PER_REV = 2048
+# Effects outside the library that synth can hide (to test the `unexplained` outcome).
+EXTRA_EFFECTS = {"viscous_drag": ("c",)}
+
+
+def pose_lever(model: SimModel) -> float:
+    """Length [m] that turns a heading error into a displacement: the largest wheel-centre distance."""
+    return float(np.max(np.hypot(*model.robot.positions().T)))
+
+
+def default_params(name: str, model: SimModel, rng: np.random.Generator) -> dict:
+    """Moderate default parameters of a hidden effect (roller phases drawn from ``rng``)."""
+    n = model.n_wheels
+    if name == "roller_gap":
+        pitch = 2 * math.pi / model.robot.rollers
+        return {"mu_gap": model.surface.mu_gap, "roller_fraction": model.robot.roller_fraction,
+                "phase": [float(v) for v in rng.uniform(0, pitch, n)]}
+    if name == "kinetic_friction":
+        return {"ratio": 0.6, "v_s": 0.02}
+    if name == "com_offset":
+        return {"com": [0.015, -0.01]}
+    if name == "wheel_radius":
+        scale = np.ones(n)
+        scale[1] = 0.95
+        return {"scale": [float(v) for v in scale]}
+    if name == "motor_lag":
+        return {"tau": 0.08}
+    if name == "wheel_liftoff":
+        return {"lift_rate": 0.5, "recover_rate": 5.0}
+    if name == "viscous_drag":
+        return {"c": 4.0}
+    return {}
+
+
+def parse_hidden(spec: str, model: SimModel, rng: np.random.Generator) -> tuple[str, dict]:
+    """``EFFECT`` or ``EFFECT:{json params}`` (missing keys take defaults) or ``none``."""
+    name, _, raw = spec.partition(":")
+    name = name.strip()
+    if name != "none" and name not in EFFECT_PARAMS and name not in EXTRA_EFFECTS:
+        raise ValueError(f"--hidden: unknown effect {name!r}; choose none, one of {sorted(EFFECT_PARAMS)} "
+                         f"or {sorted(EXTRA_EFFECTS)}")
+    params = default_params(name, model, rng)
+    if raw.strip():
+        try:
+            given = json.loads(raw)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"--hidden {name}: parameters are not valid JSON ({exc.msg})") from None
+        if not isinstance(given, dict):
+            raise ValueError(f"--hidden {name}: parameters must be a JSON object")
+        allowed = EFFECT_PARAMS.get(name) or EXTRA_EFFECTS.get(name, ())
+        for key in given:
+            if key not in allowed:
+                raise ValueError(f"--hidden {name}: unknown parameter {key!r}; allowed {list(allowed)}")
+        params.update(given)
+    if name in EFFECT_PARAMS:
+        model.with_effect(name, params)  # validates
+    elif name == "viscous_drag" and not (isinstance(params["c"], (int, float)) and params["c"] >= 0):
+        raise ValueError("--hidden viscous_drag: c must be a number >= 0 [N·s/m]")
+    return name, params
+
+
+def maneuver(model: SimModel, rng: np.random.Generator, duration: float, rate: float = RATE) -> tuple:
+    """Times (K,) [s] and wheel commands (K, n) [rad/s] of one random maneuver.
+
+    Segments of 0.4–1.2 s, each a step or a ramp to a new body twist drawn from: straight moves,
+    diagonal moves, pure rotations, combined moves and stops; up to 0.35 m/s and 2 rad/s.
+    """
+    k = int(round(duration * rate)) + 1
+    t = np.arange(k) / rate
+    twist = np.zeros((k, 3))
+    current = np.zeros(3)
+    i = 0
+    while i < k - 1:
+        length = int(rng.integers(int(0.4 * rate), int(1.2 * rate) + 1))
+        kind = rng.integers(5)
+        v = rng.uniform(0.1, 0.35)
+        ang = rng.uniform(-math.pi, math.pi)
+        if kind == 0:  # straight along a body axis
+            axis = rng.integers(4) * math.pi / 2
+            target = np.array([v * math.cos(axis), v * math.sin(axis), 0.0])
+        elif kind == 1:  # diagonal
+            d = (rng.integers(4) + 0.5) * math.pi / 2
+            target = np.array([v * math.cos(d), v * math.sin(d), 0.0])
+        elif kind == 2:  # rotation on the spot
+            target = np.array([0.0, 0.0, rng.choice([-1, 1]) * rng.uniform(0.8, 2.0)])
+        elif kind == 3:  # combined
+            target = np.array([v * math.cos(ang), v * math.sin(ang), rng.uniform(-1.5, 1.5)])
+        else:  # stop
+            target = np.zeros(3)
+        end = min(k - 1, i + length)
+        if rng.random() < 0.5:  # step
+            twist[i:end] = target
+        else:  # ramp over the segment
+            frac = (np.arange(end - i) + 1) / (end - i)
+            twist[i:end] = current + frac[:, None] * (target - current)
+        current = target
+        i = end
+    twist[-1] = 0.0
+    return t, twist @ model.robot.wheel_matrix().T
+
+
+def synthesize(model: SimModel, hidden: str, runs: int, noise: float, seed: int, duration: float = 5.0,
+               observe: str = "all") -> tuple[list[Run], dict]:
+    """Simulate ``runs`` maneuvers with the hidden effect; returns (runs with noisy measurements, truth)."""
+    if runs < 1:
+        raise ValueError(f"--runs must be >= 1, got {runs}")
+    if not (math.isfinite(noise) and noise >= 0):
+        raise ValueError(f"--noise must be a number >= 0 [m], got {noise}")
+    if not (math.isfinite(duration) and duration >= 0.2):
+        raise ValueError(f"duration must be >= 0.2 s, got {duration}")
+    if observe not in ("all", "end"):
+        raise ValueError(f"--observe must be 'all' or 'end', got {observe!r}")
+    rng = np.random.default_rng(seed)
+    r_param, r_man, r_noise, r_lift = rng.spawn(4)
+    name, params = parse_hidden(hidden, model, r_param)
+    true_model = model.with_effect(name, params) if name in EFFECT_PARAMS else model
+    drag = float(params["c"]) if name == "viscous_drag" else 0.0
+    plans = [maneuver(model, r_man, duration) for _ in range(runs)]
+    lift_seeds = r_lift.integers(0, 2**31, runs)
+    shells = [Run(name=f"run{i:03d}", t=t, cmd=c, pose=np.zeros((len(t), 3))) for i, (t, c) in enumerate(plans)]
+    sims = simulate_jobs([Job(true_model, r, seed=int(s), drag=drag) for r, s in zip(shells, lift_seeds, strict=True)],
+                         dt=DEFAULT_DT)
+    lever = pose_lever(model)
+    out = []
+    quantum = 2 * math.pi / COUNTS_PER_REV
+    for run, (pose, ang) in zip(shells, sims, strict=True):
+        meas = pose + r_noise.normal(0.0, 1.0, pose.shape) * np.array([noise, noise, noise / lever])
+        meas[0] = 0.0  # each run starts at rest at the origin, known exactly
+        if observe == "end":
+            meas[:-1] = np.nan
+        enc = np.floor(ang / quantum) * quantum
+        out.append(Run(name=run.name, t=run.t, cmd=run.cmd, pose=meas, enc=enc))
+    truth = {"effect": name, "params": params, "noise": noise, "seed": seed, "runs": runs,
+             "duration": duration, "observe": observe,
+             "model": true_model.to_json() if name in EFFECT_PARAMS else None}
+    return out, truth
+
+
+def truth_path(dataset: str | Path) -> Path:
+    """Where the truth of a synthetic dataset goes: ``DATASET.truth.json`` beside the folder."""
+    p = Path(dataset)
+    return p.parent / f"{p.name}.truth.json"
+
+
+def write_synthetic(out: str | Path, model: SimModel, hidden: str, runs: int, noise: float, seed: int,
+                    duration: float = 5.0, observe: str = "all") -> dict:
+    """Synthesize and write the dataset folder and its truth file; returns the truth."""
+    data, truth = synthesize(model, hidden, runs, noise, seed, duration, observe)
+    desc = (f"synthetic: {runs} runs of {duration:g} s, tracker noise {noise:g} m, seed {seed} "
+            f"(generated by omni-gym synth; the hidden effect is not recorded here)")
+    write_dataset(out, model.to_json(), desc, data)
+    write_json_atomic(truth_path(out), truth)
+    return truth
