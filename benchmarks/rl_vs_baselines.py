@@ -14,11 +14,13 @@ its mean tracking RMSE to ekf-pid's with a 95 % paired-bootstrap interval, a two
 Wilcoxon test, and the goal check (ratio ≤ 0.8 with non-overlapping 95 % intervals). The training
 wall-clock cost comes from each model's ``meta.json``.
 
-Writes ``rl_vs_baselines.md`` (command line first) and ``rl_vs_baselines.png`` (bars with 95 % whiskers)
-into ``--out``. Usage::
+Writes ``rl_vs_baselines.md`` (command line first), ``rl_vs_baselines.png`` (bars with 95 % whiskers) and
+``rl_training_curves.png`` into ``--out``. With ``--cache FILE`` every episode's metrics are kept in a JSON
+file keyed by (policy, set, condition, seed, overrides) and reused on the next run (e.g. run the
+scripted baselines first with no ``--models``, while the agents train). Usage::
 
     python benchmarks/rl_vs_baselines.py --models agents/models/ppo-residual [more dirs] [--episodes 50]
-                                         [--seed 10000] [--workers 2] [--out benchmarks/results]
+                                         [--seed 10000] [--workers 2] [--cache FILE] [--out benchmarks/results]
 """
 
 from __future__ import annotations
@@ -89,25 +91,45 @@ def _episode(task: tuple) -> tuple[tuple[str, str, str], Episode]:
     return (policy, eval_set, cond), run_episode(env, pol, seed)
 
 
-def run_all(policies: list[str], episodes: int, seed: int, workers: int, overrides: dict) -> dict:
+def _cache_key(task: tuple) -> str:
+    policy, eval_set, cond, seed, _, overrides = task
+    return json.dumps([policy, eval_set, cond, seed, sorted(overrides.items())])
+
+
+def run_all(policies: list[str], episodes: int, seed: int, workers: int, overrides: dict,
+            cache: Path | None = None) -> dict:
     tasks = []
     for eval_set in SETS:
         first = seed if eval_set == SETS[0] else seed + UNSEEN_OFFSET
         tasks += [(p, eval_set, c, first + i, first, overrides)
                   for c in CONDITIONS for p in policies for i in range(episodes)]
     out: dict = {}
+    stored = json.loads(cache.read_text()) if cache is not None and cache.is_file() else {}
+    todo = []
+    for task in tasks:
+        if _cache_key(task) in stored:
+            out.setdefault(task[:3], []).append(Episode(**stored[_cache_key(task)]))
+        else:
+            todo.append(task)
+    tasks = todo
     bar = tqdm(total=len(tasks), desc="episodes", file=sys.stderr, unit="ep")
     if workers > 1:
         with get_context("spawn").Pool(workers) as pool:
-            for key, ep in pool.imap_unordered(_episode, tasks, chunksize=5):
+            for task, (key, ep) in zip(tasks, pool.imap(_episode, tasks, chunksize=5), strict=True):
                 out.setdefault(key, []).append(ep)
+                stored[_cache_key(task)] = ep.metrics()
                 bar.update()
     else:
         for task in tasks:
             key, ep = _episode(task)
             out.setdefault(key, []).append(ep)
+            stored[_cache_key(task)] = ep.metrics()
             bar.update()
     bar.close()
+    if cache is not None:
+        tmp = cache.with_suffix(".tmp")
+        tmp.write_text(json.dumps(stored))
+        os.replace(tmp, cache)
     return {k: sorted(v, key=lambda e: e.seed) for k, v in out.items()}
 
 
@@ -241,11 +263,13 @@ def plot_curves(path: Path, models: list[str]) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--models", nargs="+", required=True, help="trained model directories (agents/models/<name>)")
+    ap.add_argument("--models", nargs="*", default=[],
+                    help="trained model directories (agents/models/<name>); none: only fill --cache with the baselines")
     ap.add_argument("--episodes", type=int, default=50, help="episodes per policy, condition and set (default 50)")
     ap.add_argument("--seed", type=int, default=10_000, help="first seed (default 10000)")
     ap.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--out", default="benchmarks/results", help="output directory")
+    ap.add_argument("--cache", default=None, help="JSON file of episode metrics to reuse and extend")
     ap.add_argument("--episode-seconds", type=float, default=None,
                     help="shorter episodes for a quick check (default: the id's 20 s; the table uses 20 s)")
     args = ap.parse_args(argv)
@@ -263,7 +287,11 @@ def main(argv: list[str] | None = None) -> int:
     policies = [*args.models, *POLICY_NAMES]
     t0 = time.time()
     overrides = {} if args.episode_seconds is None else {"episode_seconds": args.episode_seconds}
-    eps = run_all(policies, args.episodes, args.seed, max(1, args.workers), overrides)
+    cache = None if args.cache is None else Path(args.cache)
+    eps = run_all(policies, args.episodes, args.seed, max(1, args.workers), overrides, cache)
+    if not args.models:
+        print(f"baseline episodes stored in {cache}" if cache else "no --models: nothing to compare")
+        return 0
     summaries = {k: summarize(v) for k, v in eps.items()}
     verdicts = write_markdown(out / "rl_vs_baselines.md", command.strip(), policies, args.models, metas, eps,
                               summaries, args.episodes, args.seed, time.time() - t0)
