@@ -248,18 +248,25 @@ def make_folds(n_runs: int, rng: np.random.Generator, k: int = 3) -> np.ndarray:
 
 
 def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray,
-                  rng: np.random.Generator, iterations: int = 6, starts: int = 3, phase_grid: int = 32,
-                  phase_sweeps: int = 2, tick: Callable[[], None] | None = None) -> FitResult:
-    """Fit ``cand`` on every fold's training runs and on all runs (see the module docstring).
+                  rng: np.random.Generator, iterations: int = 6, fold_iterations: int = 4, starts: int = 2,
+                  phase_grid: int = 32, phase_sweeps: int = 2,
+                  tick: Callable[[], None] | None = None) -> FitResult:
+    """Fit ``cand`` on all runs and on every fold's training runs (see the module docstring).
 
-    Start: the best ``starts`` points of a shared scrambled Sobol design (plus the effect's null
-    point, so a fit is never worse than nominal on its training runs). Periodic dimensions (roller
-    phases) are then searched on a grid. Then ``iterations`` batched Levenberg–Marquardt steps from
-    every start: forward-difference Jacobian (p points), three damping levels tried at once, the
-    best accepted if it lowers the training error. Each fit keeps every point it evaluated.
+    1. A shared scrambled Sobol design, plus the effect's null point (so a fit is never worse than
+       nominal on its training runs) and, for roller_gap, the nominal model's own μ'' and roller
+       fraction.
+    2. All-run fit: from the ``starts`` best design points that lie apart; roller phases searched
+       on a grid of the multiple-shooting cost; then batched Levenberg–Marquardt.
+    3. Fold fits: Levenberg–Marquardt on the fold's training runs, warm-started at the all-run fit.
+       A fold fit is the point with the least training error among the design, the warm start and
+       its own steps. The warm start is the one channel by which held-out runs inform a fold fit:
+       it picks the basin (narrow roller-phase basins defeated independent per-fold searches on
+       two thirds of the data); everything the fold fit then does uses its training runs only.
     """
     p = cand.n_params
     K = int(folds.max()) + 1
+    R = len(folds)
     seeds = LIFTOFF_SEEDS if cand.stochastic else 1
     n0 = 16 if p <= 2 else 32 if p <= 4 else 64
     design = qmc.Sobol(p, scramble=True, seed=rng).random(n0)
@@ -267,7 +274,6 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
     if null is not None:
         design = np.vstack([null, design])
     if cand.name == "roller_gap":
-        # The nominal model's own beliefs as a start: its surface's μ'' and its roller fraction.
         prior = np.full(p, 0.5)
         prior[0] = np.clip((nominal.surface.mu_gap - cand.dims[0].lo) / (cand.dims[0].hi - cand.dims[0].lo), 0, 1)
         prior[1] = np.clip((nominal.robot.roller_fraction - cand.dims[1].lo) / (cand.dims[1].hi - cand.dims[1].lo),
@@ -282,82 +288,98 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
     if tick:
         tick()
     # Targets 0..K-1: the folds' training runs; target K: all runs.
-    train = [folds != k for k in range(K)] + [np.ones(len(folds), dtype=bool)]
-    T = len(train)
-    pools_u = [[design] for _ in range(T)]
-    pools_sse = [[design_sse] for _ in range(T)]
+    train = [folds != k for k in range(K)] + [np.ones(R, dtype=bool)]
+    pools_u = [[design] for _ in train]
+    pools_sse = [[design_sse] for _ in train]
     periodic = [j for j, d in enumerate(cand.dims) if d.periodic]
-    # With periodic dimensions (phases) the search starts away from the null point, where phases do
-    # nothing, and from one start (the phase grid is the global search).
+    # With phases the search starts away from the null point (where phases do nothing) and from one
+    # start (the phase grid is the global search); the seed-averaged random candidate gets one too.
     rows = np.arange(len(design)) if not periodic or null is None else np.flatnonzero(np.any(design != null, axis=1))
     n_starts = 1 if periodic or cand.stochastic else starts
-    if cand.stochastic:
-        iterations = min(iterations, 2)  # the seed-averaged cost is jumpy: LM gains little there
-    states = []  # one local search per (target, start): dicts t, u, res, cost, lam
-    for t, mask in enumerate(train):
-        # Starts: the best design points that lie apart (0.3 in the unit cube), so that several
-        # basins are tried, not one basin several times.
-        chosen: list[int] = []
-        for i in rows[np.argsort(design_sse[rows][:, mask].sum(axis=1))]:
-            if len(chosen) == n_starts:
-                break
-            if all(np.max(np.abs(design[i] - design[c])) >= 0.3 for c in chosen):
-                chosen.append(int(i))
-        for i in chosen:
-            states.append({"t": t, "u": design[i].copy(), "res": design_res[i],
-                           "cost": float(design_sse[i, mask].sum()), "lam": 1e-2})
+    chosen: list[int] = []
+    for i in rows[np.argsort(design_sse[rows].sum(axis=1))]:
+        if len(chosen) == n_starts:
+            break
+        # Starts lie apart (0.3 in the unit cube), so several basins are tried, not one basin twice.
+        if all(np.max(np.abs(design[i] - design[c])) >= 0.3 for c in chosen):
+            chosen.append(int(i))
+    states = [{"t": K, "u": design[i].copy(), "res": design_res[i], "cost": float(design_sse[i].sum()),
+               "lam": 1e-2} for i in chosen]
     if periodic and ev.has_windows():
         # Phases: the cost is multimodal in each (a gap passes once per roller pitch). On one long
         # open-loop rollout a wrong phase of one wheel spoils the landscape of the others, so the
         # phases are searched on the multiple-shooting cost (windows restarted from measured states:
-        # each wheel's gap contacts show up locally and the wheels nearly separate). Coordinate
-        # sweeps: grid one phase with the others fixed, for every fit at once, keep the best.
-        # Then back to the open-loop cost.
-        # The grid search runs once, on all runs; every fold fit then starts from its result and
-        # polishes all parameters on its own training runs only. This is the one place where a
-        # fold's held-out runs inform its fit (the choice among narrow phase basins): per-fold grid
-        # searches got caught in wrong basins with two thirds of the data (docs/discrepancy.md).
-        st_all = [st for st in states if st["t"] == K][0]
-        s_sse, _ = evaluate(st_all["u"][None, :], shooting=True)
-        st_all["scost"] = float(s_sse[0].sum())
+        # each wheel's gap contacts show up locally). Coordinate sweeps: grid one phase with the
+        # others fixed, keep the best. Then back to the open-loop cost.
+        st = states[0]
+        st["scost"] = float(evaluate(st["u"][None, :], shooting=True)[0].sum())
         for _ in range(phase_sweeps):
             for j in periodic:
-                grid_u = np.tile(st_all["u"], (phase_grid, 1))
+                grid_u = np.tile(st["u"], (phase_grid, 1))
                 grid_u[:, j] = (np.arange(phase_grid) + 0.5) / phase_grid
                 grid_cost = evaluate(grid_u, shooting=True)[0].sum(axis=1)
                 g = int(np.argmin(grid_cost))
-                if grid_cost[g] < st_all["scost"]:
-                    st_all.update(u=grid_u[g].copy(), scost=float(grid_cost[g]))
+                if grid_cost[g] < st["scost"]:
+                    st.update(u=grid_u[g].copy(), scost=float(grid_cost[g]))
             if tick:
                 tick()
-        moved = np.array([st_all["u"]])
-        m_sse, m_res = evaluate(moved)
-        for st in states:
-            t = st["t"]
-            pools_u[t].append(moved)
-            pools_sse[t].append(m_sse)
-            cost = float(m_sse[0, train[t]].sum())
-            if cost < st["cost"] or st is st_all:
-                st.update(u=moved[0].copy(), res=m_res[0], cost=cost)
+        m_sse, m_res = evaluate(st["u"][None, :])
+        pools_u[K].append(st["u"][None, :])
+        pools_sse[K].append(m_sse)
+        if m_sse[0].sum() < st["cost"] or null is None or np.any(design[chosen[0]] != null):
+            st.update(res=m_res[0], cost=float(m_sse[0].sum()))
     h = 3e-3 if not cand.stochastic else 2e-2  # unit-cube FD step (larger for the seed-averaged, jumpy cost)
+    lm = dict(evaluate=evaluate, train=train, pools_u=pools_u, pools_sse=pools_sse, cand=cand, h=h, tick=tick)
+    _levenberg_marquardt(states, min(iterations, 2) if cand.stochastic else iterations, **lm)
+    i_all = int(np.argmin(np.vstack(pools_sse[K]).sum(axis=1)))
+    u_all = np.vstack(pools_u[K])[i_all]
+    a_sse = np.vstack(pools_sse[K])[i_all]
+    best = min(states, key=lambda s: s["cost"])
+    fold_states = []
+    for k in range(K):
+        pools_u[k].append(best["u"][None, :])
+        pools_sse[k].append(np.array([[_sse(r) for r in best["res"]]]))
+        fold_states.append({"t": k, "u": best["u"].copy(), "res": best["res"],
+                            "cost": float(sum(_sse(r) for r, m in zip(best["res"], train[k], strict=True) if m)),
+                            "lam": 1e-2})
+    _levenberg_marquardt(fold_states, 1 if cand.stochastic else fold_iterations, **lm)
+    heldout = np.zeros(R)
+    fold_params = []
+    for k in range(K):
+        pu, ps = np.vstack(pools_u[k]), np.vstack(pools_sse[k])
+        i = int(np.argmin(ps[:, train[k]].sum(axis=1)))
+        heldout[folds == k] = ps[i, folds == k]
+        fold_params.append(cand.params(pu[i]))
+    return FitResult(candidate=cand, u_all=u_all, params_all=cand.params(u_all), sse_all=a_sse, heldout=heldout,
+                     fold_params=fold_params, pool_u=np.vstack(pools_u[K]), pool_sse=np.vstack(pools_sse[K]))
+
+
+def _levenberg_marquardt(states: list[dict], iterations: int, evaluate, train, pools_u, pools_sse, cand, h,
+                         tick) -> None:
+    """Batched LM steps for every search in ``states`` (dicts t, u, res, cost, lam; updated in place).
+
+    Per iteration: forward-difference Jacobians (p points per search) in one batch, then three
+    damping levels per search in a second batch; a search keeps the best trial if it lowers its
+    training error and stops when a tiny step gains less than 0.01 % (far below what matters for
+    the decision thresholds of RULES) or the damping has grown past use.
+    """
+    p = cand.n_params
     damping = (0.1, 1.0, 10.0)
+    nd = len(damping)
     for st in states:
         st["done"] = False
-    all_states = states
     for _ in range(iterations):
-        # Searches that stopped improving leave the batch (the LM loop's main saving).
-        states = [st for st in all_states if not st["done"]]
-        if not states:
+        live = [st for st in states if not st["done"]]
+        if not live:
             break
-        # Jacobians by forward differences, every local search in one batch.
         fd, signs = [], []
-        for st in states:
+        for st in live:
             sgn = np.where(st["u"] + h <= 1.0, 1.0, -1.0)
             fd.append(st["u"] + np.diag(sgn * h))
             signs.append(sgn)
         fd_sse, fd_res = evaluate(np.concatenate(fd))
         trials = []
-        for si, st in enumerate(states):
+        for si, st in enumerate(live):
             mask = train[st["t"]]
             r0 = _stack(st["res"], mask)
             J = np.column_stack([(_stack(fd_res[si * p + j], mask) - r0) / (signs[si][j] * h) for j in range(p)])
@@ -373,16 +395,13 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
                 trials.append(_to_cube(cand, st["u"] + step))
         tr_u = np.array(trials)
         tr_sse, tr_res = evaluate(tr_u)
-        nd = len(damping)
-        for si, st in enumerate(states):
+        for si, st in enumerate(live):
             t, mask = st["t"], train[st["t"]]
             pools_u[t] += [fd[si], tr_u[nd * si:nd * si + nd]]
             pools_sse[t] += [fd_sse[si * p:(si + 1) * p], tr_sse[nd * si:nd * si + nd]]
             costs = tr_sse[nd * si:nd * si + nd][:, mask].sum(axis=1)
             j = int(np.argmin(costs))
             if costs[j] < st["cost"]:
-                # Converged when a tiny step gains less than 0.01 % of the cost (far below what
-                # matters for the decision thresholds of RULES).
                 st["done"] = bool(costs[j] > (1.0 - 1e-4) * st["cost"]
                                   and np.max(np.abs(tr_u[nd * si + j] - st["u"])) < 1e-3)
                 st.update(u=tr_u[nd * si + j], res=tr_res[nd * si + j], cost=float(costs[j]),
@@ -392,17 +411,6 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
                 st["done"] = st["lam"] > 1e4
         if tick:
             tick()
-    pu = [np.vstack(x) for x in pools_u]
-    ps = [np.vstack(x) for x in pools_sse]
-    heldout = np.zeros(len(folds))
-    fold_params = []
-    for k in range(K):
-        i = int(np.argmin(ps[k][:, train[k]].sum(axis=1)))
-        heldout[folds == k] = ps[k][i, folds == k]
-        fold_params.append(cand.params(pu[k][i]))
-    i_all = int(np.argmin(ps[K].sum(axis=1)))
-    return FitResult(candidate=cand, u_all=pu[K][i_all], params_all=cand.params(pu[K][i_all]),
-                     sse_all=ps[K][i_all], heldout=heldout, fold_params=fold_params, pool_u=pu[K], pool_sse=ps[K])
 
 
 def _stack(per_run: list[np.ndarray], mask: np.ndarray) -> np.ndarray:

@@ -17,12 +17,12 @@ from omni_gym.discrepancy.synth import write_synthetic
 from omni_gym.discrepancy.workflow import gap
 from omni_gym.model import SimModel, load_model
 
-# Two sizes of every library effect on the Williams robot (carpet, initial friction). "small" is
-# roughly the smallest that moves the 3-wheel robot by a few tracker-noise levels over a few
-# seconds; "large" is the default of omni-gym synth or about twice the small one.
+# Two sizes of every library effect on the Williams robot (carpet, initial friction): "large" is
+# the default of omni-gym synth (roller_gap: the paper's carpet values), "small" about half of it.
+# roller_gap's size is the rigid-material coefficient mu'' (roller fraction 0.9, random phases).
 SIZES: dict[str, dict[str, dict]] = {
-    "roller_gap": {"small": {"roller_fraction": 0.95}, "large": {"roller_fraction": 0.9}},
-    "kinetic_friction": {"small": {"ratio": 0.8, "v_s": 0.02}, "large": {"ratio": 0.6, "v_s": 0.02}},
+    "roller_gap": {"small": {"mu_gap": 0.4}, "large": {"mu_gap": 0.56}},  # carpet: mu' 0.25 / 0.15
+    "kinetic_friction": {"small": {"ratio": 0.75, "v_s": 0.02}, "large": {"ratio": 0.6, "v_s": 0.02}},
     "com_offset": {"small": {"com": [0.008, -0.005]}, "large": {"com": [0.015, -0.01]}},
     "wheel_radius": {"small": {"scale": [1.0, 0.97, 1.0]}, "large": {"scale": [1.0, 0.94, 1.02]}},
     "motor_lag": {"small": {"tau": 0.04}, "large": {"tau": 0.08}},

@@ -58,31 +58,26 @@ def simulate_jobs(jobs: list[Job], dt: float = FIT_DT) -> list[tuple[np.ndarray,
     ticks = [np.rint((j.run.t[j.k0:e + 1] - j.run.t[j.k0]) / dt).astype(np.int64)
              for j, e in zip(jobs, ends, strict=True)]
     events = np.unique(np.concatenate(ticks))
-    row_at = np.full((B, len(events)), -1, dtype=np.int64)  # row index recorded at each event
-    active = np.zeros((B, len(events)), dtype=np.int64)  # row whose command holds after each event
-    for b, tk in enumerate(ticks):
+    E = len(events)
+    # Commands holding after each event, per robot (the last row ends a run: wheels commanded to stop).
+    cmds = np.zeros((E, B, n))
+    rows_at = []  # per job: event index of each of its rows
+    for b, (job, tk) in enumerate(zip(jobs, ticks, strict=True)):
         pos = np.searchsorted(events, tk)
-        row_at[b, pos] = np.arange(len(tk))
-        active[b] = np.searchsorted(tk, events, side="right") - 1
-    poses = [np.full((len(tk), 3), np.nan) for tk in ticks]
-    angles = [np.full((len(tk), n), np.nan) for tk in ticks]
-    cmds = np.zeros((B, n))
+        rows_at.append(pos)
+        active = np.searchsorted(tk, events, side="right") - 1
+        live = active < len(tk) - 1
+        cmds[live, b] = job.run.cmd[job.k0 + active[live]]
+    pose_ev = np.zeros((E, B, 3))
+    ang_ev = np.zeros((E, B, n))
     drag = np.array([j.drag for j in jobs])
     any_drag = bool(np.any(drag > 0))
-    for e in range(len(events)):
-        rec = np.flatnonzero(row_at[:, e] >= 0)
-        if rec.size:
-            pose = world.pose
-            for b in rec:
-                poses[b][row_at[b, e]] = pose[b]
-                angles[b][row_at[b, e]] = world.wheel_angle[b]
-        if e == len(events) - 1:
+    for e in range(E):
+        pose_ev[e] = world.pose
+        ang_ev[e] = world.wheel_angle
+        if e == E - 1:
             break
-        for b, job in enumerate(jobs):
-            k = active[b, e]
-            # The last row ends the run: afterwards the wheels are commanded to stop.
-            cmds[b] = job.run.cmd[job.k0 + k] if k < len(ticks[b]) - 1 else 0.0
-        world.set_commands(cmds)
+        world.set_commands(cmds[e])
         steps = int(events[e + 1] - events[e])
         if any_drag:
             for _ in range(steps):
@@ -92,6 +87,8 @@ def simulate_jobs(jobs: list[Job], dt: float = FIT_DT) -> list[tuple[np.ndarray,
                 world.substeps(1)
         else:
             world.substeps(steps)
+    poses = [pose_ev[pos, b] for b, pos in enumerate(rows_at)]
+    angles = [ang_ev[pos, b] for b, pos in enumerate(rows_at)]
     return list(zip(poses, angles, strict=True))
 
 

@@ -53,7 +53,7 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     n_comp = count_components(ds)
     fold_of = make_folds(R, rng, folds)
     cands = candidates(nominal)
-    total = 2 + sum(6 + (2 if any(d.periodic for d in c.dims) else 0) for c in cands)
+    total = 2 + sum(11 + (2 if any(d.periodic for d in c.dims) else 0) for c in cands)  # upper bound
     show = sys.stderr.isatty() if progress is None else progress
     fits = []
     with tqdm(total=total, desc="gap: fitting", file=sys.stderr, disable=not show, unit="batch") as bar:
@@ -63,7 +63,7 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
             bar.set_postfix_str(c.name)
             fits.append(fit_candidate(c, ev, nominal, fold_of, rng, tick=lambda: bar.update(1)))
         decision = decide(sse0, fits, n_comp, sigma, rng)
-        bar.update(1)
+        bar.update(total - bar.n)  # searches that converge early skip their remaining steps
     by_name = {f.candidate.name: f for f in fits}
     effect = decision["effect"]
     result: dict = {"effect": effect, "why": decision["why"]}
