@@ -17,9 +17,11 @@ PLOTTED_RUNS = 4
 
 def write_report(out: Path, result: dict, ds: Dataset, nominal: SimModel, model: SimModel, lever: float,
                  dt: float, plots: bool = True) -> None:
-    """Write plots, report.md and result.json (last: a folder with result.json is complete)."""
+    """Write plots, model.json (the extended model), report.md and result.json (last: a folder with
+    result.json is complete)."""
     out.mkdir(parents=True, exist_ok=True)
     figures = _plots(out, result, ds, nominal, model, lever, dt) if plots else []
+    write_json_atomic(out / "model.json", result["model"])  # replayable: omni-gym simulate --model
     _write_text_atomic(out / "report.md", markdown(result, figures))
     write_json_atomic(out / "result.json", result)
 
@@ -71,7 +73,7 @@ def markdown(result: dict, figures: list[str]) -> str:
     for r in w["runs"]:
         lines.append(f"| {r['run']} | {_mm(r['open_loop_rms'])} | {_mm(r['shooting_rms'])} | {_mm(r['end_error'])} |")
     if w.get("conditions"):
-        lines += ["", "| condition | rows | mean squared growth per row [mm²] | elsewhere [mm²] | ratio |",
+        lines += ["", "| condition | rows | mean squared growth over 5 rows [mm²] | elsewhere [mm²] | ratio |",
                   "|---|---|---|---|---|"]
         for k, c in w["conditions"].items():
             ratio = "–" if c["ratio"] is None else f"{c['ratio']:.2f}"
@@ -173,7 +175,7 @@ def _plots(out: Path, result: dict, ds: Dataset, nominal: SimModel, model: SimMo
         bins = [np.nan if b is None else 1e6 * b for b in v["bins"]]
         axes[2].plot((np.arange(len(bins)) + 0.5) / len(bins), bins, "o-", label=k)
     axes[2].set_xlabel("wheel angle / roller pitch")
-    axes[2].set_ylabel("mean squared growth per row [mm²]")
+    axes[2].set_ylabel("mean squared growth over 5 rows [mm²]")
     axes[2].set_title("per roller phase")
     if w.get("wheel_phase"):
         axes[2].legend(fontsize=8)

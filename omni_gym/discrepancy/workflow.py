@@ -57,7 +57,7 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     show = sys.stderr.isatty() if progress is None else progress
     fits = []
     with tqdm(total=total, desc="gap: fitting", file=sys.stderr, disable=not show, unit="batch") as bar:
-        where = localise(ds, nominal, lever, res0, dt=dt)
+        where = localise(ds, nominal, lever, res0, dt=dt, sigma=sigma)
         bar.update(1)
         for c in cands:
             bar.set_postfix_str(c.name)

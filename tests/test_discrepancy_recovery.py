@@ -1,0 +1,48 @@
+"""Issue 5: every library effect hidden in synthetic data at two sizes, two noise levels, three seeds.
+
+Each effect is one test (so pytest-xdist spreads them over the workers) running its 12 cases on
+small datasets (4 runs of 2.5 s). The committed benchmark (benchmarks/discrepancy_recovery.py)
+runs the same study on larger datasets and reports wall times.
+
+Thresholds are the issue's: the right name in >= 90 % of cases, parameters within the documented
+tolerances (omni_gym.discrepancy.recovery.TOLERANCES, docs/discrepancy.md), the held-out gap
+reduced by >= 70 %.
+"""
+
+import pytest
+
+from omni_gym.discrepancy.recovery import NOISES, SIZES, TOLERANCES, run_case
+
+RUNS, DURATION = 4, 2.5
+SEEDS = (1, 2, 3)
+DETERMINISTIC = [e for e in SIZES if e != "wheel_liftoff"]
+
+
+def _sweep(effect: str) -> list[dict]:
+    return [run_case(effect, SIZES[effect][size], noise, seed, RUNS, DURATION)
+            for size in ("small", "large") for noise in NOISES for seed in SEEDS]
+
+
+@pytest.mark.parametrize("effect", DETERMINISTIC)
+def test_hidden_effect_is_named_fitted_and_closes_the_gap(effect):
+    cases = _sweep(effect)
+    assert len(cases) == 12
+    named = [c["named"] for c in cases]
+    correct = [c for c in cases if c["correct"]]
+    # Right name in at least 90 % of the cases (11 of 12).
+    assert len(correct) >= 0.9 * len(cases), named
+    # Every correctly named case: parameters within the documented tolerances...
+    bad = [(c["noise"], c["seed"], c["param_error"]) for c in correct if not c["params_ok"]]
+    assert not bad, f"outside {TOLERANCES[effect]}: {bad}"
+    # ...and the held-out gap beyond tracker noise reduced by at least 70 %.
+    reductions = [round(c["reduction"], 3) for c in correct]
+    assert min(reductions) >= 0.7, reductions
+
+
+def test_random_liftoff_is_never_misnamed():
+    """Lift events are random and unobserved: the mean-path fit cannot close a gap made by one
+    realisation (docs/discrepancy.md, "Limits"). The workflow must then say `unexplained`, or name
+    wheel_liftoff, but never blame another effect."""
+    cases = _sweep("wheel_liftoff")
+    named = [c["named"] for c in cases]
+    assert set(named) <= {"unexplained", "wheel_liftoff", "none"}, named
