@@ -19,8 +19,8 @@ use ``nn``), ``learning_rate`` (a number or ``lin_<x>`` for a linear schedule), 
 * ``residual_init``: the actor's last layer is scaled by this factor (and its bias zeroed) at the start,
   so a residual policy starts as its baseline; ``init_log_std`` sets SAC's initial log std.
 
-The output directory receives ``model.zip`` (the checkpoint with the lowest validation tracking RMSE;
-the final one if there is no evaluation), ``final_model.zip``, ``vecnormalize.pkl`` (for ``model.zip``,
+The output directory receives ``model.zip`` (the checkpoint after step 0 with the lowest validation
+tracking RMSE; the final one if there is no evaluation), ``final_model.zip``, ``vecnormalize.pkl`` (for ``model.zip``,
 when normalising), ``meta.json`` (how to rebuild the environment and wrapper, the exact command, seed,
 git commit, timesteps, wall time), ``curve.csv`` / ``curve.png`` (training curve: validation tracking
 RMSE and reward against timesteps) and ``checkpoints/``.
@@ -370,7 +370,8 @@ class _TrainingMixin:
                "val_success": float(np.mean([e.success for e in eps])),
                "train_ep_reward": self._train_reward()}
         self.rows.append(row)
-        if self.best is None or rmse < self.best["val_tracking_rmse"]:
+        # The untrained policy (step 0) is a reference point on the curve, not a candidate.
+        if self.num_timesteps > 0 and (self.best is None or rmse < self.best["val_tracking_rmse"]):
             self.best = dict(row)
             self.model.save(self.out / "model.zip")
             if vn is not None:

@@ -178,7 +178,7 @@ def write_markdown(path: Path, command: str, policies: list[str], models: list[s
              f"(within 5 cm and 0.1 rad at the end, not lost) with its 95 % Wilson interval. Benchmark wall time "
              f"{elapsed / 60:.1f} min.", "", "## Trained agents", "",
              "| agent | algorithm | observation / action | training steps | training wall time | seed | "
-             "best validation RMSE |", "|---|---|---|---|---|---|---|"]
+             "validation RMSE: untrained → trained |", "|---|---|---|---|---|---|---|"]
     for m in models:
         meta = metas[m]
         obs = {"residual-ekf-pid": f"EKF features; residual ±{meta.get('residual_scale')} on ekf-pid",
@@ -186,10 +186,13 @@ def write_markdown(path: Path, command: str, policies: list[str], models: list[s
                "none": f"{meta.get('obs_mode')} observation; full twist"}[meta["wrapper"]]
         if meta.get("obs_mode") == "state":
             obs += " (privileged: UPPER BOUND, not a real-robot controller)"
-        best = meta.get("best") or {}
+        curve = Path(m) / "curve.csv"
+        val = "n/a"
+        if curve.is_file():
+            d = np.atleast_1d(np.genfromtxt(curve, delimiter=",", names=True))
+            val = f"{d['val_tracking_rmse'][0]:.4f} → {d['val_tracking_rmse'][-1]:.4f} m"
         lines.append(f"| {label(m)} | {meta['algo'].upper()} | {obs} | {meta.get('timesteps', 0):,} | "
-                     f"{meta.get('wall_time_s', 0) / 60:.1f} min | {meta['seed']} | "
-                     f"{best.get('val_tracking_rmse', float('nan')):.4f} m at {best.get('timesteps', '?'):,} |")
+                     f"{meta.get('wall_time_s', 0) / 60:.1f} min | {meta['seed']} | {val} |")
     lines += ["", "Training wall time is on this 2-core machine, shared with other jobs while it ran (see each "
               "model's `meta.json` for the exact command, git commit and `curve.csv` for the curve).", ""]
     lines += ["## Goal: tracking RMSE under slip + lift-off, learned / ekf-pid ≤ 0.8 with non-overlapping 95 % "
