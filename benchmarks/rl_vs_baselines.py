@@ -175,8 +175,9 @@ def write_markdown(path: Path, command: str, policies: list[str], models: list[s
              f"Held-out seeds: random-waypoint paths (the training family) on seeds {seed}–{seed + episodes - 1}. "
              f"Unseen families: {', '.join(UNSEEN)} in turn on seeds {seed + UNSEEN_OFFSET}–"
              f"{seed + UNSEEN_OFFSET + episodes - 1}. Mean and 95 % Student-t interval per metric; success "
-             f"(within 5 cm and 0.1 rad at the end, not lost) with its 95 % Wilson interval. Benchmark wall time "
-             f"{elapsed / 60:.1f} min.", "", "## Trained agents", "",
+             f"(within 5 cm and 0.1 rad at the end, not lost) with its 95 % Wilson interval. Wall time of this run "
+             f"{elapsed / 60:.1f} min (episodes reused from `--cache` not counted; without a cache every episode "
+             "is recomputed, bit for bit the same).", "", "## Trained agents", "",
              "| agent | algorithm | observation / action | training steps | training wall time | seed | "
              "validation RMSE: untrained → trained |", "|---|---|---|---|---|---|---|"]
     for m in models:
@@ -200,7 +201,10 @@ def write_markdown(path: Path, command: str, policies: list[str], models: list[s
               "| agent | set | ratio of mean tracking RMSE [95 % paired bootstrap] | agent better on | "
               "Wilcoxon p (two-sided) | intervals apart | goal |", "|---|---|---|---|---|---|---|"]
     rows, verdicts = goal_rows(models, eps, summaries)
-    lines += rows + [""]
+    met = [f"{label(m)} ({s})" for (m, s), v in verdicts.items() if v["goal_met"]]
+    lines += rows + ["", "**Goal met by: " + ", ".join(met) + ".**" if met else
+                     "**The goal is not met by any trained agent on either set** (see `docs/agents.md` for what was "
+                     "tried and what the evidence suggests).", ""]
     for eval_set in SETS:
         for cond, kw in CONDITIONS.items():
             extra = f"; trajectory {', '.join(UNSEEN)}" if eval_set == SETS[1] else "; trajectory waypoints"
