@@ -62,8 +62,10 @@ def markdown(result: dict, figures: list[str]) -> str:
         lines.append(f"| {r['effect']} | {r['score']:.0f} | {mm * r['heldout_rms']:.2f} | {mm * r['excess_rms']:.2f} "
                      f"| {100 * r['improvement']:.0f} % | {r['p_better_than_nominal']:.2f} | {r['stability']:.2f} "
                      f"| `{_fmt(r['params'])}` |")
-    lines += ["", "Score: N·ln(held-out MSE) + p·ln(N) (BIC form). Stability: share of bootstrap resamples of the "
-              "runs in which the candidate has the least held-out error.", ""]
+    lines += ["", "Score: Σ_runs n_r·ln(held-out SSE_r / n_r) + p·ln(N) (per-run Gaussian likelihood, BIC penalty; "
+              "the nominal model scores {:.0f}). Held-out RMS: geometric mean over runs. Stability: share of bootstrap "
+              "resamples of the runs in which the candidate has the best held-out likelihood.".format(
+                  result.get("score_nominal", float("nan"))), ""]
     w = result["where"]
     lines += ["## Where the nominal model disagrees", "", f"Method: {w['method']}.", ""]
     lines += [f"* {s}" for s in w.get("summary", [])]

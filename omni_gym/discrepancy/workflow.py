@@ -102,6 +102,7 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
                      "per_run": [{"run": r.name, "fold": int(k), "rms_before": _rms(a, n), "rms_after": _rms(b, n)}
                                  for r, k, a, b, n in zip(ds.runs, fold_of, sse0, after_sse, n_comp, strict=True)]}
     result["ranking"] = decision["ranking"]
+    result["score_nominal"] = decision["score_nominal"]
     result["where"] = where
     result["settings"] = {"seed": seed, "folds": int(fold_of.max()) + 1, "dt": dt, "lever": lever,
                           "liftoff_seeds": LIFTOFF_SEEDS, "rules": RULES, "robot_runs_simulated": ev.simulated}
