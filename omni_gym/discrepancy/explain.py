@@ -33,7 +33,7 @@ RULES = {
     "significance": 0.95,  # bootstrap share of run resamples in which the candidate beats nominal
     "min_improvement": 0.05,  # least held-out MSE reduction (share of nominal MSE) that counts
     "noise_margin": 0.3,  # MSE within (1 + margin)·σ̂² counts as noise-level
-    "min_gap_reduction": 0.5,  # least reduction of the excess RMS for a named effect
+    "min_gap_reduction": 0.7,  # least reduction of the excess RMS for a named effect
     "ambiguity": 0.8,  # winner must beat a qualifying runner-up in this share of resamples
 }
 N_BOOT = 400
@@ -162,23 +162,25 @@ class Evaluator:
 def shooting_windows(ds: Dataset, window: float = 1.0) -> list[tuple]:
     """(run index, k0, k1, state0) windows of ``window`` s, each starting from the measured state.
 
-    state0: tracked pose, velocity from a local quadratic fit to the tracked poses, wheel angles
+    state0: tracked pose and velocity from a local quadratic fit over ±8 rows, wheel angles
     from the encoders (else the integrated commands), wheel speeds = the held command. Only
     densely observed stretches qualify; runs observed sparsely contribute no window.
     """
-    from omni_gym.discrepancy.localise import pose_rate, wheel_angles
+    from omni_gym.discrepancy.localise import local_pose_fit, wheel_angles
 
     out = []
     n = ds.n_wheels
     for ri, run in enumerate(ds.runs):
-        rate = pose_rate(run)
+        smooth, rate = local_pose_fit(run, half=8)
         ang = wheel_angles(run)
         k0 = 0
         while k0 < len(run.t) - 2:
             k1 = min(max(int(np.searchsorted(run.t, run.t[k0] + window - 1e-9)), k0 + 2), len(run.t) - 1)
             if (k0 == 0 or run.observed[k0]) and np.all(np.isfinite(rate[k0]) | (k0 == 0)) \
                     and run.observed[k0 + 1:k1 + 1].sum() >= 2:
-                pose = run.start_pose if k0 == 0 else run.pose[k0]
+                # Smoothed start pose: a heading error δθ at the start turns the whole window's path
+                # (δθ × distance travelled), so raw tracker noise would dominate the window's cost.
+                pose = run.start_pose if k0 == 0 else smooth[k0]
                 vel = np.zeros(3) if k0 == 0 else rate[k0]
                 speed = np.zeros(n) if k0 == 0 else run.cmd[k0 - 1]
                 out.append((ri, k0, k1, (pose, vel, ang[k0], speed)))
@@ -249,7 +251,7 @@ def make_folds(n_runs: int, rng: np.random.Generator, k: int = 3) -> np.ndarray:
 
 def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray,
                   rng: np.random.Generator, iterations: int = 6, fold_iterations: int = 4, starts: int = 2,
-                  phase_grid: int = 32, phase_sweeps: int = 2,
+                  phase_grid: int = 32, phase_sweeps: int = 2, phase_starts: int = 4,
                   tick: Callable[[], None] | None = None) -> FitResult:
     """Fit ``cand`` on all runs and on every fold's training runs (see the module docstring).
 
@@ -292,45 +294,41 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
     pools_u = [[design] for _ in train]
     pools_sse = [[design_sse] for _ in train]
     periodic = [j for j, d in enumerate(cand.dims) if d.periodic]
-    # With phases the search starts away from the null point (where phases do nothing) and from one
-    # start (the phase grid is the global search); the seed-averaged random candidate gets one too.
+    # With phases the search starts away from the null point (where phases do nothing); the
+    # seed-averaged random candidate gets one start.
     rows = np.arange(len(design)) if not periodic or null is None else np.flatnonzero(np.any(design != null, axis=1))
-    n_starts = 1 if periodic or cand.stochastic else starts
+    n_starts = phase_starts if periodic else 1 if cand.stochastic else starts
+    free = [j for j in range(p) if j not in periodic]
     chosen: list[int] = []
     for i in rows[np.argsort(design_sse[rows].sum(axis=1))]:
         if len(chosen) == n_starts:
             break
-        # Starts lie apart (0.3 in the unit cube), so several basins are tried, not one basin twice.
-        if all(np.max(np.abs(design[i] - design[c])) >= 0.3 for c in chosen):
+        # Starts lie apart (0.3 in the unit cube), so several basins are tried, not one basin twice;
+        # phases are searched from every start anyway, so only the other dimensions count.
+        if all(np.max(np.abs(design[i, free] - design[c, free])) >= 0.3 for c in chosen):
             chosen.append(int(i))
     states = [{"t": K, "u": design[i].copy(), "res": design_res[i], "cost": float(design_sse[i].sum()),
                "lam": 1e-2} for i in chosen]
+    h = 3e-3 if not cand.stochastic else 2e-2  # unit-cube FD step (larger for the seed-averaged, jumpy cost)
+    lm = dict(evaluate=evaluate, train=train, pools_u=pools_u, pools_sse=pools_sse, cand=cand, h=h, tick=tick)
     if periodic and ev.has_windows():
         # Phases: the cost is multimodal in each (a gap passes once per roller pitch). On one long
         # open-loop rollout a wrong phase of one wheel spoils the landscape of the others, so the
         # phases are searched on the multiple-shooting cost (windows restarted from measured states:
-        # each wheel's gap contacts show up locally). Coordinate sweeps: grid one phase with the
-        # others fixed, keep the best. Then back to the open-loop cost.
-        st = states[0]
-        st["scost"] = float(evaluate(st["u"][None, :], shooting=True)[0].sum())
-        for _ in range(phase_sweeps):
-            for j in periodic:
-                grid_u = np.tile(st["u"], (phase_grid, 1))
-                grid_u[:, j] = (np.arange(phase_grid) + 0.5) / phase_grid
-                grid_cost = evaluate(grid_u, shooting=True)[0].sum(axis=1)
-                g = int(np.argmin(grid_cost))
-                if grid_cost[g] < st["scost"]:
-                    st.update(u=grid_u[g].copy(), scost=float(grid_cost[g]))
-            if tick:
-                tick()
-        m_sse, m_res = evaluate(st["u"][None, :])
-        pools_u[K].append(st["u"][None, :])
-        pools_sse[K].append(m_sse)
-        if m_sse[0].sum() < st["cost"] or null is None or np.any(design[chosen[0]] != null):
-            st.update(res=m_res[0], cost=float(m_sse[0].sum()))
-    h = 3e-3 if not cand.stochastic else 2e-2  # unit-cube FD step (larger for the seed-averaged, jumpy cost)
-    lm = dict(evaluate=evaluate, train=train, pools_u=pools_u, pools_sse=pools_sse, cand=cand, h=h, tick=tick)
-    _levenberg_marquardt(states, min(iterations, 2) if cand.stochastic else iterations, **lm)
+        # each wheel's gap contacts show up locally), from several starts whose other parameters
+        # differ (a phase grid under a wrong μ'' or roller fraction can settle in a compromise).
+        # Then LM on the open-loop cost, and one more phase sweep + LM from the best result: the
+        # phases found under the start's μ'' are re-searched under the fitted one.
+        _phase_search(states, periodic, phase_grid, phase_sweeps, evaluate, pools_u[K], pools_sse[K], tick)
+        _levenberg_marquardt(states, iterations, **lm)
+        kept = min(states, key=lambda s: s["cost"])
+        states = [dict(kept)]
+        _phase_search(states, periodic, phase_grid, 1, evaluate, pools_u[K], pools_sse[K], tick, shooting=False)
+        _levenberg_marquardt(states, iterations, **lm)
+        if kept["cost"] < states[0]["cost"]:
+            states = [kept]
+    else:
+        _levenberg_marquardt(states, min(iterations, 2) if cand.stochastic else iterations, **lm)
     i_all = int(np.argmin(np.vstack(pools_sse[K]).sum(axis=1)))
     u_all = np.vstack(pools_u[K])[i_all]
     a_sse = np.vstack(pools_sse[K])[i_all]
@@ -352,6 +350,38 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
         fold_params.append(cand.params(pu[i]))
     return FitResult(candidate=cand, u_all=u_all, params_all=cand.params(u_all), sse_all=a_sse, heldout=heldout,
                      fold_params=fold_params, pool_u=np.vstack(pools_u[K]), pool_sse=np.vstack(pools_sse[K]))
+
+
+def _phase_search(states: list[dict], periodic: list[int], grid: int, sweeps: int, evaluate,
+                  pool_u: list, pool_sse: list, tick, shooting: bool = True) -> None:
+    """Coordinate sweeps over the periodic dimensions on the multiple-shooting cost, for every
+    search in ``states`` in one batch per phase: grid one phase with the others fixed, keep the
+    best. Each search then moves to its result, re-scored on the open-loop cost (added to the pool).
+    """
+    start = np.array([st["u"] for st in states])
+    scost = evaluate(start, shooting=shooting)[0].sum(axis=1)
+    for st, c in zip(states, scost, strict=True):
+        st["scost"] = float(c)
+    for _ in range(sweeps):
+        for j in periodic:
+            grids = []
+            for st in states:
+                g = np.tile(st["u"], (grid, 1))
+                g[:, j] = (np.arange(grid) + 0.5) / grid
+                grids.append(g)
+            cost = evaluate(np.concatenate(grids), shooting=shooting)[0].sum(axis=1).reshape(len(states), grid)
+            for st, g, c in zip(states, grids, cost, strict=True):
+                i = int(np.argmin(c))
+                if c[i] < st["scost"]:
+                    st.update(u=g[i].copy(), scost=float(c[i]))
+        if tick:
+            tick()
+    us = np.array([st["u"] for st in states])
+    m_sse, m_res = evaluate(us)
+    pool_u.append(us)
+    pool_sse.append(m_sse)
+    for st, sse, res in zip(states, m_sse, m_res, strict=True):
+        st.update(res=res, cost=float(sse.sum()))
 
 
 def _levenberg_marquardt(states: list[dict], iterations: int, evaluate, train, pools_u, pools_sse, cand, h,
