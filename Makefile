@@ -5,7 +5,7 @@ STAMP := .venv/.installed
 export SDL_VIDEODRIVER := dummy
 export MPLBACKEND := Agg
 
-.PHONY: venv test demo lint bench clean
+.PHONY: venv test demo lint bench bench-agents bench-discrepancy clean
 
 venv: $(STAMP)
 
@@ -26,6 +26,15 @@ demo: $(STAMP)
 bench: $(STAMP)
 	$(PY) benchmarks/convergence.py --out benchmarks/results
 	$(PY) benchmarks/throughput.py --out benchmarks/results
+
+# Long runs (about an hour each on 2 cores): scripted baselines and the committed agents; the
+# discrepancy workflow's recovery table.
+bench-agents: $(STAMP)
+	$(PY) benchmarks/baselines.py --episodes 50 --out benchmarks/results
+	$(PY) benchmarks/rl_vs_baselines.py --models agents/models/ppo-residual --episodes 50 --workers 2 --out benchmarks/results
+
+bench-discrepancy: $(STAMP)
+	$(PY) benchmarks/discrepancy_recovery.py --seeds 3 --runs 6 --duration 3 --jobs 2 --out benchmarks/results
 
 lint: $(STAMP)
 	$(PY) -m ruff check .
