@@ -41,7 +41,15 @@ from omni_gym.liftoff import contact_cases
 GRID_DT = 0.05  # s: start grid of the window search (half the shortest duration)
 DURATIONS = (0.05, 0.1, 0.2, 0.4)  # s: coarse lifted durations (mean holding 1/recover_rate ~ 0.2 s)
 REFINE = (-0.03, -0.015, -0.005, 0.0, 0.005, 0.015, 0.03)  # s: local start/end shifts
-OPEN_LOOP_ROUNDS = 2  # coordinate rounds of start/end refinement on the open-loop cost
+REFINE_OL = (-0.15, -0.08, -0.03, -0.01, 0.0, 0.01, 0.03, 0.08, 0.15)  # s: wider shifts for the first open-loop sweep
+OPEN_LOOP_ROUNDS = 2  # fine coordinate rounds of start/end refinement on the open-loop cost
+WINDOW_EVENTS = 3  # most events per 1 s window of the window search (greedy, one per batched pass)
+ADD_ROUNDS = 3  # rounds of the global "one more event" move...
+ADD_LEVEL = 1.2  # ...for runs whose open-loop MSE is above this multiple of sigma^2
+SEQ_MAX_EVENTS = 12  # most events per run of the sequential open-loop decoding
+SEQ_AHEAD = 0.1  # s: new events start up to this long after the deviation point...
+SEQ_HORIZON = 0.5  # s: ...and are scored on the rows up to this long after it
+DEV_ROWS, DEV_LEVEL = 10, 2.0  # deviation: mean z^2 over 10 rows (0.2 s) above 2 (about 4 sd for noise)
 PARAMS_PER_EVENT = 3  # start, end, lifted case
 
 EVENT_METHOD = ("wheel_liftoff: MAP lift events per run (window grid search, open-loop refinement), BIC cost "
@@ -107,6 +115,7 @@ class EventFit:
     sse: np.ndarray  # (R,) open-loop SSE [m²] of each run replayed with its events
     gain: np.ndarray  # (R,) likelihood gain n_r·ln(SSE_nominal/SSE_events) (0 for runs without events)
     durations: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (R,) run lengths [s]
+    note: str = ""  # why inferred events were rejected (empty if they were kept or none were found)
 
     def n_events(self, mask: np.ndarray | None = None) -> int:
         """Events in the runs of ``mask`` (all runs if None)."""
@@ -147,16 +156,19 @@ def _window_grid(tw: float, n_cases: int) -> list[Event]:
 
 
 def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_comp: np.ndarray,
-                 dt: float, windows: list[tuple] | None = None, max_batch: int = 3000,
-                 counter: list[int] | None = None) -> EventFit:
+                 dt: float, sigma: float | None = None, windows: list[tuple] | None = None, max_batch: int = 3000,
+                 counter: list[int] | None = None, adequacy: float | None = None) -> EventFit:
     """MAP lift events of every run of ``ds`` (see the module docstring).
 
     Args:
         ds: the dataset; nominal: the nominal SimModel (no lift-off); lever [m]: heading lever.
         cost: likelihood cost of one event (BIC: 3·ln N) in n·ln(SSE/n) units.
         sse0: (R,) nominal open-loop SSE [m²]; n_comp: (R,) residual components per run.
-        dt: physics substep [s]; windows: ``shooting_windows(ds)`` (computed if None).
+        dt: physics substep [s]; sigma: tracker noise estimate [m] (None: no repair step).
+        windows: ``shooting_windows(ds)`` (computed if None).
         counter: optional one-element list to which the number of simulated robot-runs is added.
+        adequacy: largest row-weighted geometric-mean MSE with the events, in units of σ̂², for the
+            events to be kept (step 5; None: no check).
     """
     from omni_gym.discrepancy.explain import _sse, shooting_windows
     from omni_gym.discrepancy.simulate import Job, pose_residual, simulate_jobs
@@ -211,21 +223,19 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
     def free(ev: Event, taken: list[Event]) -> bool:
         return all(ev[1] <= a or ev[0] >= b for a, b, _ in taken)
 
-    # 1. Coarse window search, then one more greedy event where one was accepted.
+    # 1. Coarse window search; then, greedily, more events in the windows that accepted one.
     tws = [float(runs[ri].t[k1] - runs[ri].t[k0]) for ri, k0, k1, _ in wins]
     base: list[list[Event]] = [[] for _ in wins]
     grids = [_window_grid(tw, n_cases) for tw in tws]
-    best = window_search(base, grids)
-    for wi, b in enumerate(best):
-        if b is not None:
-            base[wi].append(b[1])
-    grids2 = [[ev for ev in grids[wi] if free(ev, base[wi])] if base[wi] else [] for wi in range(len(wins))]
-    if any(grids2):
-        best2 = window_search(base, grids2)
-        for wi, b in enumerate(best2):
-            if b is not None:
-                base[wi].append(b[1])
-                base[wi].sort()
+    open_w = list(range(len(wins)))
+    for _ in range(WINDOW_EVENTS):
+        sub = [[ev for ev in grids[wi] if free(ev, base[wi])] if wi in open_w else [] for wi in range(len(wins))]
+        if not any(sub):
+            break
+        best = window_search(base, sub)
+        open_w = [wi for wi, b in enumerate(best) if b is not None]
+        for wi in open_w:
+            base[wi] = sorted([*base[wi], best[wi][1]])
 
     # 2. Local refinement of each window event's start and end (other events of the window fixed).
     for _ in range(1):
@@ -276,11 +286,12 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
     n = np.maximum(n_comp, 1)
     ends = [float(r.t[-1]) for r in runs]
 
-    def open_loop(scheds: list[tuple[int, list[Event]]]) -> list[float]:
+    def open_loop(scheds: list[tuple[int, list[Event]]]) -> list[np.ndarray]:
+        """Open-loop residual (K, 3) [m] of each (run, schedule)."""
         if not scheds:
             return []
         poses = run_batch([Job(nominal, runs[ri], schedule=tuple(s)) for ri, s in scheds])
-        return [_sse(pose_residual(runs[ri].pose, p, lever)) for (ri, _), p in zip(scheds, poses, strict=True)]
+        return [pose_residual(runs[ri].pose, p, lever) for (ri, _), p in zip(scheds, poses, strict=True)]
 
     def score(ri: int, s: float, k: int) -> float:
         """Penalised likelihood change vs nominal (lower is better)."""
@@ -288,12 +299,25 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
 
     cur = [list(e) for e in per_run]
     cur_sse = np.array(sse0, dtype=float)
+    cur_res: list[np.ndarray | None] = [None] * R
     live = [ri for ri in range(R) if cur[ri]]
-    for ri, s in zip(live, open_loop([(ri, cur[ri]) for ri in live]), strict=True):
-        cur_sse[ri] = s
-    for _ in range(OPEN_LOOP_ROUNDS):
-        # Sweep over event positions: event j of every run shifted (start/end) or removed, all runs in
-        # one batch; events later in a run see the earlier ones already refined (open loop is causal).
+    for ri, r in zip(live, open_loop([(ri, cur[ri]) for ri in live]), strict=True):
+        cur_sse[ri], cur_res[ri] = _sse(r), r
+
+    def accept(trials: list[tuple[int, list[Event]]]) -> bool:
+        """Simulate the trials (one batch); each run takes its best trial if it lowers the score."""
+        best_trial: dict[int, tuple[float, list[Event], np.ndarray]] = {}
+        for (ri, sched), r in zip(trials, open_loop(trials), strict=True):
+            sc = score(ri, _sse(r), len(sched))
+            if sc < score(ri, cur_sse[ri], len(cur[ri])) - 1e-9 and (ri not in best_trial or sc < best_trial[ri][0]):
+                best_trial[ri] = (sc, sched, r)
+        for ri, (_, sched, r) in best_trial.items():
+            cur[ri], cur_sse[ri], cur_res[ri] = list(sched), _sse(r), r
+        return bool(best_trial)
+
+    def refine_sweep(shifts: tuple[float, ...]) -> bool:
+        """Event j of every run shifted (start/end) or removed, j = 0, 1, ...: one batch per position;
+        later events see the earlier ones already refined (open loop is causal)."""
         improved = False
         for j in range(max((len(e) for e in cur), default=0)):
             trials: list[tuple[int, list[Event]]] = []
@@ -303,25 +327,119 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
                 a, b, c = cur[ri][j]
                 others = cur[ri][:j] + cur[ri][j + 1:]
                 trials.append((ri, others))
-                for da in REFINE:
-                    for db in REFINE:
-                        if da == 0.0 and db == 0.0:
-                            continue
+                for da in shifts:
+                    for db in shifts:
                         na, nb = max(a + da, 0.0), min(b + db, ends[ri])
-                        if nb - na >= 0.01 and free((na, nb, c), others):
+                        if (da or db) and nb - na >= 0.01 and free((na, nb, c), others):
                             trials.append((ri, sorted([*others, (round(na, 6), round(nb, 6), c)])))
+            if trials:
+                improved |= accept(trials)
+        return improved
+
+    def first_deviation_of(ri: int, r: np.ndarray) -> float | None:
+        """Run time [s] where the open-loop residual ``r`` of run ri first leaves the noise level."""
+        z = np.nan_to_num(np.sum(r[1:] ** 2, axis=1)) / (3 * sigma**2)
+        m = np.convolve(z, np.ones(DEV_ROWS) / DEV_ROWS, mode="valid")  # mean over DEV_ROWS rows
+        hit = np.flatnonzero(m > DEV_LEVEL)
+        return None if hit.size == 0 else float(runs[ri].t[1 + hit[0]])
+
+    def local_best(trials: list[tuple[int, list[Event]]], props: dict) -> dict:
+        """Per run: (local score, schedule, residual) of the best trial on rows t <= td + SEQ_HORIZON.
+
+        Local score: n_loc·ln(SSE_loc) + cost·events, so a new event must pay its cost locally."""
+        out: dict[int, tuple[float, list[Event], np.ndarray]] = {}
+        for (ri, sched), r in zip(trials, open_loop(trials), strict=True):
+            rows = runs[ri].t[1:] <= props[ri][0] + SEQ_HORIZON
+            rr = r[1:][rows]
+            rr = rr[np.all(np.isfinite(rr), axis=1)]
+            nl = max(rr.size, 1)
+            sc = nl * math.log(max(float(np.sum(rr * rr)), 1e-30)) + cost * len(sched)
+            if ri not in out or sc < out[ri][0]:
+                out[ri] = (sc, sched, r)
+        return out
+
+    refine_sweep(REFINE_OL)
+    if sigma is not None and sigma > 0:
+        # Sequential (causal) decoding on the open-loop residual, as a second proposal per run: the
+        # residual is at noise level up to the first missing event, so walk forward in time and fit
+        # one event where the residual first leaves the noise level, scored on the rows up to
+        # SEQ_HORIZON after that point (later, still missing events would only blur the comparison).
+        seq: list[list[Event]] = [[] for _ in range(R)]
+        seq_res: list[np.ndarray | None] = [None] * R
+        active = set(range(R))
+        zero = [(ri, []) for ri in range(R)]
+        for ri, r in zip(range(R), open_loop(zero), strict=True):
+            seq_res[ri] = r
+        for _ in range(SEQ_MAX_EVENTS):
+            props: dict[int, tuple[float, list[Event]]] = {}
+            trials = []
+            for ri in sorted(active):
+                td = first_deviation_of(ri, seq_res[ri])
+                last = seq[ri][-1][1] if seq[ri] else 0.0
+                if td is None or last >= ends[ri] - 0.05:
+                    active.discard(ri)
+                    continue
+                td = max(td, last)  # an imperfect last event: look right after it
+                props[ri] = (td, [])
+                trials.append((ri, list(seq[ri])))
+                for s0 in np.arange(max(td - 0.5, last), min(td + SEQ_AHEAD, ends[ri]), GRID_DT):
+                    for d in (*DURATIONS, 0.8):
+                        e = min(s0 + d, ends[ri])
+                        for c in range(1, n_cases):
+                            touching = seq[ri] and seq[ri][-1][2] == c and s0 - last < 0.01
+                            if e - s0 >= 0.02 and not touching:  # touching same-case: the extension below
+                                trials.append((ri, [*seq[ri], (round(float(s0), 6), round(float(e), 6), c)]))
+                if seq[ri]:  # or the last event lasts longer (one event, no extra cost)
+                    a0, _, c0 = seq[ri][-1]
+                    for d in (*DURATIONS, 0.8):
+                        trials.append((ri, [*seq[ri][:-1], (a0, round(min(last + d, ends[ri]), 6), c0)]))
             if not trials:
-                continue
-            best_trial: dict[int, tuple[float, list[Event], float]] = {}
-            for (ri, sched), s in zip(trials, open_loop(trials), strict=True):
-                sc = score(ri, s, len(sched))
-                if sc < score(ri, cur_sse[ri], len(cur[ri])) - 1e-9 and (ri not in best_trial
-                                                                         or sc < best_trial[ri][0]):
-                    best_trial[ri] = (sc, sched, s)
-            for ri, (_, sched, s) in best_trial.items():
-                cur[ri], cur_sse[ri] = list(sched), s
-                improved = True
-        if not improved:
+                break
+            best = local_best(trials, props)
+            # Refine the new event's start/end on the same local cost.
+            trials = []
+            for ri, (_, sched, _) in best.items():
+                if sched == seq[ri]:
+                    continue
+                a0, b0, c0 = sched[-1]
+                lo = sched[-2][1] if len(sched) > 1 else 0.0
+                for da in REFINE_OL:
+                    for db in REFINE_OL:
+                        na, nb = max(a0 + da, lo), min(b0 + db, ends[ri])
+                        if nb - na >= 0.01:
+                            trials.append((ri, [*sched[:-1], (round(na, 6), round(nb, 6), c0)]))
+            best.update(local_best(trials, props))
+            for ri in list(active):
+                if ri not in best or best[ri][1] == seq[ri]:  # nothing pays its cost: the run is done
+                    active.discard(ri)
+                    continue
+                seq[ri] = best[ri][1]
+                seq_res[ri] = best[ri][2]
+            if not active:
+                break
+        # Refine the sequential proposal too, then keep per run the better (penalised, whole-run) one.
+        win_state = ([list(e) for e in cur], cur_sse.copy(), list(cur_res))
+        for ri in range(R):
+            cur[ri], cur_sse[ri], cur_res[ri] = list(seq[ri]), _sse(seq_res[ri]), seq_res[ri]
+        refine_sweep(REFINE_OL)
+        for ri in range(R):
+            w_ev, w_sse, w_res = win_state[0][ri], win_state[1][ri], win_state[2][ri]
+            if score(ri, w_sse, len(w_ev)) <= score(ri, cur_sse[ri], len(cur[ri])):
+                cur[ri], cur_sse[ri], cur_res[ri] = w_ev, w_sse, w_res
+        # Global moves for runs still above the noise level: one more event anywhere on the coarse grid
+        # (replacing the events it overlaps), scored on the whole run; then refine.
+        for _ in range(ADD_ROUNDS):
+            trials = []
+            for ri in range(R):
+                if cur_sse[ri] <= ADD_LEVEL * n[ri] * sigma**2:
+                    continue
+                for ev in _window_grid(ends[ri], n_cases):
+                    trials.append((ri, sorted([*(x for x in cur[ri] if free(x, [ev])), ev])))
+            if not trials or not accept(trials):
+                break
+            refine_sweep(REFINE_OL)
+    for _ in range(OPEN_LOOP_ROUNDS):
+        if not refine_sweep(REFINE):
             break
     gain = np.zeros(R)
     for ri in range(R):
@@ -330,4 +448,15 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
             gain[ri] = n[ri] * math.log(max(sse0[ri], 1e-30) / max(cur_sse[ri], 1e-30))
         else:  # the set does not pay its cost: the run has no inferred event
             cur[ri], cur_sse[ri] = [], float(sse0[ri])
-    return EventFit(events=cur, sse=cur_sse, gain=gain, durations=np.array(ends))
+    # 5. Adequacy: lift-off says the nominal model is exact between events, so the MAP events must
+    # explain the data to the tracker-noise level. If they leave more (row-weighted geometric-mean MSE
+    # > adequacy·σ̂², the decision's metric), the events are absorbing some other, continuous model
+    # error (a viscous drag is fitted by "coasting" pulses): the candidate then keeps no event.
+    note = ""
+    if adequacy is not None and sigma is not None and sigma > 0 and any(cur):
+        ratio = float(math.exp(np.sum(n * np.log(np.maximum(cur_sse, 1e-30) / n)) / n.sum()) / sigma**2)
+        if ratio > adequacy:
+            note = (f"{sum(len(e) for e in cur)} inferred events rejected: with them the held-out MSE is "
+                    f"{ratio:.2f} x the tracker-noise variance (lift-off alone would leave noise; limit {adequacy:g})")
+            cur, cur_sse, gain = [[] for _ in range(R)], np.array(sse0, dtype=float), np.zeros(R)
+    return EventFit(events=cur, sse=cur_sse, gain=gain, durations=np.array(ends), note=note)

@@ -381,12 +381,15 @@ def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.nda
     ds = ev.ds
     n_comp = count_components(ds)
     N = float(max(n_comp.sum(), 2))
-    sse0 = ev.sse([nominal])[0]
+    res0 = ev.residuals([nominal])[0]
+    sse0 = np.array([_sse(r) for r in res0])
+    sigma = noise_estimate(res0, [r.t for r in ds.runs])  # the same estimate the workflow reports
     counter = [0]
     if not hasattr(ev, "_windows"):
         ev._windows = shooting_windows(ds)
     efit = infer_events(ds, nominal, ev.lever, PARAMS_PER_EVENT * math.log(N), sse0, n_comp, ev.dt,
-                        windows=ev._windows, counter=counter)
+                        sigma=sigma, windows=ev._windows, counter=counter,
+                        adequacy=1.0 + RULES["noise_margin"])  # "noise level" as the decision defines it
     ev.simulated += counter[0]
     null = _null_point(cand, nominal)
 

@@ -109,6 +109,8 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
             # The stochastic candidate's inferred lift events (its held-out score counts them).
             entry["n_params_effective"] = f.n_params_eff
             entry["events"] = f.event_fit.to_json([r.name for r in ds.runs], contact_cases(ds.n_wheels))
+            if f.event_fit.note:
+                entry["events_note"] = f.event_fit.note
     result["score_nominal"] = decision["score_nominal"]
     result["where"] = where
     result["settings"] = {"seed": seed, "folds": int(fold_of.max()) + 1, "dt": dt, "lever": lever,
