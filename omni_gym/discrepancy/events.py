@@ -7,20 +7,27 @@ Laplace): the most likely event sequence of each run, plus a BIC cost of 3·ln N
 (start, end, lifted case) in the per-run likelihood units n_r·ln(SSE_r/n_r) of
 :func:`omni_gym.discrepancy.explain.decide` (N = residual components of the dataset).
 
-Search, per run (all runs batched, see :func:`infer_events`):
+Search (all runs batched, see :func:`infer_events`):
 
 1. **Windows.** The multiple-shooting windows (``explain.shooting_windows``, 1 s, each restarted
    from the measured state) make an event show up locally. Per window, the nominal window and every
    single-event alternative on a coarse grid (lifted case × start every :data:`GRID_DT` × duration
    in :data:`DURATIONS`, clipped to the window) are simulated in one batched call over all windows.
    A window's best event is accepted when its gain n_w·ln(SSE_nominal/SSE_event) beats the event
-   cost; a second greedy pass looks for one more event in the windows that accepted one.
-2. **Refine** each accepted event's start and end on a local grid (one batched call).
-3. **Join** events cut by a window boundary (same case, touching ends).
-4. **Open loop.** Every run is replayed from its start with its schedule — the other candidates are
-   scored by the open-loop full-run SSE, so this one is too. Event start/end are refined by a few
-   coordinate rounds on the open-loop cost, events that do not pay their cost are dropped, and a
-   run keeps its event set only if its open-loop likelihood gain beats the total cost.
+   cost; greedy passes add up to :data:`WINDOW_EVENTS` events per window; start/end are refined
+   locally.
+2. **Join** events cut by a window boundary (same case, touching ends), then go **open loop**:
+   every run is replayed from its start with its schedule — the other candidates are scored by the
+   open-loop full-run SSE, so this one is too — and each event's start/end is refined or the event
+   dropped by coordinate sweeps on the penalised open-loop score.
+3. **Sequential decoding** (second proposal per run): the open-loop residual is at noise level up to
+   the first missing event, so walk forward in time, fitting one event where the residual first
+   leaves the noise level. The better proposal per run is kept; runs still above the noise level get
+   global "one more event anywhere" moves; a run keeps its events only if their open-loop
+   likelihood gain beats their total cost.
+4. **Adequacy.** Lift-off says the nominal model is exact between events, so the MAP events must
+   leave a noise-level residual; otherwise they are absorbing a continuous model error (e.g. a
+   viscous drag) and are rejected (``adequacy``).
 
 Rates from events (maximum likelihood for exponential holding times): lift_rate = events / time
 all wheels are down, recover_rate = 1 / mean lifted duration; with no event, the null point.
@@ -45,7 +52,9 @@ REFINE_OL = (-0.15, -0.08, -0.03, -0.01, 0.0, 0.01, 0.03, 0.08, 0.15)  # s: wide
 OPEN_LOOP_ROUNDS = 2  # fine coordinate rounds of start/end refinement on the open-loop cost
 WINDOW_EVENTS = 3  # most events per 1 s window of the window search (greedy, one per batched pass)
 ADD_ROUNDS = 3  # rounds of the global "one more event" move...
-ADD_LEVEL = 1.2  # ...for runs whose open-loop MSE is above this multiple of sigma^2
+ADD_LEVEL = 1.2  # ...for runs whose open-loop MSE is above this multiple of sigma^2...
+ADD_TOP = 3  # ...trying each run's 3 best additions, each refined before the comparison
+SKIP_FACTOR = 3.0  # skip the sequential/global moves when the window proposal is above 3 x the adequacy limit
 SEQ_MAX_EVENTS = 12  # most events per run of the sequential open-loop decoding
 SEQ_AHEAD = 0.1  # s: new events start up to this long after the deviation point...
 SEQ_HORIZON = 0.5  # s: ...and are scored on the rows up to this long after it
@@ -315,14 +324,14 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
             cur[ri], cur_sse[ri], cur_res[ri] = list(sched), _sse(r), r
         return bool(best_trial)
 
-    def refine_sweep(shifts: tuple[float, ...]) -> bool:
+    def refine_sweep(shifts: tuple[float, ...], only: set[int] | None = None) -> bool:
         """Event j of every run shifted (start/end) or removed, j = 0, 1, ...: one batch per position;
         later events see the earlier ones already refined (open loop is causal)."""
         improved = False
         for j in range(max((len(e) for e in cur), default=0)):
             trials: list[tuple[int, list[Event]]] = []
             for ri in range(R):
-                if j >= len(cur[ri]):
+                if j >= len(cur[ri]) or (only is not None and ri not in only):
                     continue
                 a, b, c = cur[ri][j]
                 others = cur[ri][:j] + cur[ri][j + 1:]
@@ -359,7 +368,15 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
         return out
 
     refine_sweep(REFINE_OL)
-    if sigma is not None and sigma > 0:
+
+    def geo_ratio() -> float:
+        """Row-weighted geometric-mean MSE of the current events, in units of sigma^2."""
+        return float(math.exp(np.sum(n * np.log(np.maximum(cur_sse, 1e-30) / n)) / n.sum()) / sigma**2)
+
+    # The costly moves below only refine a proposal; when the window proposal leaves the data far
+    # from the noise level (a continuous model error, not lift-off) they cannot pass the adequacy
+    # check of step 5, so they are skipped (compute only).
+    if sigma is not None and sigma > 0 and (adequacy is None or geo_ratio() <= SKIP_FACTOR * adequacy):
         # Sequential (causal) decoding on the open-loop residual, as a second proposal per run: the
         # residual is at noise level up to the first missing event, so walk forward in time and fit
         # one event where the residual first leaves the noise level, scored on the rows up to
@@ -427,7 +444,9 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
             if score(ri, w_sse, len(w_ev)) <= score(ri, cur_sse[ri], len(cur[ri])):
                 cur[ri], cur_sse[ri], cur_res[ri] = w_ev, w_sse, w_res
         # Global moves for runs still above the noise level: one more event anywhere on the coarse grid
-        # (replacing the events it overlaps), scored on the whole run; then refine.
+        # (replacing the events it overlaps), scored on the whole run. An added event often pays only
+        # once its neighbours have moved, so the ADD_TOP best additions of each run are each refined
+        # (one sweep) before they are compared with the current events.
         for _ in range(ADD_ROUNDS):
             trials = []
             for ri in range(R):
@@ -435,9 +454,32 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
                     continue
                 for ev in _window_grid(ends[ri], n_cases):
                     trials.append((ri, sorted([*(x for x in cur[ri] if free(x, [ev])), ev])))
-            if not trials or not accept(trials):
+            if not trials:
                 break
-            refine_sweep(REFINE_OL)
+            ranked: dict[int, list[tuple[float, list[Event], np.ndarray]]] = {}
+            for (ri, sched), r in zip(trials, open_loop(trials), strict=True):
+                ranked.setdefault(ri, []).append((score(ri, _sse(r), len(sched)), sched, r))
+            saved = ([list(e) for e in cur], cur_sse.copy(), list(cur_res))
+            best_final = {ri: (score(ri, cur_sse[ri], len(cur[ri])), cur[ri], cur_sse[ri], cur_res[ri])
+                          for ri in ranked}
+            for k in range(ADD_TOP):
+                for ri, lst in ranked.items():
+                    lst.sort(key=lambda x: x[0])
+                    if k < len(lst):
+                        cur[ri], cur_sse[ri], cur_res[ri] = list(lst[k][1]), _sse(lst[k][2]), lst[k][2]
+                    else:
+                        cur[ri], cur_sse[ri], cur_res[ri] = saved[0][ri], saved[1][ri], saved[2][ri]
+                refine_sweep(REFINE_OL, only=set(ranked))
+                for ri in ranked:
+                    sc = score(ri, cur_sse[ri], len(cur[ri]))
+                    if sc < best_final[ri][0] - 1e-9:
+                        best_final[ri] = (sc, list(cur[ri]), cur_sse[ri], cur_res[ri])
+            changed = False
+            for ri, (_, ev_, s_, r_) in best_final.items():
+                changed |= ev_ != saved[0][ri]
+                cur[ri], cur_sse[ri], cur_res[ri] = list(ev_), s_, r_
+            if not changed:
+                break
     for _ in range(OPEN_LOOP_ROUNDS):
         if not refine_sweep(REFINE):
             break
@@ -454,7 +496,7 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
     # error (a viscous drag is fitted by "coasting" pulses): the candidate then keeps no event.
     note = ""
     if adequacy is not None and sigma is not None and sigma > 0 and any(cur):
-        ratio = float(math.exp(np.sum(n * np.log(np.maximum(cur_sse, 1e-30) / n)) / n.sum()) / sigma**2)
+        ratio = geo_ratio()
         if ratio > adequacy:
             note = (f"{sum(len(e) for e in cur)} inferred events rejected: with them the held-out MSE is "
                     f"{ratio:.2f} x the tracker-noise variance (lift-off alone would leave noise; limit {adequacy:g})")
