@@ -124,6 +124,7 @@ class EventFit:
     sse: np.ndarray  # (R,) open-loop SSE [m²] of each run replayed with its events
     gain: np.ndarray  # (R,) likelihood gain n_r·ln(SSE_nominal/SSE_events) (0 for runs without events)
     durations: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (R,) run lengths [s]
+    moving: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (R,) time commanded to move [s]
     note: str = ""  # why inferred events were rejected (empty if they were kept or none were found)
 
     def n_events(self, mask: np.ndarray | None = None) -> int:
@@ -131,19 +132,27 @@ class EventFit:
         return sum(len(e) for i, e in enumerate(self.events) if mask is None or mask[i])
 
     def rates(self, mask: np.ndarray | None = None) -> tuple[float, float] | None:
-        """MLE (lift_rate, recover_rate) [1/s] from the events of the runs in ``mask``; None without events.
+        """MLE (lift_rate, recover_rate) [1/s] from the events of the runs in ``mask``; None without events."""
+        w = np.ones(len(self.events)) if mask is None else np.asarray(mask, dtype=float)
+        return self.rates_weighted(w)
 
-        Exponential holding times: lift_rate = events / all-down time, recover_rate = 1 / mean lifted
-        duration (an event still lifted at a run's end is counted as if it ended there — a small
-        bias toward faster recovery, accepted for simplicity).
+    def rates_weighted(self, weights: np.ndarray) -> tuple[float, float] | None:
+        """Rate MLEs with run ``weights`` (R,) (a bootstrap resample counts a run as often as drawn).
+
+        Exponential holding times: lift_rate = events / exposure, recover_rate = events / lifted
+        time. Exposure is the all-down time *while the robot is commanded to move*: at rest a
+        lifted wheel changes nothing in the pose, so lifts there are unobservable and that time
+        carries no information about the rate (counting it biased lift_rate low by the ~30 % rest
+        share of the synthetic maneuvers). An event still lifted at a run's end counts as ending
+        there (slight bias toward faster recovery).
         """
-        sel = [i for i in range(len(self.events)) if mask is None or mask[i]]
-        k = sum(len(self.events[i]) for i in sel)
+        k = float(sum(wi * len(e) for wi, e in zip(weights, self.events, strict=True)))
         if k == 0:
             return None
-        lifted = sum(b - a for i in sel for a, b, _ in self.events[i])
-        down = float(sum(self.durations[i] for i in sel)) - lifted
-        return k / max(down, 1e-6), k / max(lifted, 1e-6)
+        lifted = float(sum(wi * sum(b - a for a, b, _ in e) for wi, e in zip(weights, self.events, strict=True)))
+        moving = self.moving if self.moving.size else self.durations
+        down = float(np.dot(weights, moving)) - lifted
+        return k / max(down, 1e-3), k / max(lifted, 1e-6)
 
     def to_json(self, run_names: list[str], cases: np.ndarray) -> list[dict]:
         """Events for result.json: run, start/end [s, run clock], 1-based wheels lifted."""
@@ -501,4 +510,6 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
             note = (f"{sum(len(e) for e in cur)} inferred events rejected: with them the held-out MSE is "
                     f"{ratio:.2f} x the tracker-noise variance (lift-off alone would leave noise; limit {adequacy:g})")
             cur, cur_sse, gain = [[] for _ in range(R)], np.array(sse0, dtype=float), np.zeros(R)
-    return EventFit(events=cur, sse=cur_sse, gain=gain, durations=np.array(ends), note=note)
+    # Time each run is commanded to move (a command row holds until the next row).
+    moving = np.array([float(np.sum(np.diff(r.t)[np.any(np.abs(r.cmd[:-1]) > 0, axis=1)])) for r in runs])
+    return EventFit(events=cur, sse=cur_sse, gain=gain, durations=np.array(ends), moving=moving, note=note)

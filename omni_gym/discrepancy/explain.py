@@ -532,16 +532,9 @@ def param_intervals(fit: FitResult, rng: np.random.Generator, n_boot: int = 200)
 def _event_rate_intervals(fit: FitResult, idx: np.ndarray) -> dict:
     """5-95 % bootstrap range of the event-based rates (resamples without events: the null point)."""
     ef = fit.event_fit
-    vals = []
-    for row in idx:
-        k = sum(len(ef.events[i]) for i in row)
-        lifted = sum(b - a for i in row for a, b, _ in ef.events[i])
-        down = float(sum(ef.durations[i] for i in row)) - lifted
-        if k:
-            vals.append([k / max(down, 1e-6), k / max(lifted, 1e-6)])
-        else:
-            vals.append([fit.candidate.dims[0].lo, fit.candidate.dims[1].hi])
-    v = np.array(vals)
+    R = len(ef.events)
+    null = [fit.candidate.dims[0].lo, fit.candidate.dims[1].hi]
+    v = np.array([ef.rates_weighted(np.bincount(row, minlength=R).astype(float)) or null for row in idx])
     return {d.name: [float(np.percentile(v[:, j], 5)), float(np.percentile(v[:, j], 95))]
             for j, d in enumerate(fit.candidate.dims)}
 
