@@ -27,7 +27,11 @@ Search (all runs batched, see :func:`infer_events`):
    likelihood gain beats their total cost.
 4. **Adequacy.** Lift-off says the nominal model is exact between events, so the MAP events must
    leave a noise-level residual; otherwise they are absorbing a continuous model error (e.g. a
-   viscous drag) and are rejected (``adequacy``).
+   viscous drag) and are rejected (``adequacy``). Lift-off is also transient: events that keep a
+   wheel lifted more than :data:`MAX_LIFTED_SHARE` of the moving time describe a persistent load
+   change (a centre-of-mass offset unloads one wheel) and are rejected as well, and so are events
+   whose lifted cases are not a plausible uniform draw (exact multinomial test, p < :data:`CASE_ALPHA`):
+   the process lifts a random case, a systematic one-wheel effect lifts the same wheel every time.
 
 Rates from events (maximum likelihood for exponential holding times): lift_rate = events / time
 all wheels are down, recover_rate = 1 / mean lifted duration; with no event, the null point.
@@ -54,6 +58,8 @@ WINDOW_EVENTS = 3  # most events per 1 s window of the window search (greedy, on
 ADD_ROUNDS = 3  # rounds of the global "one more event" move...
 ADD_LEVEL = 1.2  # ...for runs whose open-loop MSE is above this multiple of sigma^2...
 ADD_TOP = 3  # ...trying each run's 3 best additions, each refined before the comparison
+CASE_ALPHA = 0.01  # reject events whose lifted cases are this unlikely under the uniform draw (step 5)
+MAX_LIFTED_SHARE = 0.5  # most of the moving time that inferred events may keep a wheel lifted (step 5)
 SKIP_FACTOR = 3.0  # skip the sequential/global moves when the window proposal is above 3 x the adequacy limit
 SEQ_MAX_EVENTS = 12  # most events per run of the sequential open-loop decoding
 SEQ_AHEAD = 0.1  # s: new events start up to this long after the deviation point...
@@ -159,6 +165,38 @@ class EventFit:
         return [{"run": name, "start": round(a, 4), "end": round(b, 4),
                  "wheels_lifted": [int(w) + 1 for w in np.flatnonzero(~cases[c])]}
                 for name, evs in zip(run_names, self.events, strict=True) for a, b, c in evs]
+
+
+def case_uniformity(events: list[list[Event]], n_cases: int) -> float:
+    """Exact p-value of the lifted-case counts under a uniform draw over the n_cases - 1 lifted cases.
+
+    p = total multinomial probability of the count vectors no more probable than the observed one
+    (exact test; chi-square approximation when there are too many count vectors to enumerate).
+    """
+    from itertools import combinations
+
+    from scipy.stats import chisquare
+
+    m = n_cases - 1
+    obs = np.bincount([c - 1 for e in events for _, _, c in e], minlength=m)
+    k = int(obs.sum())
+    if k == 0 or m < 2:
+        return 1.0
+    if math.comb(k + m - 1, m - 1) > 200_000:
+        return float(chisquare(obs).pvalue)
+
+    def logp(counts: np.ndarray) -> float:
+        return math.lgamma(k + 1) - sum(math.lgamma(int(c) + 1) for c in counts) - k * math.log(m)
+
+    lp_obs = logp(obs)
+    total = 0.0
+    for bars in combinations(range(k + m - 1), m - 1):  # stars and bars: every count vector
+        edges = (-1, *bars, k + m - 1)
+        counts = np.diff(edges) - 1
+        lp = logp(counts)
+        if lp <= lp_obs + 1e-9:
+            total += math.exp(lp)
+    return min(1.0, total)
 
 
 def _window_grid(tw: float, n_cases: int) -> list[Event]:
@@ -503,13 +541,27 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
     # explain the data to the tracker-noise level. If they leave more (row-weighted geometric-mean MSE
     # > adequacy·σ̂², the decision's metric), the events are absorbing some other, continuous model
     # error (a viscous drag is fitted by "coasting" pulses): the candidate then keeps no event.
-    note = ""
-    if adequacy is not None and sigma is not None and sigma > 0 and any(cur):
-        ratio = geo_ratio()
-        if ratio > adequacy:
-            note = (f"{sum(len(e) for e in cur)} inferred events rejected: with them the held-out MSE is "
-                    f"{ratio:.2f} x the tracker-noise variance (lift-off alone would leave noise; limit {adequacy:g})")
-            cur, cur_sse, gain = [[] for _ in range(R)], np.array(sse0, dtype=float), np.zeros(R)
     # Time each run is commanded to move (a command row holds until the next row).
     moving = np.array([float(np.sum(np.diff(r.t)[np.any(np.abs(r.cmd[:-1]) > 0, axis=1)])) for r in runs])
+    note = ""
+    lifted = sum(b - a for e in cur for a, b, _ in e)
+    share = lifted / max(float(moving.sum()), 1e-9)
+    if adequacy is not None and sigma is not None and sigma > 0 and any(cur) and geo_ratio() > adequacy:
+        note = (f"{sum(len(e) for e in cur)} inferred events rejected: with them the held-out MSE is "
+                f"{geo_ratio():.2f} x the tracker-noise variance (lift-off alone would leave noise; limit "
+                f"{adequacy:g})")
+    elif any(cur) and share > MAX_LIFTED_SHARE:
+        # Lift-off is an excursion from the all-down state. Wheels "lifted" most of the time describe
+        # a persistent load change (a centre-of-mass offset unloads one wheel), not lift-off.
+        note = (f"{sum(len(e) for e in cur)} inferred events rejected: they keep wheels lifted {100 * share:.0f} % "
+                f"of the moving time (lift-off is transient; limit {100 * MAX_LIFTED_SHARE:.0f} %)")
+    p_cases = case_uniformity(cur, n_cases)
+    if not note and p_cases < CASE_ALPHA:
+        # The process lifts a uniformly drawn case; events that (almost) all lift the same wheel
+        # mimic a systematic one-wheel effect (a centre-of-mass offset unloads one wheel).
+        counts = np.bincount([c for e in cur for _, _, c in e], minlength=n_cases)[1:]
+        note = (f"{sum(len(e) for e in cur)} inferred events rejected: their lifted cases {counts.tolist()} "
+                f"are not a uniform draw (p = {p_cases:.2g} < {CASE_ALPHA:g}); lift-off lifts a random case")
+    if note:
+        cur, cur_sse, gain = [[] for _ in range(R)], np.array(sse0, dtype=float), np.zeros(R)
     return EventFit(events=cur, sse=cur_sse, gain=gain, durations=np.array(ends), moving=moving, note=note)
