@@ -26,6 +26,7 @@ import numpy as np
 from scipy.stats import qmc
 
 from omni_gym.discrepancy.dataset import Dataset
+from omni_gym.discrepancy.events import PARAMS_PER_EVENT, EventFit, infer_events
 from omni_gym.discrepancy.simulate import FIT_DT, Job, pose_residual, simulate_jobs
 from omni_gym.model import SimModel
 
@@ -37,7 +38,6 @@ RULES = {
     "ambiguity": 0.8,  # winner must beat a qualifying runner-up in this share of resamples
 }
 N_BOOT = 400
-LIFTOFF_SEEDS = 3  # seeds averaged for the random wheel_liftoff candidate
 
 
 @dataclass(frozen=True)
@@ -238,6 +238,10 @@ class FitResult:
     fold_params: list[dict]
     pool_u: np.ndarray  # points available to the all-run fit
     pool_sse: np.ndarray  # their (P, R) SSE
+    # Stochastic candidate only: effective parameter count for the BIC penalty (2 rates + 3 per
+    # inferred lift event) and the inferred events (omni_gym.discrepancy.events.EventFit).
+    n_params_eff: int | None = None
+    event_fit: EventFit | None = None
 
 
 def make_folds(n_runs: int, rng: np.random.Generator, k: int = 3) -> np.ndarray:
@@ -265,11 +269,16 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
        its own steps. The warm start is the one channel by which held-out runs inform a fold fit:
        it picks the basin (narrow roller-phase basins defeated independent per-fold searches on
        two thirds of the data); everything the fold fit then does uses its training runs only.
+
+    The stochastic candidate (wheel_liftoff) is fitted by lift-event inference instead
+    (:func:`_fit_events`).
     """
+    if cand.stochastic:
+        return _fit_events(cand, ev, nominal, folds)
     p = cand.n_params
     K = int(folds.max()) + 1
     R = len(folds)
-    seeds = LIFTOFF_SEEDS if cand.stochastic else 1
+    seeds = 1
     n0 = 16 if p <= 2 else 32 if p <= 4 else 64
     design = qmc.Sobol(p, scramble=True, seed=rng).random(n0)
     null = _null_point(cand, nominal)
@@ -384,6 +393,53 @@ def _phase_search(states: list[dict], periodic: list[int], grid: int, sweeps: in
         st.update(res=res, cost=float(sse.sum()))
 
 
+def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray) -> FitResult:
+    """wheel_liftoff by MAP lift-event inference (omni_gym.discrepancy.events).
+
+    Every run's events are inferred with the BIC cost 3·ln N per event (N residual components of the
+    dataset); the candidate's per-run SSE is the open-loop replay of the run with its events. Rates
+    are the exponential-holding-time MLEs from the events: on all runs for the reported fit, and on
+    each fold's training runs for that fold's parameters.
+
+    **The held-out score is a marginal-likelihood approximation, not a pure prediction.** The events
+    are latent variables of each run, so they are inferred on every run — held-out runs included —
+    and only the rates come from training runs. The likelihood of a held-out run integrates over its
+    events; its MAP term, with each event charged its BIC cost (carried into :func:`decide` through
+    ``n_params_eff`` = 2 rates + 3 per event), approximates that integral. The event cost does not
+    depend on the fold's rates, so the inferred events are the same in every fold.
+    """
+    ds = ev.ds
+    n_comp = count_components(ds)
+    N = float(max(n_comp.sum(), 2))
+    res0 = ev.residuals([nominal])[0]
+    sse0 = np.array([_sse(r) for r in res0])
+    sigma = noise_estimate(res0, [r.t for r in ds.runs])  # the same estimate the workflow reports
+    counter = [0]
+    if not hasattr(ev, "_windows"):
+        ev._windows = shooting_windows(ds)
+    efit = infer_events(ds, nominal, ev.lever, PARAMS_PER_EVENT * math.log(N), sse0, n_comp, ev.dt,
+                        sigma=sigma, windows=ev._windows, counter=counter,
+                        adequacy=1.0 + RULES["noise_margin"])  # "noise level" as the decision defines it
+    ev.simulated += counter[0]
+    null = _null_point(cand, nominal)
+
+    def point(mask: np.ndarray | None) -> np.ndarray:
+        rates = efit.rates(mask)
+        if rates is None:
+            return null
+        u = np.array([(math.log(v) - math.log(d.lo)) / (math.log(d.hi) - math.log(d.lo))
+                      for d, v in zip(cand.dims, rates, strict=True)])
+        return np.clip(u, 0.0, 1.0)  # the candidate's bounds (rates outside them are clipped)
+
+    u_all = point(None)
+    K = int(folds.max()) + 1
+    fold_params = [cand.params(point(folds != k)) for k in range(K)]
+    return FitResult(candidate=cand, u_all=u_all, params_all=cand.params(u_all), sse_all=efit.sse.copy(),
+                     heldout=efit.sse.copy(), fold_params=fold_params, pool_u=u_all[None, :],
+                     pool_sse=efit.sse[None, :].copy(),
+                     n_params_eff=cand.n_params + PARAMS_PER_EVENT * efit.n_events(), event_fit=efit)
+
+
 def _levenberg_marquardt(states: list[dict], iterations: int, evaluate, train, pools_u, pools_sse, cand, h,
                          tick) -> None:
     """Batched LM steps for every search in ``states`` (dicts t, u, res, cost, lam; updated in place).
@@ -487,14 +543,29 @@ def _null_point(cand: Candidate, nominal: SimModel) -> np.ndarray | None:
 
 
 def param_intervals(fit: FitResult, rng: np.random.Generator, n_boot: int = 200) -> dict:
-    """Bootstrap over runs: 5-95 % interval of each fitted dimension (refit = argmin over the pool)."""
+    """Bootstrap over runs: 5-95 % interval of each fitted dimension (refit = argmin over the pool).
+
+    For the event-inferred candidate the refit is the rate MLE from the resampled runs' events.
+    """
     R = fit.pool_sse.shape[1]
     idx = rng.integers(0, R, (n_boot, R))
+    if fit.event_fit is not None:
+        return _event_rate_intervals(fit, idx)
     w = np.stack([np.bincount(row, minlength=R) for row in idx])  # (n_boot, R) run weights
     best = np.argmin(w @ fit.pool_sse.T, axis=1)
     vals = np.array([[d.value(float(x)) for d, x in zip(fit.candidate.dims, fit.pool_u[b], strict=True)]
                      for b in best])
     return {d.name: [float(np.percentile(vals[:, j], 5)), float(np.percentile(vals[:, j], 95))]
+            for j, d in enumerate(fit.candidate.dims)}
+
+
+def _event_rate_intervals(fit: FitResult, idx: np.ndarray) -> dict:
+    """5-95 % bootstrap range of the event-based rates (resamples without events: the null point)."""
+    ef = fit.event_fit
+    R = len(ef.events)
+    null = [fit.candidate.dims[0].lo, fit.candidate.dims[1].hi]
+    v = np.array([ef.rates_weighted(np.bincount(row, minlength=R).astype(float)) or null for row in idx])
+    return {d.name: [float(np.percentile(v[:, j], 5)), float(np.percentile(v[:, j], 95))]
             for j, d in enumerate(fit.candidate.dims)}
 
 
@@ -523,7 +594,7 @@ def decide(nominal_sse: np.ndarray, fits: list[FitResult], n_comp: np.ndarray, s
         gain = boot @ (L0 - L)  # (N_BOOT,) log-likelihood gain over nominal in each resample
         ranking.append({
             "effect": f.candidate.name,
-            "score": float(L.sum() + f.candidate.n_params * math.log(N)),
+            "score": float(L.sum() + (f.n_params_eff or f.candidate.n_params) * math.log(N)),
             "heldout_rms": math.sqrt(mse),
             "pooled_rms": math.sqrt(f.heldout.sum() / N),
             "excess_rms": math.sqrt(max(mse - noise_var, 0.0)),

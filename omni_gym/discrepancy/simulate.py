@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from omni_gym.discrepancy.dataset import Run
+from omni_gym.discrepancy.events import ScheduledContactProcess
 from omni_gym.liftoff import ContactProcess
 from omni_gym.model import SimModel
 from omni_gym.world import World
@@ -26,6 +27,9 @@ class Job:
     ``state0`` (optional): pose (3,), geometric-centre world velocity (3,) [m/s, m/s, rad/s],
     wheel angles (n,) [rad] and wheel speeds (n,) [rad/s] at row k0; default: at rest at the run's
     start pose with zero wheel angles. ``seed`` draws the wheel_liftoff contact process.
+    ``schedule`` (optional): lift events (t_start [s], t_end [s], case) on the job's clock (0 at row
+    k0), replayed by :class:`~omni_gym.discrepancy.events.ScheduledContactProcess` instead of the
+    random process (used to replay inferred events).
     ``drag`` [N·s/m]: a viscous force −drag·v on the centre of mass (not a library effect: used to
     make data the library cannot explain).
     """
@@ -37,6 +41,7 @@ class Job:
     state0: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
     seed: int = 0
     drag: float = 0.0
+    schedule: tuple | None = None
 
 
 def simulate_jobs(jobs: list[Job], dt: float = FIT_DT) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -45,7 +50,10 @@ def simulate_jobs(jobs: list[Job], dt: float = FIT_DT) -> list[tuple[np.ndarray,
     B, n = len(jobs), world.n_wheels
     for b, job in enumerate(jobs):
         fx = job.model.effects.get("wheel_liftoff")
-        if fx is not None and fx["lift_rate"] > 0:
+        if job.schedule is not None:
+            if job.schedule:
+                world.set_contact_process(b, ScheduledContactProcess(n, job.schedule))
+        elif fx is not None and fx["lift_rate"] > 0:
             world.set_contact_process(b, ContactProcess(n, fx["lift_rate"], fx["recover_rate"],
                                                         np.random.default_rng(job.seed)))
     ends = [j.k1 % len(j.run.t) for j in jobs]

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from omni_gym.discrepancy.dataset import load_dataset
+from omni_gym.discrepancy.events import EVENT_METHOD
 from omni_gym.discrepancy.explain import (
-    LIFTOFF_SEEDS,
     RULES,
     Evaluator,
     _sse,
@@ -25,6 +25,7 @@ from omni_gym.discrepancy.explain import (
 from omni_gym.discrepancy.localise import localise
 from omni_gym.discrepancy.simulate import FIT_DT
 from omni_gym.discrepancy.synth import pose_lever
+from omni_gym.liftoff import contact_cases
 
 METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2)), M the geometric mean over runs "
           "(weighted by observed rows) of each run's mean squared residual over x, y and heading x lever; each run is "
@@ -102,10 +103,18 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
                      "per_run": [{"run": r.name, "fold": int(k), "rms_before": _rms(a, n), "rms_after": _rms(b, n)}
                                  for r, k, a, b, n in zip(ds.runs, fold_of, sse0, after_sse, n_comp, strict=True)]}
     result["ranking"] = decision["ranking"]
+    for entry in result["ranking"]:
+        f = by_name.get(entry["effect"])
+        if f is not None and f.event_fit is not None:
+            # The stochastic candidate's inferred lift events (its held-out score counts them).
+            entry["n_params_effective"] = f.n_params_eff
+            entry["events"] = f.event_fit.to_json([r.name for r in ds.runs], contact_cases(ds.n_wheels))
+            if f.event_fit.note:
+                entry["events_note"] = f.event_fit.note
     result["score_nominal"] = decision["score_nominal"]
     result["where"] = where
     result["settings"] = {"seed": seed, "folds": int(fold_of.max()) + 1, "dt": dt, "lever": lever,
-                          "liftoff_seeds": LIFTOFF_SEEDS, "rules": RULES, "robot_runs_simulated": ev.simulated}
+                          "liftoff": EVENT_METHOD, "rules": RULES, "robot_runs_simulated": ev.simulated}
     result["dataset"] = {"path": str(dataset), "runs": R, "description": ds.description}
     if out is not None:
         from omni_gym.discrepancy.report import write_report
