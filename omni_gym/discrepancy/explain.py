@@ -569,6 +569,12 @@ def _event_rate_intervals(fit: FitResult, idx: np.ndarray) -> dict:
             for j, d in enumerate(fit.candidate.dims)}
 
 
+def _share_better(gain: np.ndarray) -> float:
+    """Share of bootstrap resamples with a positive gain among those without a tie (0.5 if all tie)."""
+    decided = gain != 0
+    return float(np.mean(gain[decided] > 0)) if decided.any() else 0.5
+
+
 def decide(nominal_sse: np.ndarray, fits: list[FitResult], n_comp: np.ndarray, sigma: float | None,
            rng: np.random.Generator) -> dict:
     """Rank candidates by penalised held-out score and choose the outcome (see module docstring).
@@ -599,7 +605,10 @@ def decide(nominal_sse: np.ndarray, fits: list[FitResult], n_comp: np.ndarray, s
             "pooled_rms": math.sqrt(f.heldout.sum() / N),
             "excess_rms": math.sqrt(max(mse - noise_var, 0.0)),
             "improvement": 1.0 - mse / mse0 if mse0 > 0 else 0.0,
-            "p_better_than_nominal": float(np.mean(gain > 0)),
+            # A resample made only of runs the candidate leaves exactly as nominal (runs in which no
+            # lift event was inferred) is a tie and carries no evidence: ties are dropped, as in a
+            # sign test (all ties: 0.5).
+            "p_better_than_nominal": _share_better(gain),
             "n_params": f.candidate.n_params,
             "params": f.params_all,
         })
