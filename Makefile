@@ -5,7 +5,7 @@ STAMP := .venv/.installed
 export SDL_VIDEODRIVER := dummy
 export MPLBACKEND := Agg
 
-.PHONY: venv test demo lint bench bench-agents bench-discrepancy clean
+.PHONY: venv test test-slow demo lint bench bench-agents bench-discrepancy clean
 
 venv: $(STAMP)
 
@@ -16,7 +16,11 @@ $(STAMP): pyproject.toml constraints.txt
 
 test: $(STAMP)
 	$(PY) -m ruff check .
-	$(PY) -m pytest -q -n 2
+	$(PY) -m pytest -q -n 2 -m "not slow"
+
+# The long sweeps (the discrepancy workflow's full 12-case recovery per effect: ~10 min on 2 cores).
+test-slow: $(STAMP)
+	$(PY) -m pytest -q -n 2 -m slow
 
 demo: $(STAMP)
 	$(PY) benchmarks/paper_replication.py --out benchmarks/results

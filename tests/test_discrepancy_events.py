@@ -82,3 +82,12 @@ def test_event_inference_finds_one_known_lift():
     assert fit.sse[0] <= 1.3 * n_comp[0] * sigma**2
     rates = fit.rates()
     assert rates is not None and rates[1] == pytest.approx(1.0 / (end - start))
+
+
+def test_back_to_back_events_rounded_apart_are_accepted_but_real_overlaps_are_not():
+    # The event search rounds times to 1e-6 s, so one event can end at 2.345 and the next start at
+    # 2.3449999999999998: that is back to back, not an overlap (the recovery benchmark hit it).
+    proc = ScheduledContactProcess(3, [(2.2, 2.345, 1), (2.3449999999999998, 2.4, 2)])
+    assert [e[0] for e in proc.events] == [2.2, 2.345]
+    with pytest.raises(ValueError, match="overlap"):
+        ScheduledContactProcess(3, [(2.2, 2.345, 1), (2.34, 2.4, 2)])

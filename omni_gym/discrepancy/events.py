@@ -59,6 +59,7 @@ ADD_ROUNDS = 3  # rounds of the global "one more event" move...
 ADD_LEVEL = 1.2  # ...for runs whose open-loop MSE is above this multiple of sigma^2...
 ADD_TOP = 3  # ...trying each run's 3 best additions, each refined before the comparison
 CASE_ALPHA = 0.01  # reject events whose lifted cases are this unlikely under the uniform draw (step 5)
+OVERLAP_TOL = 1e-6  # s: events closer than this count as back to back (times are rounded to 1e-6 s)
 MAX_LIFTED_SHARE = 0.5  # most of the moving time that inferred events may keep a wheel lifted (step 5)
 SKIP_FACTOR = 3.0  # skip the sequential/global moves when the window proposal is above 3 x the adequacy limit
 SEQ_MAX_EVENTS = 12  # most events per run of the sequential open-loop decoding
@@ -94,7 +95,10 @@ class ScheduledContactProcess:
             if not 1 <= c < len(self.cases):
                 raise ValueError(f"event {i}: case must be in 1..{len(self.cases) - 1}, got {c}")
             if i and a < evs[i - 1][1]:
-                raise ValueError(f"events overlap at {a} s")
+                if a < evs[i - 1][1] - OVERLAP_TOL:
+                    raise ValueError(f"events overlap at {a} s")
+                # Back-to-back events whose times were rounded differently (1e-6 s): one ends, the next starts.
+                evs[i] = (evs[i - 1][1], b, c)
         self.events = evs
         # Switch list: (time, case after the switch).
         self._switches = [s for a, b, c in evs for s in ((a, c), (b, 0))]
@@ -277,7 +281,7 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
         return best
 
     def free(ev: Event, taken: list[Event]) -> bool:
-        return all(ev[1] <= a or ev[0] >= b for a, b, _ in taken)
+        return all(ev[1] <= a + OVERLAP_TOL or ev[0] >= b - OVERLAP_TOL for a, b, _ in taken)
 
     # 1. Coarse window search; then, greedily, more events in the windows that accepted one.
     tws = [float(runs[ri].t[k1] - runs[ri].t[k0]) for ri, k0, k1, _ in wins]
