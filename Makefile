@@ -16,11 +16,11 @@ $(STAMP): pyproject.toml constraints.txt
 
 test: $(STAMP)
 	$(PY) -m ruff check .
-	$(PY) -m pytest -q -n 2 -m "not slow"
+	$(PY) -m pytest -q -n 2 --dist worksteal -m "not slow" --durations=15
 
 # The long sweeps (the discrepancy workflow's full 12-case recovery per effect: ~10 min on 2 cores).
 test-slow: $(STAMP)
-	$(PY) -m pytest -q -n 2 -m slow
+	$(PY) -m pytest -q -n 2 --dist worksteal -m slow
 
 demo: $(STAMP)
 	$(PY) benchmarks/paper_replication.py --out benchmarks/results
