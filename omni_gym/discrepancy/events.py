@@ -231,7 +231,7 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
             events to be kept (step 5; None: no check).
     """
     from omni_gym.discrepancy.explain import _sse, shooting_windows
-    from omni_gym.discrepancy.simulate import Job, pose_residual, simulate_jobs
+    from omni_gym.discrepancy.simulate import Job, pose_residual, simulate_poses
 
     runs = ds.runs
     R = len(runs)
@@ -240,11 +240,8 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
     count = counter if counter is not None else [0]
 
     def run_batch(jobs: list) -> list[np.ndarray]:
-        out: list[np.ndarray] = []
-        for i in range(0, len(jobs), max_batch):
-            out += [p for p, _ in simulate_jobs(jobs[i:i + max_batch], dt=dt)]
         count[0] += len(jobs)
-        return out
+        return simulate_poses(jobs, dt, max_batch)
 
     def win_sse(wi: int, pose: np.ndarray) -> float:
         ri, k0, k1, _ = wins[wi]

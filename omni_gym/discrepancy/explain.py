@@ -27,7 +27,7 @@ from scipy.stats import qmc
 
 from omni_gym.discrepancy.dataset import Dataset
 from omni_gym.discrepancy.events import PARAMS_PER_EVENT, EventFit, infer_events
-from omni_gym.discrepancy.simulate import FIT_DT, Job, pose_residual, simulate_jobs
+from omni_gym.discrepancy.simulate import FIT_DT, Job, pose_residual, simulate_poses
 from omni_gym.model import SimModel
 
 RULES = {
@@ -103,9 +103,27 @@ class Evaluator:
         self.dt = dt
         self.max_batch = max_batch
         self.simulated = 0  # robot-runs simulated (for the report)
+        self._windows: list[tuple] | None = None
+        self._baseline: tuple | None = None
 
-    def residuals(self, models: list[SimModel], seeds: int = 1, shooting: bool = False) -> list[list[np.ndarray]]:
-        """Per model, per run: residual (K, 3) [m] measured − simulated (mean over ``seeds`` seeds).
+    @property
+    def windows(self) -> list[tuple]:
+        """The dataset's :func:`shooting_windows` (computed once)."""
+        if self._windows is None:
+            self._windows = shooting_windows(self.ds)
+        return self._windows
+
+    def nominal_baseline(self, nominal: SimModel) -> tuple[list[np.ndarray], np.ndarray, float | None]:
+        """The nominal model's per-run residuals, per-run SSE [m²] and the tracker-noise estimate σ̂ [m]
+        (simulated once per evaluator: the workflow and the event inference share them)."""
+        if self._baseline is None:
+            res0 = self.residuals([nominal])[0]
+            self._baseline = (res0, np.array([_sse(r) for r in res0]),
+                              noise_estimate(res0, [r.t for r in self.ds.runs]))
+        return self._baseline
+
+    def residuals(self, models: list[SimModel], shooting: bool = False) -> list[list[np.ndarray]]:
+        """Per model, per run: residual (K, 3) [m] measured − simulated.
 
         ``shooting``: simulate the windows of :func:`shooting_windows` instead (each from the measured
         state at its start) and return, per run, the windows' residual rows stacked.
@@ -113,36 +131,21 @@ class Evaluator:
         if shooting:
             return self._shooting_residuals(models)
         runs = self.ds.runs
-        jobs = [Job(m, r, seed=s) for m in models for s in range(seeds) for r in runs]
-        out: list[np.ndarray] = []
-        for i in range(0, len(jobs), self.max_batch):
-            out += [p for p, _ in simulate_jobs(jobs[i:i + self.max_batch], dt=self.dt)]
+        jobs = [Job(m, r) for m in models for r in runs]
+        out = simulate_poses(jobs, self.dt, self.max_batch)
         self.simulated += len(jobs)
-        res = []
         R = len(runs)
-        for mi in range(len(models)):
-            per_run = []
-            for ri, run in enumerate(runs):
-                sims = [out[(mi * seeds + s) * R + ri] for s in range(seeds)]
-                mean = sims[0] if seeds == 1 else _mean_pose(sims)
-                per_run.append(pose_residual(run.pose, mean, self.lever))
-            res.append(per_run)
-        return res
+        return [[pose_residual(run.pose, out[mi * R + ri], self.lever) for ri, run in enumerate(runs)]
+                for mi in range(len(models))]
 
     def has_windows(self) -> bool:
         """True when some run is observed densely enough for multiple shooting."""
-        if not hasattr(self, "_windows"):
-            self._windows = shooting_windows(self.ds)
-        return bool(self._windows)
+        return bool(self.windows)
 
     def _shooting_residuals(self, models: list[SimModel]) -> list[list[np.ndarray]]:
-        if not hasattr(self, "_windows"):
-            self._windows = shooting_windows(self.ds)
-        wins = self._windows
+        wins = self.windows
         jobs = [Job(m, self.ds.runs[ri], k0=k0, k1=k1, state0=st) for m in models for ri, k0, k1, st in wins]
-        out: list[np.ndarray] = []
-        for i in range(0, len(jobs), self.max_batch):
-            out += [p for p, _ in simulate_jobs(jobs[i:i + self.max_batch], dt=self.dt)]
+        out = simulate_poses(jobs, self.dt, self.max_batch)
         self.simulated += len(jobs)
         res = []
         W = len(wins)
@@ -154,9 +157,9 @@ class Evaluator:
             res.append([np.vstack(x) for x in per_run])
         return res
 
-    def sse(self, models: list[SimModel], seeds: int = 1, shooting: bool = False) -> np.ndarray:
+    def sse(self, models: list[SimModel], shooting: bool = False) -> np.ndarray:
         """(P, R) sum of squared residual components [m²] over each run's observed rows after t = 0."""
-        return np.array([[_sse(r) for r in per_run] for per_run in self.residuals(models, seeds, shooting)])
+        return np.array([[_sse(r) for r in per_run] for per_run in self.residuals(models, shooting)])
 
 
 def shooting_windows(ds: Dataset, window: float = 1.0) -> list[tuple]:
@@ -185,13 +188,6 @@ def shooting_windows(ds: Dataset, window: float = 1.0) -> list[tuple]:
                 speed = np.zeros(n) if k0 == 0 else run.cmd[k0 - 1]
                 out.append((ri, k0, k1, (pose, vel, ang[k0], speed)))
             k0 = k1
-    return out
-
-
-def _mean_pose(sims: list[np.ndarray]) -> np.ndarray:
-    s = np.stack(sims)
-    out = s.mean(axis=0)
-    out[:, 2] = np.arctan2(np.sin(s[:, :, 2]).mean(axis=0), np.cos(s[:, :, 2]).mean(axis=0))
     return out
 
 
@@ -278,7 +274,6 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
     p = cand.n_params
     K = int(folds.max()) + 1
     R = len(folds)
-    seeds = 1
     n0 = 16 if p <= 2 else 32 if p <= 4 else 64
     design = qmc.Sobol(p, scramble=True, seed=rng).random(n0)
     null = _null_point(cand, nominal)
@@ -292,7 +287,7 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
         design = np.vstack([prior, design[:1 + n0 // 4]])
 
     def evaluate(us: np.ndarray, shooting: bool = False) -> tuple[np.ndarray, list[list[np.ndarray]]]:
-        res = ev.residuals([nominal.with_effect(cand.name, cand.params(u)) for u in us], seeds, shooting)
+        res = ev.residuals([nominal.with_effect(cand.name, cand.params(u)) for u in us], shooting)
         return np.array([[_sse(r) for r in per_run] for per_run in res]), res
 
     design_sse, design_res = evaluate(design)
@@ -303,10 +298,9 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
     pools_u = [[design] for _ in train]
     pools_sse = [[design_sse] for _ in train]
     periodic = [j for j, d in enumerate(cand.dims) if d.periodic]
-    # With phases the search starts away from the null point (where phases do nothing); the
-    # seed-averaged random candidate gets one start.
+    # With phases the search starts away from the null point (where phases do nothing).
     rows = np.arange(len(design)) if not periodic or null is None else np.flatnonzero(np.any(design != null, axis=1))
-    n_starts = phase_starts if periodic else 1 if cand.stochastic else starts
+    n_starts = phase_starts if periodic else starts
     free = [j for j in range(p) if j not in periodic]
     chosen: list[int] = []
     for i in rows[np.argsort(design_sse[rows].sum(axis=1))]:
@@ -318,8 +312,7 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
             chosen.append(int(i))
     states = [{"t": K, "u": design[i].copy(), "res": design_res[i], "cost": float(design_sse[i].sum()),
                "lam": 1e-2} for i in chosen]
-    h = 3e-3 if not cand.stochastic else 2e-2  # unit-cube FD step (larger for the seed-averaged, jumpy cost)
-    lm = dict(evaluate=evaluate, train=train, pools_u=pools_u, pools_sse=pools_sse, cand=cand, h=h, tick=tick)
+    lm = dict(evaluate=evaluate, train=train, pools_u=pools_u, pools_sse=pools_sse, cand=cand, h=3e-3, tick=tick)
     if periodic and ev.has_windows():
         # Phases: the cost is multimodal in each (a gap passes once per roller pitch). On one long
         # open-loop rollout a wrong phase of one wheel spoils the landscape of the others, so the
@@ -337,7 +330,7 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
         if kept["cost"] < states[0]["cost"]:
             states = [kept]
     else:
-        _levenberg_marquardt(states, min(iterations, 2) if cand.stochastic else iterations, **lm)
+        _levenberg_marquardt(states, iterations, **lm)
     i_all = int(np.argmin(np.vstack(pools_sse[K]).sum(axis=1)))
     u_all = np.vstack(pools_u[K])[i_all]
     a_sse = np.vstack(pools_sse[K])[i_all]
@@ -349,7 +342,7 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
         fold_states.append({"t": k, "u": best["u"].copy(), "res": best["res"],
                             "cost": float(sum(_sse(r) for r, m in zip(best["res"], train[k], strict=True) if m)),
                             "lam": 1e-2})
-    _levenberg_marquardt(fold_states, 1 if cand.stochastic else fold_iterations, **lm)
+    _levenberg_marquardt(fold_states, fold_iterations, **lm)
     heldout = np.zeros(R)
     fold_params = []
     for k in range(K):
@@ -363,9 +356,10 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
 
 def _phase_search(states: list[dict], periodic: list[int], grid: int, sweeps: int, evaluate,
                   pool_u: list, pool_sse: list, tick, shooting: bool = True) -> None:
-    """Coordinate sweeps over the periodic dimensions on the multiple-shooting cost, for every
-    search in ``states`` in one batch per phase: grid one phase with the others fixed, keep the
-    best. Each search then moves to its result, re-scored on the open-loop cost (added to the pool).
+    """Coordinate sweeps over the periodic dimensions, for every search in ``states`` in one batch
+    per phase: grid one phase with the others fixed, keep the best. The sweep cost is the
+    multiple-shooting one (``shooting``) or the open-loop one. Each search then moves to its result,
+    re-scored on the open-loop cost (added to the pool).
     """
     start = np.array([st["u"] for st in states])
     scost = evaluate(start, shooting=shooting)[0].sum(axis=1)
@@ -411,14 +405,10 @@ def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.nda
     ds = ev.ds
     n_comp = count_components(ds)
     N = float(max(n_comp.sum(), 2))
-    res0 = ev.residuals([nominal])[0]
-    sse0 = np.array([_sse(r) for r in res0])
-    sigma = noise_estimate(res0, [r.t for r in ds.runs])  # the same estimate the workflow reports
+    _, sse0, sigma = ev.nominal_baseline(nominal)  # the same σ̂ the workflow reports
     counter = [0]
-    if not hasattr(ev, "_windows"):
-        ev._windows = shooting_windows(ds)
     efit = infer_events(ds, nominal, ev.lever, PARAMS_PER_EVENT * math.log(N), sse0, n_comp, ev.dt,
-                        sigma=sigma, windows=ev._windows, counter=counter,
+                        sigma=sigma, windows=ev.windows, counter=counter,
                         adequacy=1.0 + RULES["noise_margin"])  # "noise level" as the decision defines it
     ev.simulated += counter[0]
     null = _null_point(cand, nominal)

@@ -100,6 +100,14 @@ def simulate_jobs(jobs: list[Job], dt: float = FIT_DT) -> list[tuple[np.ndarray,
     return list(zip(poses, angles, strict=True))
 
 
+def simulate_poses(jobs: list[Job], dt: float = FIT_DT, max_batch: int = 1500) -> list[np.ndarray]:
+    """Poses (K, 3) of every job, simulated in worlds of at most ``max_batch`` robots (memory bound)."""
+    out: list[np.ndarray] = []
+    for i in range(0, len(jobs), max_batch):
+        out += [p for p, _ in simulate_jobs(jobs[i:i + max_batch], dt=dt)]
+    return out
+
+
 def _set_state(world: World, b: int, job: Job) -> None:
     """Put robot b into ``job.state0`` (after reset has placed it at the pose)."""
     _pose, vel, wang, wspd = job.state0

@@ -13,13 +13,11 @@ from omni_gym.discrepancy.events import EVENT_METHOD
 from omni_gym.discrepancy.explain import (
     RULES,
     Evaluator,
-    _sse,
     candidates,
     count_components,
     decide,
     fit_candidate,
     make_folds,
-    noise_estimate,
     param_intervals,
 )
 from omni_gym.discrepancy.localise import localise
@@ -48,9 +46,7 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     lever = pose_lever(nominal)
     ev = Evaluator(ds, lever, dt=dt)
     rng = np.random.default_rng(seed)
-    res0 = ev.residuals([nominal])[0]
-    sse0 = np.array([_sse(r) for r in res0])
-    sigma = noise_estimate(res0, [r.t for r in ds.runs])
+    res0, sse0, sigma = ev.nominal_baseline(nominal)
     n_comp = count_components(ds)
     fold_of = make_folds(R, rng, folds)
     cands = candidates(nominal)
