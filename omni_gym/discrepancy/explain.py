@@ -251,7 +251,7 @@ def make_folds(n_runs: int, rng: np.random.Generator, k: int = 3) -> np.ndarray:
 
 def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray,
                   rng: np.random.Generator, iterations: int = 6, fold_iterations: int = 4, starts: int = 2,
-                  phase_grid: int = 32, phase_sweeps: int = 2, phase_starts: int = 4,
+                  phase_grid: int = 32, phase_sweeps: int = 2, phase_starts: int = 2, phase_restarts: int = 16,
                   tick: Callable[[], None] | None = None) -> FitResult:
     """Fit ``cand`` on all runs and on every fold's training runs (see the module docstring).
 
@@ -259,7 +259,9 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
        nominal on its training runs) and, for roller_gap, the nominal model's own μ'' and roller
        fraction.
     2. All-run fit: from the ``starts`` best design points that lie apart; roller phases searched
-       on a grid of the multiple-shooting cost; then batched Levenberg–Marquardt.
+       on a grid of the multiple-shooting cost, then batched Levenberg–Marquardt, then restarts on the
+       open-loop cost (``phase_restarts`` random phase vectors: coordinate descent over all
+       dimensions, LM from the best three) and a final phase sweep + LM.
     3. Fold fits: Levenberg–Marquardt on the fold's training runs, warm-started at the all-run fit.
        A fold fit is the point with the least training error among the design, the warm start and
        its own steps. The warm start is the one channel by which held-out runs inform a fold fit:
@@ -324,7 +326,21 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
         _phase_search(states, periodic, phase_grid, phase_sweeps, evaluate, pools_u[K], pools_sse[K], tick)
         _levenberg_marquardt(states, iterations, **lm)
         kept = min(states, key=lambda s: s["cost"])
-        states = [dict(kept)]
+        # The shooting cost is biased by noisy start states (velocities from the tracker), so its fit
+        # can sit in a neighbouring basin of the open-loop cost, where μ'', roller fraction and
+        # phases have co-adjusted into a compromise (the basins are narrow and coupled: neither LM
+        # nor a sweep of the phases alone leaves it). Restarts: the kept fit and `phase_restarts`
+        # random phase vectors under its μ'' and roller fraction; coordinate descent on the
+        # open-loop cost over all dimensions (μ'' and roller fraction on local grids, phases on a
+        # coarse full grid); LM from the best three; a fine phase sweep + LM from the best.
+        restarts = np.tile(kept["u"], (1 + phase_restarts, 1))
+        restarts[1:, periodic] = rng.random((phase_restarts, len(periodic)))
+        states = [{"u": u, "lam": 1e-2, "t": K} for u in restarts]
+        _phase_search(states, periodic, phase_grid // 2, phase_sweeps, evaluate, pools_u[K], pools_sse[K], tick,
+                      shooting=False, local=free)
+        states = sorted(states, key=lambda s: s["cost"])[:3]
+        _levenberg_marquardt(states, iterations, **lm)
+        states = [dict(min(states, key=lambda s: s["cost"]))]
         _phase_search(states, periodic, phase_grid, 1, evaluate, pools_u[K], pools_sse[K], tick, shooting=False)
         _levenberg_marquardt(states, iterations, **lm)
         if kept["cost"] < states[0]["cost"]:
@@ -355,24 +371,28 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
 
 
 def _phase_search(states: list[dict], periodic: list[int], grid: int, sweeps: int, evaluate,
-                  pool_u: list, pool_sse: list, tick, shooting: bool = True) -> None:
-    """Coordinate sweeps over the periodic dimensions, for every search in ``states`` in one batch
-    per phase: grid one phase with the others fixed, keep the best. The sweep cost is the
-    multiple-shooting one (``shooting``) or the open-loop one. Each search then moves to its result,
-    re-scored on the open-loop cost (added to the pool).
+                  pool_u: list, pool_sse: list, tick, shooting: bool = True, local: list[int] = (),
+                  width: float = 0.06, local_points: int = 9) -> None:
+    """Coordinate sweeps for every search in ``states``, one batch per dimension: each dimension in
+    ``local`` on ``local_points`` points within ±``width`` (unit cube) of the search's value, then
+    each periodic dimension on a full grid of ``grid`` points; a search keeps the best point. The
+    sweep cost is the multiple-shooting one (``shooting``) or the open-loop one. Each search then
+    moves to its result, re-scored on the open-loop cost (added to the pool).
     """
     start = np.array([st["u"] for st in states])
     scost = evaluate(start, shooting=shooting)[0].sum(axis=1)
     for st, c in zip(states, scost, strict=True):
         st["scost"] = float(c)
+    offsets = np.linspace(-width, width, local_points)
     for _ in range(sweeps):
-        for j in periodic:
+        for j in [*local, *periodic]:
             grids = []
             for st in states:
-                g = np.tile(st["u"], (grid, 1))
-                g[:, j] = (np.arange(grid) + 0.5) / grid
+                values = np.clip(st["u"][j] + offsets, 0.0, 1.0) if j in local else (np.arange(grid) + 0.5) / grid
+                g = np.tile(st["u"], (len(values), 1))
+                g[:, j] = values
                 grids.append(g)
-            cost = evaluate(np.concatenate(grids), shooting=shooting)[0].sum(axis=1).reshape(len(states), grid)
+            cost = evaluate(np.concatenate(grids), shooting=shooting)[0].sum(axis=1).reshape(len(states), -1)
             for st, g, c in zip(states, grids, cost, strict=True):
                 i = int(np.argmin(c))
                 if c[i] < st["scost"]:
