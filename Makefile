@@ -38,7 +38,7 @@ bench-agents: $(STAMP)
 	$(PY) benchmarks/rl_vs_baselines.py --models agents/models/ppo-residual --episodes 50 --workers 2 --out benchmarks/results
 
 bench-discrepancy: $(STAMP)
-	$(PY) benchmarks/discrepancy_recovery.py --seeds 3 --runs 6 --duration 3 --jobs 2 --out benchmarks/results
+	$(PY) benchmarks/discrepancy_recovery.py --seeds 2 --runs 6 --duration 3 --jobs 2 --out benchmarks/results
 
 lint: $(STAMP)
 	$(PY) -m ruff check .

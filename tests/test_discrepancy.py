@@ -176,6 +176,23 @@ def test_fitted_model_replays_through_simulate(small_dataset, tmp_path):
     assert np.sqrt(np.mean(err**2)) < 0.004
 
 
+def test_progress_ticks_stay_within_each_fits_bound(small_dataset):
+    """The progress bar's total is the sum of max_ticks: a fit that ticked more would overrun it."""
+    from omni_gym.discrepancy.explain import Evaluator, candidates, fit_candidate, make_folds, max_ticks
+    from omni_gym.discrepancy.synth import pose_lever
+
+    ds = load_dataset(small_dataset)
+    ev = Evaluator(ds, pose_lever(ds.model))
+    rng = np.random.default_rng(0)
+    folds = make_folds(len(ds.runs), rng)
+    for cand in candidates(ds.model):
+        if cand.stochastic:
+            continue
+        ticks = []
+        fit_candidate(cand, ev, ds.model, folds, rng, tick=lambda t=ticks: t.append(1))
+        assert 2 <= len(ticks) <= max_ticks(cand), (cand.name, len(ticks), max_ticks(cand))
+
+
 def test_localisation_points_at_acceleration_for_motor_lag(small_dataset):
     where = gap(small_dataset, None, progress=False)["where"]
     # A first-order lag only matters while the commands change: beyond tracker noise, the local

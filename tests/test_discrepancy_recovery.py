@@ -27,8 +27,12 @@ QUICK = [(size, noise, seed) for (size, noise), seed in zip(GRID, (1, 2, 3, 1), 
 def _check(effect: str, cells: list[tuple]) -> None:
     cases = [run_case(effect, SIZES[effect][size], noise, seed, RUNS, DURATION) for size, noise, seed in cells]
     named = [c["named"] for c in cases]
-    # A random effect may be missed (`unexplained`, `none`) but must never be blamed on another effect.
-    assert all(n in (effect, "unexplained", "none") for n in named), named
+    # A missed effect may be `unexplained` or `none`. Another effect's name is a wrong answer unless the
+    # workflow itself says it cannot tell that effect from the hidden one on this data (the issue:
+    # "say so when two candidates cannot be told apart"): then the truth must be in `ambiguous_with`.
+    flagged = [c for c in cases if c["named"] not in (effect, "unexplained", "none")]
+    assert all(effect in [a["effect"] for a in c["ambiguous_with"] or []] for c in flagged), \
+        [(c["named"], c["ambiguous_with"]) for c in flagged]
     correct = [c for c in cases if c["correct"]]
     # Right name in at least 90 % of the cases (11 of 12; 4 of 4).
     assert len(correct) >= 0.9 * len(cases), named

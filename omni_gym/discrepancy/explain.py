@@ -249,6 +249,17 @@ def make_folds(n_runs: int, rng: np.random.Generator, k: int = 3) -> np.ndarray:
     return folds
 
 
+def max_ticks(cand: Candidate, iterations: int = 6, fold_iterations: int = 4, phase_sweeps: int = 2,
+              valley_rounds: int = 3) -> int:
+    """Most progress ticks :func:`fit_candidate` (same keyword values) makes for ``cand``: one per batch
+    round (design, LM iteration, phase sweep, valley search)."""
+    if cand.stochastic:
+        return 0
+    if any(d.periodic for d in cand.dims):
+        return 1 + 2 * (phase_sweeps + iterations) + 1 + iterations + fold_iterations
+    return 1 + iterations + valley_rounds * (1 + iterations) + fold_iterations
+
+
 def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray,
                   rng: np.random.Generator, iterations: int = 6, fold_iterations: int = 4, starts: int = 2,
                   phase_grid: int = 32, phase_sweeps: int = 2, phase_starts: int = 2, phase_restarts: int = 16,

@@ -18,6 +18,7 @@ from omni_gym.discrepancy.explain import (
     decide,
     fit_candidate,
     make_folds,
+    max_ticks,
     param_intervals,
 )
 from omni_gym.discrepancy.localise import localise
@@ -50,7 +51,7 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     n_comp = count_components(ds)
     fold_of = make_folds(R, rng, folds)
     cands = candidates(nominal)
-    total = 2 + sum(11 + (2 if any(d.periodic for d in c.dims) else 0) for c in cands)  # upper bound
+    total = 2 + sum(max_ticks(c) + 1 for c in cands)
     show = sys.stderr.isatty() if progress is None else progress
     fits = []
     with tqdm(total=total, desc="gap: fitting", file=sys.stderr, disable=not show, unit="batch") as bar:
@@ -58,9 +59,11 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
         bar.update(1)
         for c in cands:
             bar.set_postfix_str(c.name)
+            done = bar.n + max_ticks(c) + 1
             fits.append(fit_candidate(c, ev, nominal, fold_of, rng, tick=lambda: bar.update(1)))
+            bar.update(max(done - bar.n, 0))  # searches that converge early skip their remaining rounds
         decision = decide(sse0, fits, n_comp, sigma, rng)
-        bar.update(total - bar.n)  # searches that converge early skip their remaining steps
+        bar.update(max(total - bar.n, 0))
     by_name = {f.candidate.name: f for f in fits}
     effect = decision["effect"]
     result: dict = {"effect": effect, "why": decision["why"]}
