@@ -6,7 +6,8 @@ record the named effect, the parameter error against the truth, the held-out gap
 wall time. Null (``none``) and out-of-library (viscous drag -> ``unexplained``) rows too, and the
 wall time of one 10-run x 5 s dataset per effect (the issue's 2-minute budget on 2 cores).
 
-    python benchmarks/discrepancy_recovery.py --seeds 2 --runs 6 --duration 3 --jobs 2 --out benchmarks/results  # committed
+    # the committed table (also `make bench-discrepancy`):
+    python benchmarks/discrepancy_recovery.py --seeds 2 --runs 6 --duration 3 --jobs 2 --out benchmarks/results
     python benchmarks/discrepancy_recovery.py --seeds 1 --runs 4 --duration 2.5   # quick look
 """
 
