@@ -230,7 +230,7 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
         adequacy: largest row-weighted geometric-mean MSE with the events, in units of σ̂², for the
             events to be kept (step 5; None: no check).
     """
-    from omni_gym.discrepancy.explain import _sse, shooting_windows
+    from omni_gym.discrepancy.explain import _sse, geo_mse, shooting_windows
     from omni_gym.discrepancy.simulate import Job, pose_residual, simulate_poses
 
     runs = ds.runs
@@ -419,7 +419,7 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
 
     def geo_ratio() -> float:
         """Row-weighted geometric-mean MSE of the current events, in units of sigma^2."""
-        return float(math.exp(np.sum(n * np.log(np.maximum(cur_sse, 1e-30) / n)) / n.sum()) / sigma**2)
+        return geo_mse(cur_sse, n_comp) / sigma**2
 
     # The costly moves below only refine a proposal; when the window proposal leaves the data far
     # from the noise level (a continuous model error, not lift-off) they cannot pass the adequacy

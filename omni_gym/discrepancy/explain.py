@@ -38,6 +38,9 @@ RULES = {
     "ambiguity": 0.8,  # winner must beat a qualifying runner-up in this share of resamples
 }
 N_BOOT = 400
+# Search rounds of fit_candidate (also the progress bound max_ticks): LM iterations of the all-run and
+# fold fits, roller phase sweeps, valley line-search rounds.
+ITERATIONS, FOLD_ITERATIONS, PHASE_SWEEPS, VALLEY_ROUNDS = 6, 4, 2, 3
 
 
 @dataclass(frozen=True)
@@ -197,6 +200,12 @@ def _sse(r: np.ndarray) -> float:
     return float(np.sum(r * r))
 
 
+def geo_mse(sse: np.ndarray, n_comp: np.ndarray) -> float:
+    """Row-weighted geometric mean of the per-run mean squared residual [m²] (the decision's metric)."""
+    n = np.maximum(n_comp, 1)
+    return float(math.exp(np.sum(n * np.log(np.maximum(sse, 1e-30) / n)) / n.sum()))
+
+
 def count_components(dataset: Dataset) -> np.ndarray:
     """(R,) residual components per run (3 per observed row after t = 0)."""
     return np.array([3 * int(run.observed[1:].sum()) for run in dataset.runs])
@@ -249,8 +258,8 @@ def make_folds(n_runs: int, rng: np.random.Generator, k: int = 3) -> np.ndarray:
     return folds
 
 
-def max_ticks(cand: Candidate, iterations: int = 6, fold_iterations: int = 4, phase_sweeps: int = 2,
-              valley_rounds: int = 3) -> int:
+def max_ticks(cand: Candidate, iterations: int = ITERATIONS, fold_iterations: int = FOLD_ITERATIONS,
+              phase_sweeps: int = PHASE_SWEEPS, valley_rounds: int = VALLEY_ROUNDS) -> int:
     """Most progress ticks :func:`fit_candidate` (same keyword values) makes for ``cand``: one per batch
     round (design, LM iteration, phase sweep, valley search)."""
     if cand.stochastic:
@@ -261,9 +270,9 @@ def max_ticks(cand: Candidate, iterations: int = 6, fold_iterations: int = 4, ph
 
 
 def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray,
-                  rng: np.random.Generator, iterations: int = 6, fold_iterations: int = 4, starts: int = 2,
-                  phase_grid: int = 32, phase_sweeps: int = 2, phase_starts: int = 2, phase_restarts: int = 16,
-                  valley_rounds: int = 3,
+                  rng: np.random.Generator, iterations: int = ITERATIONS, fold_iterations: int = FOLD_ITERATIONS,
+                  starts: int = 2, phase_grid: int = 32, phase_sweeps: int = PHASE_SWEEPS, phase_starts: int = 2,
+                  phase_restarts: int = 16, valley_rounds: int = VALLEY_ROUNDS,
                   tick: Callable[[], None] | None = None) -> FitResult:
     """Fit ``cand`` on all runs and on every fold's training runs (see the module docstring).
 
@@ -472,6 +481,24 @@ def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.nda
                      n_params_eff=cand.n_params + PARAMS_PER_EVENT * efit.n_events(), event_fit=efit)
 
 
+def _jacobians(states: list[dict], evaluate, train, p: int, h: float) -> tuple[list, np.ndarray, list[np.ndarray]]:
+    """Forward-difference Jacobians of every search in ``states`` in one batch: per search the p
+    points u ± h·e_j (stepping down where u + h would leave the cube), their (p·S, R) SSE, and the
+    Jacobian of the stacked training-run residuals (``_stack``) with respect to u."""
+    fd, signs = [], []
+    for st in states:
+        sgn = np.where(st["u"] + h <= 1.0, 1.0, -1.0)
+        fd.append(st["u"] + np.diag(sgn * h))
+        signs.append(sgn)
+    fd_sse, fd_res = evaluate(np.concatenate(fd))
+    jacs = []
+    for si, st in enumerate(states):
+        mask = train[st["t"]]
+        r0 = _stack(st["res"], mask)
+        jacs.append(np.column_stack([(_stack(fd_res[si * p + j], mask) - r0) / (signs[si][j] * h) for j in range(p)]))
+    return fd, fd_sse, jacs
+
+
 def _levenberg_marquardt(states: list[dict], iterations: int, evaluate, train, pools_u, pools_sse, cand, h,
                          tick) -> None:
     """Batched LM steps for every search in ``states`` (dicts t, u, res, cost, lam; updated in place).
@@ -490,17 +517,10 @@ def _levenberg_marquardt(states: list[dict], iterations: int, evaluate, train, p
         live = [st for st in states if not st["done"]]
         if not live:
             break
-        fd, signs = [], []
-        for st in live:
-            sgn = np.where(st["u"] + h <= 1.0, 1.0, -1.0)
-            fd.append(st["u"] + np.diag(sgn * h))
-            signs.append(sgn)
-        fd_sse, fd_res = evaluate(np.concatenate(fd))
+        fd, fd_sse, jacs = _jacobians(live, evaluate, train, p, h)
         trials = []
-        for si, st in enumerate(live):
-            mask = train[st["t"]]
-            r0 = _stack(st["res"], mask)
-            J = np.column_stack([(_stack(fd_res[si * p + j], mask) - r0) / (signs[si][j] * h) for j in range(p)])
+        for st, J in zip(live, jacs, strict=True):
+            r0 = _stack(st["res"], train[st["t"]])
             # r = measured − simulated(u); the Gauss–Newton step solves (JᵀJ + λ·diag JᵀJ) δ = −Jᵀr.
             A = J.T @ J
             g = J.T @ r0
@@ -539,14 +559,9 @@ def _valley_search(states: list[dict], evaluate, train, pools_u, pools_sse, cand
     of the Gauss–Newton Hessian JᵀJ (forward differences), at :data:`VALLEY_STEPS` both ways, in one
     batch; a search moves to the best point if it lowers its training error. True if any moved."""
     p = cand.n_params
-    fd = [_to_cube(cand, st["u"] + np.diag(np.where(st["u"] + h <= 1.0, h, -h))) for st in states]
-    fd_sse, fd_res = evaluate(np.concatenate(fd))
+    fd, fd_sse, jacs = _jacobians(states, evaluate, train, p, h)
     lines = []
-    for si, st in enumerate(states):
-        mask = train[st["t"]]
-        r0 = _stack(st["res"], mask)
-        J = np.column_stack([(_stack(fd_res[si * p + j], mask) - r0) / (fd[si][j, j] - st["u"][j])
-                             for j in range(p)])
+    for st, J in zip(states, jacs, strict=True):
         v = np.linalg.eigh(J.T @ J)[1][:, 0]  # eigenvalues ascending: the flattest direction
         steps = np.concatenate([VALLEY_STEPS, -VALLEY_STEPS])
         lines.append(np.array([_to_cube(cand, st["u"] + s * v) for s in steps]))

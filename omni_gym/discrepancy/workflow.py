@@ -17,6 +17,7 @@ from omni_gym.discrepancy.explain import (
     count_components,
     decide,
     fit_candidate,
+    geo_mse,
     make_folds,
     max_ticks,
     param_intervals,
@@ -90,7 +91,7 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
         result.setdefault("uncertainty", {})["noise"] = (
             "tracker noise cannot be estimated (too few consecutive observed rows): gap values include noise, "
             "and a gap left by an effect cannot be told from noise")
-    m0, m1 = _geo_mse(sse0, n_comp), _geo_mse(after_sse, n_comp)
+    m0, m1 = geo_mse(sse0, n_comp), geo_mse(after_sse, n_comp)
     before = math.sqrt(max(m0 - noise_var, 0.0))
     after = math.sqrt(max(m1 - noise_var, 0.0))
     result["model"] = model.to_json()
@@ -120,12 +121,6 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
 
         write_report(Path(out), result, ds, nominal, model, lever, dt, plots=plots)
     return result
-
-
-def _geo_mse(sse: np.ndarray, n_comp: np.ndarray) -> float:
-    """Row-weighted geometric mean of the per-run mean squared residual [m²] (the decision's metric)."""
-    n = np.maximum(n_comp, 1)
-    return float(math.exp(np.sum(n * np.log(np.maximum(sse, 1e-30) / n)) / n.sum()))
 
 
 def _rms(sse: float, n: int) -> float | None:
