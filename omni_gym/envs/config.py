@@ -1,14 +1,27 @@
-"""Keyword arguments of the environments: defaults, validation and domain randomisation.
+"""Keyword arguments of the environments: defaults, validation, bounds and domain randomisation.
 
 Every physical option of the environments is a keyword argument to ``gym.make`` (see the table in
-``docs/environments.md``). :func:`make_config` checks each one and raises a one-line ValueError that
-names the argument and its allowed values.
+``docs/environments.md``; the bounds and their reasons are in ``docs/bounds.md``). :func:`make_config`
+checks each one and raises a one-line ValueError that names the argument and its allowed values.
+numpy scalars (``np.float32(0.6)``, ``np.int64(100)``, ``np.bool_(True)``) are accepted and stored as
+Python numbers; strings, complex numbers and booleans are never taken for numbers.
+
+``model=`` takes a calibrated model (a model JSON file path, or the dict ``omni-gym model show --json``
+prints, effects included). It then defines the robot, surface, friction model and effects, and the
+``robot``, ``surface`` and ``friction`` keywords are ignored (the registered ids always pass them, so
+an explicit value cannot be told from the id's default). A ``wheel_liftoff`` effect sets the rates of
+the contact process in place of ``lift_rate``/``recover_rate``. Domain randomisation applies on top.
 """
 
 from __future__ import annotations
 
+import json
 import math
+import numbers
+import os
+import re
 from dataclasses import dataclass, fields, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -23,15 +36,66 @@ REF_HEADINGS = ("forward", "tangent", "random")
 OBS_MODES = ("state", "sensors")
 ACTION_MODES = ("wheels", "twist")
 RENDER_MODES = (None, "rgb_array", "human")
+RESET_OPTIONS: tuple[str, ...] = ()  # reset(options=...) keys the environments understand (none yet)
+
+MAX_EPISODE_STEPS = 1_000_000  # reference tables: 48 bytes per step and robot (48 MB at the bound)
+MAX_OBSTACLES = 1000  # each is a pymunk shape in every robot's arena
+MIN_RATE = 1e-6  # 1/s: a mean holding time of 11.6 days, > 250 of the longest episodes (1 h)
+MAX_RATE = 1000.0  # 1/s: a mean holding time of 1 ms, two default physics substeps
+WHEEL_COUNT = (3, 16)  # a planar omni robot needs 3 wheels; more than 16 is not a wheel layout of this kind
+MIN_OBSTACLE_RADIUS = 0.001  # m
+WALL_RADIUS = 0.01  # m, thickness of the wall segments (omni_gym.world)
+
+
+@dataclass(frozen=True)
+class Bound:
+    """Allowed interval of one numeric keyword: lo <= v <= hi (lo < v when ``lo_open``); ``zero`` also allowed."""
+
+    lo: float
+    hi: float
+    unit: str
+    lo_open: bool = False
+    zero: bool = False
+
+    def contains(self, v: float) -> bool:
+        above = v > self.lo if self.lo_open else v >= self.lo
+        return (above and v <= self.hi) or (self.zero and v == 0.0)
+
+    def describe(self) -> str:
+        left = "(" if self.lo_open else "["
+        text = f"in {left}{self.lo:g}, {self.hi:g}]"
+        text = f"0 or {text}" if self.zero else text
+        return f"{text} {self.unit}".rstrip()
+
+
+# Reasons: docs/bounds.md, "Environment keywords".
+BOUNDS: dict[str, Bound] = {
+    "control_hz": Bound(1.0, 10000.0, "Hz"),
+    "physics_dt": Bound(1e-5, 0.002, "s"),
+    "episode_seconds": Bound(0.0, 3600.0, "s", lo_open=True),
+    "lift_rate": Bound(MIN_RATE, MAX_RATE, "1/s", zero=True),
+    "recover_rate": Bound(MIN_RATE, MAX_RATE, "1/s"),
+    "sensor_noise": Bound(0.0, 100.0, ""),
+    "arena_half_size": Bound(0.1, 1000.0, "m"),
+    "ref_speed": Bound(0.001, 10.0, "m/s"),
+    "max_speed": Bound(0.001, 10.0, "m/s"),
+    "max_yaw_rate": Bound(0.001, 100.0, "rad/s"),
+    "lost_distance": Bound(0.001, 10000.0, "m"),
+    "success_distance": Bound(0.0, 10000.0, "m", lo_open=True),
+    "success_heading": Bound(0.0, math.pi, "rad", lo_open=True),
+}
+RANDOM_BOUNDS = {"randomize_friction": (0.0, 10.0), "randomize_mass": (0.05, 20.0),
+                 "randomize_lift_rate": (0.0, MAX_RATE)}
 
 
 @dataclass(frozen=True)
 class EnvConfig:
     """All options of a path-following or go-to-pose environment (SI units)."""
 
-    robot: str = "williams2002"
-    surface: str = "carpet"
-    friction: str = "roller_gap"
+    robot: str = "williams2002"  # ignored when ``model`` is given
+    surface: str = "carpet"  # ignored when ``model`` is given
+    friction: str = "roller_gap"  # ignored when ``model`` is given
+    model: SimModel | None = None  # a calibrated model: robot, surface, friction and effects
     task: str = "path"
     trajectory: str = "waypoints"
     ref_heading: str = "forward"  # reference heading along the path: forward (+y along it), tangent, random
@@ -71,7 +135,18 @@ class EnvConfig:
         return int(round(self.episode_seconds * self.control_hz))
 
     def base_model(self) -> SimModel:
+        """The nominal simulation model: ``model`` if given, else the robot/surface/friction presets."""
+        if self.model is not None:
+            return self.model
         return SimModel(robot=robot_preset(self.robot), surface=SURFACES[self.surface], friction=self.friction)
+
+    def contact_rates(self) -> tuple[float, float]:
+        """(lift_rate, recover_rate) [1/s] of the contact process: the model's ``wheel_liftoff`` effect
+        if it has one, else the keywords."""
+        if self.model is not None and "wheel_liftoff" in self.model.effects:
+            p = self.model.effects["wheel_liftoff"]
+            return float(p["lift_rate"]), float(p["recover_rate"])
+        return self.lift_rate, self.recover_rate
 
     def sensor_config(self) -> SensorConfig:
         base = SensorConfig()
@@ -79,84 +154,245 @@ class EnvConfig:
         return replace(base, **scaled)
 
 
-def _choice(name: str, value, allowed) -> None:
+# --- value checks (each returns the value as a plain Python object or raises ValueError) ---------
+
+
+def is_number(value) -> bool:
+    """A real number (Python or numpy), not a bool, a string or a complex."""
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+def _number(name: str, value, bound: Bound | None = None) -> float:
+    if not is_number(value):
+        raise ValueError(f"invalid {name}={value!r}; must be a number" + (f" {bound.describe()}" if bound else ""))
+    v = float(value)
+    if not math.isfinite(v) or (bound is not None and not bound.contains(v)):
+        raise ValueError(f"invalid {name}={value!r}; must be a finite number" + (f" {bound.describe()}" if bound
+                                                                                 else ""))
+    return v
+
+
+def _choice(name: str, value, allowed) -> str | None:
+    if value is not None and not isinstance(value, str):
+        raise ValueError(f"invalid {name}={value!r}; allowed values: {', '.join(map(repr, allowed))}")
     if value not in allowed:
         raise ValueError(f"invalid {name}={value!r}; allowed values: {', '.join(map(repr, allowed))}")
+    return None if value is None else str(value)
 
 
-def _positive(name: str, value, allow_zero: bool = False) -> float:
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-    if not ok or value < 0 or (value == 0 and not allow_zero):
-        need = ">= 0" if allow_zero else "> 0"
-        raise ValueError(f"invalid {name}={value!r}; must be a finite number {need}")
-    return float(value)
+def _robot(value) -> str:
+    allowed = f"{', '.join(map(repr, PRESETS))}, 'regularN' ({WHEEL_COUNT[0]} <= N <= {WHEEL_COUNT[1]})"
+    if isinstance(value, str):
+        match = re.fullmatch(r"regular([0-9]{1,3})", value)
+        if value in PRESETS or (match and WHEEL_COUNT[0] <= int(match.group(1)) <= WHEEL_COUNT[1]):
+            return str(value)
+    raise ValueError(f"invalid robot={value!r}; allowed values: {allowed}")
+
+
+def _flag(name: str, value) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"invalid {name}={value!r}; allowed values: True, False")
+    return bool(value)
+
+
+def _sequence(value) -> list | None:
+    """The items of a list, tuple or numpy array; None for anything else (strings included)."""
+    if isinstance(value, np.ndarray):
+        return list(value) if value.ndim >= 1 else None
+    if isinstance(value, (list, tuple)):
+        return list(value)
+    return None
 
 
 def _range(name: str, value, lower: float, upper: float) -> tuple[float, float] | None:
     if value is None:
         return None
-    try:
-        lo, hi = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"invalid {name}={value!r}; must be None or a (low, high) pair") from None
+    items = _sequence(value)
+    if items is None or len(items) != 2 or not all(is_number(v) for v in items):
+        raise ValueError(f"invalid {name}={value!r}; must be None or a (low, high) pair of numbers")
+    lo, hi = float(items[0]), float(items[1])
     if not (math.isfinite(lo) and math.isfinite(hi) and lower <= lo <= hi <= upper):
-        raise ValueError(f"invalid {name}={value!r}; need {lower} <= low <= high <= {upper}")
+        raise ValueError(f"invalid {name}={value!r}; need {lower:g} <= low <= high <= {upper:g}")
     return (lo, hi)
 
 
+def _obstacles(value, half_size: float) -> tuple[tuple[float, float, float], ...]:
+    """Disc obstacles (x, y, radius) [m], arena frame; each must lie inside the arena."""
+    example = "e.g. obstacles=((0.8, 0.0, 0.1),)"
+    items = _sequence(value)
+    if items is None:
+        raise ValueError(f"invalid obstacles={value!r}; must be a sequence of (x, y, radius) triples in metres, "
+                         f"{example}")
+    if len(items) > MAX_OBSTACLES:
+        raise ValueError(f"invalid obstacles: {len(items)} obstacles; at most {MAX_OBSTACLES}")
+    out = []
+    for i, o in enumerate(items):
+        entry = _sequence(o)
+        if entry is None or len(entry) != 3 or not all(is_number(v) for v in entry):
+            raise ValueError(f"invalid obstacles[{i}]={o!r}; each obstacle is an (x, y, radius) triple of numbers "
+                             f"in metres, {example}")
+        x, y, r = (float(v) for v in entry)
+        if not all(math.isfinite(v) for v in (x, y, r)) or r < MIN_OBSTACLE_RADIUS:
+            raise ValueError(f"invalid obstacles[{i}]={o!r}; x, y must be finite and the radius >= "
+                             f"{MIN_OBSTACLE_RADIUS} m")
+        if max(abs(x), abs(y)) + r > half_size:
+            raise ValueError(f"invalid obstacles[{i}]={o!r}; the disc must lie inside the arena "
+                             f"(|x|, |y| <= arena_half_size - radius, arena_half_size={half_size:g} m)")
+        out.append((x, y, r))
+    return tuple(out)
+
+
+def _read_model_file(value) -> SimModel:
+    """A model JSON file (UTF-8, a byte-order mark allowed) → SimModel; errors name the file."""
+    path = Path(os.fsdecode(value))
+    label = f"model={str(path)!r}"
+    try:
+        text = path.read_bytes().decode("utf-8-sig")
+    except FileNotFoundError:
+        raise ValueError(f"invalid {label}: file not found") from None
+    except IsADirectoryError:
+        raise ValueError(f"invalid {label}: is a directory, not a model JSON file") from None
+    except OSError as exc:
+        raise ValueError(f"invalid {label}: cannot read the file ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"invalid {label}: not a UTF-8 text file (a model JSON file is expected)") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"invalid {label}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    except RecursionError:
+        raise ValueError(f"invalid {label}: JSON nested too deeply") from None
+    return _model_from_json(data, label)
+
+
+def _model_from_json(data, label: str) -> SimModel:
+    try:
+        return SimModel.from_json(data, where=f"invalid {label}")
+    except (TypeError, KeyError, AttributeError) as exc:  # defensive: a malformed value deep inside
+        raise ValueError(f"invalid {label}: {exc}") from None
+
+
+def _model(value) -> SimModel | None:
+    """``model=``: None, a model JSON path (str or os.PathLike), its dict form, or a SimModel."""
+    if value is None:
+        return None
+    if isinstance(value, SimModel):
+        model = value
+        _model_from_json(model.to_json(), "model")  # same checks as the JSON form
+    elif isinstance(value, dict):
+        model = _model_from_json(value, "model (dict)")
+    elif isinstance(value, (str, os.PathLike)):
+        model = _read_model_file(value)
+    else:
+        raise ValueError(f"invalid model={value!r}; must be a model JSON file path or a dict as "
+                         "'omni-gym model show --json' prints it")
+    n = model.n_wheels
+    if not WHEEL_COUNT[0] <= n <= WHEEL_COUNT[1]:
+        raise ValueError(f"invalid model: {n} wheels; the environments need {WHEEL_COUNT[0]} to {WHEEL_COUNT[1]}")
+    lift = model.effects.get("wheel_liftoff")
+    if lift is not None:
+        # recover_rate only matters once a wheel can lift.
+        for key in ("lift_rate", "recover_rate") if float(lift["lift_rate"]) > 0 else ("lift_rate",):
+            bound = BOUNDS[key]
+            if not bound.contains(float(lift[key])):
+                raise ValueError(f"invalid model: effect 'wheel_liftoff' {key}={lift[key]!r}; the environments "
+                                 f"need it {bound.describe()}")
+    return model
+
+
+# --- the whole configuration -----------------------------------------------------------------------
+
+
 def make_config(**kwargs) -> EnvConfig:
-    """Validated :class:`EnvConfig` from ``gym.make`` keyword arguments."""
+    """Validated :class:`EnvConfig` from ``gym.make`` keyword arguments (ValueError naming the keyword)."""
     known = {f.name for f in fields(EnvConfig)}
     for key in kwargs:
         if key not in known:
             raise ValueError(f"unknown keyword argument {key!r}; allowed: {', '.join(sorted(known))}")
-    cfg = EnvConfig(**kwargs)
-    if cfg.robot not in PRESETS and not (cfg.robot.startswith("regular") and cfg.robot[7:].isdigit()
-                                         and int(cfg.robot[7:]) >= 3):
-        raise ValueError(f"invalid robot={cfg.robot!r}; allowed values: {', '.join(map(repr, PRESETS))}, 'regularN'")
-    _choice("surface", cfg.surface, tuple(SURFACES))
-    _choice("friction", cfg.friction, FRICTION_MODELS)
-    _choice("task", cfg.task, TASKS)
-    _choice("trajectory", cfg.trajectory, TRAJECTORIES)
-    _choice("ref_heading", cfg.ref_heading, REF_HEADINGS)
-    _choice("obs_mode", cfg.obs_mode, OBS_MODES)
-    _choice("action_mode", cfg.action_mode, ACTION_MODES)
-    _choice("actuation", cfg.actuation, ACTUATIONS)
-    _choice("render_mode", cfg.render_mode, RENDER_MODES)
+    d = EnvConfig()
+    get = kwargs.get
+    values = {
+        "robot": _robot(get("robot", d.robot)),
+        "surface": _choice("surface", get("surface", d.surface), tuple(SURFACES)),
+        "friction": _choice("friction", get("friction", d.friction), FRICTION_MODELS),
+        "model": _model(get("model")),
+        "task": _choice("task", get("task", d.task), TASKS),
+        "trajectory": _choice("trajectory", get("trajectory", d.trajectory), TRAJECTORIES),
+        "ref_heading": _choice("ref_heading", get("ref_heading", d.ref_heading), REF_HEADINGS),
+        "obs_mode": _choice("obs_mode", get("obs_mode", d.obs_mode), OBS_MODES),
+        "action_mode": _choice("action_mode", get("action_mode", d.action_mode), ACTION_MODES),
+        "actuation": _choice("actuation", get("actuation", d.actuation), ACTUATIONS),
+        "render_mode": _choice("render_mode", get("render_mode", d.render_mode), RENDER_MODES),
+        "walls": _flag("walls", get("walls", d.walls)),
+    }
+    for name, bound in BOUNDS.items():
+        values[name] = _number(name, get(name, getattr(d, name)), bound)
+    for name, (lower, upper) in RANDOM_BOUNDS.items():
+        values[name] = _range(name, get(name), lower, upper)
+    values["obstacles"] = _obstacles(get("obstacles", d.obstacles), values["arena_half_size"])
+    cfg = EnvConfig(**values)
+    _check_combination(cfg)
+    return cfg
+
+
+def _check_combination(cfg: EnvConfig) -> None:
+    """Checks across keywords: task/trajectory, control period vs physics step, episode length, start pose."""
     if (cfg.task == "goto") != (cfg.trajectory == "goto"):
         raise ValueError(f"invalid trajectory={cfg.trajectory!r} for task={cfg.task!r}; task 'goto' uses "
                          "trajectory 'goto' and task 'path' one of 'waypoints', 'circle', 'figure_eight', 'line'")
-    for name in ("control_hz", "physics_dt", "episode_seconds", "recover_rate", "arena_half_size", "ref_speed",
-                 "max_speed", "max_yaw_rate", "lost_distance", "success_distance", "success_heading"):
-        _positive(name, getattr(cfg, name))
-    for name in ("lift_rate", "sensor_noise"):
-        _positive(name, getattr(cfg, name), allow_zero=True)
     ratio = (1.0 / cfg.control_hz) / cfg.physics_dt
     if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
         raise ValueError(f"invalid physics_dt={cfg.physics_dt!r}; the control period 1/control_hz "
                          f"({1.0 / cfg.control_hz:g} s) must be a whole number of physics steps")
-    if cfg.physics_dt > 0.002:
-        raise ValueError(f"invalid physics_dt={cfg.physics_dt!r}; must be <= 0.002 s for accuracy (default 0.0005)")
-    if not isinstance(cfg.walls, bool):
-        raise ValueError(f"invalid walls={cfg.walls!r}; allowed values: True, False")
-    obstacles = tuple(tuple(float(v) for v in o) for o in cfg.obstacles)
-    for o in obstacles:
-        if len(o) != 3 or not all(math.isfinite(v) for v in o) or o[2] <= 0:
-            raise ValueError(f"invalid obstacles entry {o!r}; each obstacle is (x, y, radius > 0) in metres")
-    return replace(
-        cfg,
-        obstacles=obstacles,
-        randomize_friction=_range("randomize_friction", cfg.randomize_friction, 0.0, 10.0),
-        randomize_mass=_range("randomize_mass", cfg.randomize_mass, 0.05, 20.0),
-        randomize_lift_rate=_range("randomize_lift_rate", cfg.randomize_lift_rate, 0.0, 1000.0),
-    )
+    steps = cfg.episode_steps
+    if not 1 <= steps <= MAX_EPISODE_STEPS:
+        raise ValueError(f"invalid episode_seconds={cfg.episode_seconds!r} at control_hz={cfg.control_hz:g}: "
+                         f"{steps} control steps; need 1 to {MAX_EPISODE_STEPS}")
+    _check_start_clear(cfg)
+
+
+def _check_start_clear(cfg: EnvConfig) -> None:
+    """Every reference starts at the arena centre: refuse a configuration whose robot starts in contact.
+
+    A robot placed on an obstacle or across a wall would end every episode on its first step.
+    """
+    radius = cfg.base_model().robot.body_radius
+    for i, (x, y, r) in enumerate(cfg.obstacles):
+        if math.hypot(x, y) <= r + radius:
+            raise ValueError(f"invalid obstacles[{i}]=({x:g}, {y:g}, {r:g}): it overlaps the robot at its start pose "
+                             f"(every episode starts at the arena centre (0, 0); robot body radius {radius:g} m)")
+    if cfg.walls and cfg.arena_half_size <= radius + WALL_RADIUS:
+        raise ValueError(f"invalid arena_half_size={cfg.arena_half_size:g} with walls=True: the robot (body radius "
+                         f"{radius:g} m) would touch the walls at its start pose, the arena centre")
+
+
+def check_seed(seed, name: str = "seed") -> int | None:
+    """A reset seed: None or a non-negative integer (numpy integers accepted), as a Python int."""
+    if seed is None:
+        return None
+    if isinstance(seed, numbers.Integral) and not isinstance(seed, (bool, np.bool_)) and seed >= 0:
+        return int(seed)
+    raise ValueError(f"invalid {name}={seed!r}; must be None or a non-negative integer")
+
+
+def check_reset_options(options) -> None:
+    """``reset(options=...)``: None or a dict of supported keys (none are defined: refuse any key)."""
+    if options is None:
+        return
+    if not isinstance(options, dict):
+        raise ValueError(f"invalid reset options={options!r}; must be None or a dict")
+    unknown = sorted(map(repr, options))
+    if unknown:
+        supported = ", ".join(RESET_OPTIONS) or "none (the episode is set by the seed and the keywords)"
+        raise ValueError(f"unsupported reset option(s) {', '.join(unknown)}; supported: {supported}")
 
 
 def randomized_model(cfg: EnvConfig, base: SimModel, rng: np.random.Generator) -> tuple[SimModel, float]:
     """(model, lift_rate) for one episode, drawing every randomised factor from ``rng``.
 
     Draws are made in a fixed order (friction, mass, lift rate) and only for the ranges that are set,
-    so the same seed gives the same episode.
+    so the same seed gives the same episode. The friction scale multiplies every coefficient of the
+    surface and, if the model has one, the ``roller_gap`` effect's fitted gap coefficient.
     """
     model = base
     if cfg.randomize_friction is not None:
@@ -164,11 +400,16 @@ def randomized_model(cfg: EnvConfig, base: SimModel, rng: np.random.Generator) -
         surf = base.surface
         model = replace(model, surface=Surface(surf.name, surf.mu_drive * s, surf.mu_transverse * s,
                                                surf.mu_gap * s, surf.k))
+        if "roller_gap" in model.effects:
+            gap = model.effects["roller_gap"]
+            model = model.with_effect("roller_gap", {**gap, "mu_gap": gap["mu_gap"] * s})
     if cfg.randomize_mass is not None:
         s = float(rng.uniform(*cfg.randomize_mass))
         model = replace(model, robot=model.robot.with_changes(mass=base.robot.mass * s,
                                                               inertia=base.robot.inertia * s))
-    lift = cfg.lift_rate
+    lift = cfg.contact_rates()[0]
     if cfg.randomize_lift_rate is not None:
         lift = float(rng.uniform(*cfg.randomize_lift_rate))
+        if lift < MIN_RATE:  # a holding time beyond any episode: no lift-off (and no huge switch times)
+            lift = 0.0
     return model, lift

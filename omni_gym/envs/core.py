@@ -140,6 +140,23 @@ def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action
                 o[j] = -OBS_CLIP
 
 
+def as_actions(actions, shape: tuple[int, ...]) -> np.ndarray:
+    """``actions`` as a float64 array of exactly ``shape``; ValueError for other shapes or non-real values.
+
+    Complex, boolean, string and object values are refused rather than converted (a complex action
+    would lose its imaginary part); so is a batch-shaped action given to a single environment.
+    """
+    try:
+        arr = np.asarray(actions)
+    except (TypeError, ValueError):
+        raise ValueError(f"action must be an array of real numbers of shape {shape}, got {actions!r}") from None
+    if arr.dtype.kind not in "fiu":
+        raise ValueError(f"action must hold real numbers (int or float), got dtype {arr.dtype}: {actions!r}")
+    if arr.shape != shape:
+        raise ValueError(f"action must have shape {shape}, got shape {arr.shape}")
+    return arr.astype(np.float64)
+
+
 class TaskCore:
     """B robots following their references; see the module docstring."""
 
@@ -197,7 +214,8 @@ class TaskCore:
         self.ref_vel[j] = vel
         contact_seed, sensor_seed = rng.integers(0, 2**63 - 1, size=2)
         if lift_rate > 0:
-            proc = ContactProcess(self.n_wheels, lift_rate, cfg.recover_rate, np.random.default_rng(contact_seed))
+            recover_rate = cfg.contact_rates()[1]  # the model's wheel_liftoff effect, if any, else the keyword
+            proc = ContactProcess(self.n_wheels, lift_rate, recover_rate, np.random.default_rng(contact_seed))
             self.world.set_contact_process(j, proc)
         elif self.world.contact_processes[j] is not None:
             self.world.set_contact_process(j, None)

@@ -8,16 +8,23 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from omni_gym.envs.config import make_config
-from omni_gym.envs.core import OBS_CLIP, TaskCore
+from omni_gym.envs.config import check_reset_options, check_seed, make_config
+from omni_gym.envs.core import OBS_CLIP, TaskCore, as_actions
 
 
 class OmniPathEnv(gym.Env):
     """An omnidirectional robot that slips (and may lose wheel contact) follows a reference.
 
-    Keyword arguments: see :class:`omni_gym.envs.config.EnvConfig` and ``docs/environments.md``.
-    Actions outside [−1, 1] are clipped; an action with NaN or infinity raises ValueError and leaves
-    the state untouched.
+    Keyword arguments: see :class:`omni_gym.envs.config.EnvConfig` and ``docs/environments.md``; a bad
+    one raises a one-line ValueError naming it. ``model=`` takes a calibrated model (a model JSON file
+    path or the dict ``omni-gym model show --json`` prints, effects included): it then defines the
+    robot, surface, friction model and effects, ``robot``/``surface``/``friction`` are ignored, and a
+    ``wheel_liftoff`` effect sets the contact process's rates in place of ``lift_rate``/``recover_rate``.
+    The action and observation sizes follow the model's wheel count.
+
+    Actions must have shape ``action_space.shape`` and hold real numbers; values outside [−1, 1] are
+    clipped; an action with NaN or infinity raises ValueError and leaves the state untouched.
+    ``reset`` takes no options (any key is refused with ValueError).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 100}
@@ -33,7 +40,8 @@ class OmniPathEnv(gym.Env):
         self._needs_reset = True
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
-        super().reset(seed=seed)
+        check_reset_options(options)
+        super().reset(seed=check_seed(seed))
         self.core.reset_robot(0, self.np_random)
         self.core.observe()
         self._needs_reset = False
@@ -47,7 +55,7 @@ class OmniPathEnv(gym.Env):
         if self._needs_reset:
             raise RuntimeError("call reset() before step() (and after an episode ends)")
         core = self.core
-        core.advance(action)
+        core.advance(as_actions(action, self.action_space.shape))
         core.observe()
         reward = float(core.rewards()[0])
         terminated = bool(core.terminated()[0])

@@ -9,6 +9,7 @@ environments reset with seeds s, s + 1, …, bit for bit.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -17,8 +18,8 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from omni_gym.envs.config import make_config
-from omni_gym.envs.core import OBS_CLIP, TaskCore
+from omni_gym.envs.config import check_reset_options, check_seed, is_number, make_config
+from omni_gym.envs.core import OBS_CLIP, TaskCore, as_actions
 
 
 class OmniPathVectorEnv(VectorEnv):
@@ -28,13 +29,14 @@ class OmniPathVectorEnv(VectorEnv):
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, render_mode: str | None = None,
                  **kwargs: Any) -> None:
-        if int(num_envs) != num_envs or num_envs < 1:
-            raise ValueError(f"invalid num_envs={num_envs!r}; must be a positive integer")
+        num_envs = _positive_int("num_envs", num_envs)
+        if max_episode_steps is not None:
+            max_episode_steps = _positive_int("max_episode_steps", max_episode_steps)
         if render_mode is not None:
             raise ValueError(f"invalid render_mode={render_mode!r} for the vectorised environment; allowed: None "
                              "(render a single environment instead)")
         self.cfg = make_config(**kwargs)
-        self.num_envs = int(num_envs)
+        self.num_envs = num_envs
         self.core = TaskCore(self.cfg, self.num_envs)
         steps = self.cfg.episode_steps
         self.max_episode_steps = steps if max_episode_steps is None else min(int(max_episode_steps), steps)
@@ -49,12 +51,14 @@ class OmniPathVectorEnv(VectorEnv):
 
     def reset(self, *, seed: int | list[int | None] | None = None,
               options: dict | None = None) -> tuple[np.ndarray, dict]:
-        if seed is None:
-            seeds: list[int | None] = [None] * self.num_envs
-        elif isinstance(seed, int):
-            seeds = [seed + i for i in range(self.num_envs)]
+        check_reset_options(options)
+        if seed is None or is_number(seed):
+            first = check_seed(seed)
+            seeds: list[int | None] = [None if first is None else first + i for i in range(self.num_envs)]
         else:
-            seeds = list(seed)
+            if not isinstance(seed, (list, tuple, np.ndarray)):
+                raise ValueError(f"invalid seed={seed!r}; must be None, a non-negative integer or a list of them")
+            seeds = [check_seed(s, f"seed[{i}]") for i, s in enumerate(seed)]
             if len(seeds) != self.num_envs:
                 raise ValueError(f"reset: got {len(seeds)} seeds for {self.num_envs} environments")
         for i, s in enumerate(seeds):
@@ -70,7 +74,7 @@ class OmniPathVectorEnv(VectorEnv):
         if not self._started:
             raise RuntimeError("call reset() before step()")
         core = self.core
-        core.advance(actions)
+        core.advance(as_actions(actions, self.action_space.shape))
         restart = np.flatnonzero(self._autoreset)
         for i in restart:
             core.reset_robot(i, self._rngs[i])  # replaces whatever the shared step did to it
@@ -90,3 +94,10 @@ class OmniPathVectorEnv(VectorEnv):
         for key in list(infos):
             infos["_" + key] = np.ones(self.num_envs, dtype=bool)
         return infos
+
+
+def _positive_int(name: str, value: Any) -> int:
+    """A count: a positive integer (numpy integers and integral floats accepted), as a Python int."""
+    if is_number(value) and math.isfinite(value) and float(value).is_integer() and value >= 1:
+        return int(value)
+    raise ValueError(f"invalid {name}={value!r}; must be a positive integer")
