@@ -306,6 +306,36 @@ BAD_KWARGS = [
     ({"randomize_friction": (0.5,)}, "randomize_friction=(0.5,)", ["(low, high)"]),
     ({"randomize_lift_rate": (-1.0, 1.0)}, "randomize_lift_rate=(-1.0, 1.0)", ["low <= high"]),
     ({"sufrace": "paper"}, "'sufrace'", ["surface", "obs_mode"]),
+    # issue 13, items 8-11: values that hung, overflowed, gave NaN or raised other exceptions.
+    ({"control_hz": 1e-300}, "control_hz=1e-300", ["[1, 10000] Hz"]),
+    ({"control_hz": 0.001}, "control_hz=0.001", ["[1, 10000] Hz"]),
+    ({"max_speed": 1e308}, "max_speed=1e+308", ["[0.001, 10] m/s"]),
+    ({"max_yaw_rate": 1e308}, "max_yaw_rate=1e+308", ["[0.001, 100] rad/s"]),
+    ({"obstacles": [(1.0, 1.0, 1e308)]}, "obstacles[0]", ["inside the arena"]),
+    ({"episode_seconds": 1e308}, "episode_seconds=1e+308", ["(0, 3600] s"]),
+    ({"episode_seconds": 0.001}, "episode_seconds=0.001", ["1 to 1000000"]),
+    ({"arena_half_size": 1e308}, "arena_half_size=1e+308", ["[0.1, 1000] m"]),
+    ({"robot": 5}, "robot=5", ["'williams2002'", "regularN"]),
+    ({"robot": ["williams2002"]}, "robot=['williams2002']", ["'williams2002'"]),
+    ({"robot": "regular100"}, "robot='regular100'", ["3 <= N <= 16"]),
+    ({"obstacles": [1, 2, 3]}, "obstacles[0]=1", ["(x, y, radius)"]),
+    ({"obstacles": (1, 2, 3)}, "obstacles[0]=1", ["(x, y, radius)"]),
+    ({"obstacles": "abc"}, "obstacles='abc'", ["(x, y, radius)"]),
+    ({"obstacles": [("a", 1.0, 0.1)]}, "obstacles[0]=('a', 1.0, 0.1)", ["numbers"]),
+    ({"lift_rate": 1e-30}, "lift_rate=1e-30", ["0 or in [1e-06, 1000] 1/s"]),
+    ({"recover_rate": 1e-30}, "recover_rate=1e-30", ["[1e-06, 1000] 1/s"]),
+    ({"sensor_noise": 1e308}, "sensor_noise=1e+308", ["[0, 100]"]),
+    ({"success_heading": 4.0}, "success_heading=4.0", ["(0, 3.14159] rad"]),
+    # issue 13, item 14: no silent conversion of strings, complex numbers or booleans into numbers.
+    ({"max_speed": "0.5"}, "max_speed='0.5'", ["a number"]),
+    ({"control_hz": "1_000"}, "control_hz='1_000'", ["a number"]),
+    ({"ref_speed": 0.3 + 0j}, "ref_speed=(0.3+0j)", ["a number"]),
+    ({"lost_distance": True}, "lost_distance=True", ["a number"]),
+    ({"randomize_mass": "12"}, "randomize_mass='12'", ["(low, high)"]),
+    ({"walls": 1}, "walls=1", ["True", "False"]),
+    # issue 12, item 7: an obstacle or a wall at the start pose (the arena centre) would end every episode.
+    ({"obstacles": [(0.15, 0.0, 0.1)]}, "obstacles[0]", ["start pose", "body radius 0.1 m"]),
+    ({"walls": True, "arena_half_size": 0.1}, "arena_half_size=0.1", ["walls", "start pose"]),
 ]
 
 
@@ -328,7 +358,82 @@ def test_bad_kwargs_rejected_by_vector_env(kwargs, names):
         gym.make_vec(PHUNOPAS, vectorization_mode="vector_entry_point", **kwargs)
 
 
+def test_numpy_scalars_accepted_as_python_values():
+    numpy_kwargs = {"max_speed": np.float32(0.6), "episode_seconds": np.int64(1), "walls": np.bool_(True),
+                    "obstacles": np.array([[1.0, 0.5, 0.1]]), "randomize_mass": np.array([0.9, 1.1]),
+                    "surface": np.str_("paper")}
+    plain_kwargs = {"max_speed": float(np.float32(0.6)), "episode_seconds": 1, "walls": True,
+                    "obstacles": ((1.0, 0.5, 0.1),), "randomize_mass": (0.9, 1.1), "surface": "paper"}
+    env_np, env_plain = gym.make(WILLIAMS, **numpy_kwargs), gym.make(WILLIAMS, **plain_kwargs)
+    assert env_np.unwrapped.cfg == env_plain.unwrapped.cfg
+    # Stored as Python types: the config pickles and prints as plain numbers.
+    cfg = env_np.unwrapped.cfg
+    assert type(cfg.max_speed) is float and type(cfg.walls) is bool and type(cfg.obstacles[0][0]) is float
+    actions = random_actions(env_np, 20, seed=3)
+    assert_rollouts_equal(rollout(env_np, actions, seed=np.int64(4)), rollout(env_plain, actions, seed=4), "numpy")
+    venv = gym.make_vec(WILLIAMS, num_envs=np.int64(2), vectorization_mode="vector_entry_point", **numpy_kwargs)
+    assert np.array_equal(venv.reset(seed=np.int64(3))[0], venv.reset(seed=3)[0])
+    assert np.array_equal(venv.reset(seed=[np.int64(3), np.int64(4)])[0], venv.reset(seed=3)[0])
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, "3", True, [1, 2]])
+def test_bad_reset_seed_rejected(seed):
+    env = gym.make(WILLIAMS)
+    with pytest.raises(ValueError, match=re.escape("seed")):
+        env.reset(seed=seed)
+    venv = gym.make_vec(WILLIAMS, num_envs=2, vectorization_mode="vector_entry_point")
+    if not isinstance(seed, list):
+        with pytest.raises(ValueError, match=re.escape("seed")):
+            venv.reset(seed=seed)
+    with pytest.raises(ValueError, match=re.escape("seed")):
+        venv.reset(seed=[0, -1])
+
+
+def test_reset_options_refused_not_ignored():
+    env = gym.make(WILLIAMS)
+    venv = gym.make_vec(WILLIAMS, num_envs=2, vectorization_mode="vector_entry_point")
+    for reset in (env.reset, venv.reset):
+        with pytest.raises(ValueError, match=r"unsupported reset option\(s\) 'start_pose'; supported: none"):
+            reset(seed=0, options={"start_pose": (1.0, 0.0, 0.0)})
+        with pytest.raises(ValueError, match="must be None or a dict"):
+            reset(seed=0, options=[1])
+    # None and an empty dict are the same as no options.
+    assert np.array_equal(env.reset(seed=0, options={})[0], env.reset(seed=0)[0])
+    assert np.array_equal(venv.reset(seed=0, options=None)[0], venv.reset(seed=0)[0])
+
+
+def test_obstacle_just_clear_of_the_start_pose_is_accepted():
+    # Williams body radius 0.1 m: a disc of 0.1 m at 0.21 m leaves 1 cm; standing still, nothing collides.
+    env = gym.make(WILLIAMS, obstacles=[(0.21, 0.0, 0.1)])
+    env.reset(seed=0)
+    _, _, terminated, _, info = env.step(np.zeros(3, dtype=np.float32))
+    assert not terminated and not info["collided"]
+
+
 # --- 7. invalid and out-of-range actions -------------------------------------------------------
+
+
+def test_non_real_and_misshapen_actions_rejected_state_untouched():
+    env, ref = gym.make(PHUNOPAS, obs_mode="sensors"), gym.make(PHUNOPAS, obs_mode="sensors")
+    actions = random_actions(env, 6, seed=1)
+    env.reset(seed=5)
+    ref.reset(seed=5)
+    good = actions[0]
+    bad = [(good.astype(complex) + 1j, "real numbers"), (good[None, :], "shape (3,)"), (good[:2], "shape (3,)"),
+           (np.array(["a", "b", "c"]), "real numbers"), ([True, False, True], "real numbers"),
+           ([[1.0], [1.0, 2.0]], "shape (3,)"), (None, "real numbers")]
+    for action, message in bad:
+        with pytest.raises(ValueError, match=re.escape(message)):
+            env.step(action)
+    for k, a in enumerate(actions):  # a list of Python floats is a valid action too
+        assert_record_equal(env.step(a.tolist()), ref.step(a), f"step {k} after the refused actions")
+    venv = gym.make_vec(PHUNOPAS, num_envs=2, vectorization_mode="vector_entry_point")
+    venv.reset(seed=0)
+    for action in (good, np.stack([good, good]).astype(complex), np.zeros((2, 4))):
+        with pytest.raises(ValueError, match="action"):
+            venv.step(action)
+    venv.step(np.stack([good, good]))
+
 
 
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
