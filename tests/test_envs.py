@@ -318,6 +318,7 @@ BAD_KWARGS = [
     ({"robot": 5}, "robot=5", ["'williams2002'", "regularN"]),
     ({"robot": ["williams2002"]}, "robot=['williams2002']", ["'williams2002'"]),
     ({"robot": "regular100"}, "robot='regular100'", ["3 <= N <= 16"]),
+    ({"robot": "reports/demo/model.json"}, "robot='reports/demo/model.json'", ["model="]),
     ({"obstacles": [1, 2, 3]}, "obstacles[0]=1", ["(x, y, radius)"]),
     ({"obstacles": (1, 2, 3)}, "obstacles[0]=1", ["(x, y, radius)"]),
     ({"obstacles": "abc"}, "obstacles='abc'", ["(x, y, radius)"]),

@@ -6,6 +6,9 @@
   random-waypoint paths, 20 s.
 * ``OmniGoToPose-v0``: phunopas2018, reach a random pose along a quintic while wheels slip and lift off
   (Phunopas & Inoue 2018), 8 s.
+
+Every id takes ``model=`` (a model JSON file path or dict, as ``omni-gym model show --json`` prints it):
+the model then replaces the id's robot, surface and friction (``docs/environments.md``).
 """
 
 from __future__ import annotations

@@ -186,6 +186,8 @@ def _robot(value) -> str:
         match = re.fullmatch(r"regular([0-9]{1,3})", value)
         if value in PRESETS or (match and WHEEL_COUNT[0] <= int(match.group(1)) <= WHEEL_COUNT[1]):
             return str(value)
+        if value.endswith(".json") or os.sep in value:
+            allowed += "; a model JSON file goes in model=, e.g. gym.make(ID, model='model.json')"
     raise ValueError(f"invalid robot={value!r}; allowed values: {allowed}")
 
 

@@ -5,6 +5,9 @@ Gymnasium 1.x's default autoreset mode (``NEXT_STEP``): the step after an episod
 sub-environment, ignores its action and returns its first observation with reward 0 and both flags
 False. ``reset(seed=s)`` seeds sub-environment i with s + i, so the vector reproduces N single
 environments reset with seeds s, s + 1, …, bit for bit.
+
+Keywords are those of the single environment (``model=`` included: every robot is built from the same
+model). Actions must have shape (num_envs, A) and hold real numbers; ``reset`` takes no options.
 """
 
 from __future__ import annotations
