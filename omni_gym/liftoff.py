@@ -9,11 +9,27 @@ The process sits in the all-down case until an exponential holding time with rat
 [1/s] ends, then jumps to one of the lifted cases (uniformly); from a lifted case it returns to
 all-down at rate ``recover_rate`` [1/s]. The stationary share of time with a wheel up is
 lift_rate / (lift_rate + recover_rate).
+
+Both rates lie in [0, :data:`RATE_MAX`]. A rate of 0 means that switch never happens: lift_rate = 0
+keeps every wheel down; recover_rate = 0 (with lift_rate > 0) keeps a lifted wheel up until the next
+reset. A switch that never happens has ``next_switch = inf``; a tiny rate may also give a finite but
+astronomically late ``next_switch``, which the world treats as never (see
+:meth:`omni_gym.world.World._schedule_switch`).
 """
 
 from __future__ import annotations
 
+import math
+from numbers import Real
+
 import numpy as np
+
+# Upper bound on lift_rate and recover_rate [1/s]: a mean dwell of 1 ms, two default 0.5 ms substeps.
+# The world samples the contact mask once per substep, so faster switching is not resolved by the
+# physics (several switches fall inside one substep and only the last counts); it would only add work
+# (advance draws every switch) and has no physical meaning for a wheel leaving the floor. The same
+# bound as the environments' and model files' (omni_gym.bounds, omni_gym.envs.config).
+RATE_MAX = 1e3
 
 
 def contact_cases(n: int) -> np.ndarray:
@@ -43,8 +59,9 @@ class ContactProcess:
 
     Args:
         n_wheels: number of wheels.
-        lift_rate: rate [1/s] of leaving the all-down case (0 disables lift-off).
-        recover_rate: rate [1/s] of returning to all-down from a lifted case.
+        lift_rate: rate [1/s] of leaving the all-down case, in [0, RATE_MAX] (0: never lifts).
+        recover_rate: rate [1/s] of returning to all-down from a lifted case, in [0, RATE_MAX]
+            (0: a lifted wheel stays up until the next reset).
         rng: the generator every draw comes from.
         cases: optional (k, n) bool array of allowed masks, row 0 all-down (default
             :func:`contact_cases`).
@@ -52,15 +69,11 @@ class ContactProcess:
 
     def __init__(self, n_wheels: int, lift_rate: float, recover_rate: float, rng: np.random.Generator,
                  cases: np.ndarray | None = None) -> None:
-        if not (np.isfinite(lift_rate) and lift_rate >= 0):
-            raise ValueError(f"lift_rate must be a finite rate >= 0 [1/s], got {lift_rate}")
-        if not (np.isfinite(recover_rate) and recover_rate > 0):
-            raise ValueError(f"recover_rate must be a finite rate > 0 [1/s], got {recover_rate}")
+        self.lift_rate = check_rate("lift_rate", lift_rate)
+        self.recover_rate = check_rate("recover_rate", recover_rate)
         self.cases = contact_cases(n_wheels) if cases is None else np.asarray(cases, dtype=bool)
         if self.cases.ndim != 2 or self.cases.shape[1] != n_wheels or not self.cases[0].all():
             raise ValueError("cases must be a (k, n_wheels) bool array whose first row is all True")
-        self.lift_rate = float(lift_rate)
-        self.recover_rate = float(recover_rate)
         self.rng = rng
         self.reset(0.0)
 
@@ -74,13 +87,21 @@ class ContactProcess:
         return self.cases[self.case]
 
     def _draw_holding(self, t: float) -> float:
+        """Time [s] of the switch out of the current case entered at t [s]; +inf if it never comes."""
         rate = self.lift_rate if self.case == 0 else self.recover_rate
         if rate <= 0 or len(self.cases) == 1:
-            return np.inf
-        return t + self.rng.exponential(1.0 / rate)
+            return math.inf
+        # 1/rate is +inf below ~5.6e-309 /s and the draw then inf (or NaN = 0·inf): both mean never.
+        # The draw itself is the one this process has always made, so seeded sequences are unchanged.
+        switch = t + self.rng.exponential(1.0 / rate)
+        return switch if switch < math.inf else math.inf
 
     def advance(self, t: float) -> bool:
-        """Apply every switch due at or before time t [s]; True if the mask changed."""
+        """Apply every switch due at or before time t [s]; True if the mask changed.
+
+        One iteration per switch: the loop runs about rate·(t − previous t) times, bounded because the
+        rates are at most RATE_MAX; a switch that never comes (inf) ends it.
+        """
         changed = False
         while self.next_switch <= t:
             switch_time = self.next_switch
@@ -88,3 +109,16 @@ class ContactProcess:
             self.next_switch = self._draw_holding(switch_time)
             changed = True
         return changed
+
+
+def check_rate(name: str, value: float) -> float:
+    """``value`` as a float rate [1/s] in [0, RATE_MAX]; ValueError naming ``name`` otherwise."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, Real):
+        raise ValueError(f"{name} must be a number [1/s], got {value!r}")
+    try:
+        rate = float(value)
+    except OverflowError:  # an int beyond the float range
+        rate = math.inf
+    if not 0.0 <= rate <= RATE_MAX:  # also refuses NaN
+        raise ValueError(f"{name} must be in [0, {RATE_MAX:g}] [1/s], got {value!r}")
+    return rate + 0.0  # -0.0 -> 0.0

@@ -48,9 +48,31 @@ DEFAULT_DT = 0.0005  # s, physics substep
 # ulp(2^20) = 2.3e-10 m, far below any physical tolerance.
 ARENA_BASE = 1.5 * 2.0**20
 ARENA_ROOM = 2.0**19  # m of x along which arenas may be laid out
-_NEVER = np.iinfo(np.int64).max
+_NEVER = np.iinfo(np.int64).max  # the switch tick of a robot with no switch scheduled
+# A contact switch more than this many substeps after a robot's reset is never reached (at the
+# default 0.5 ms it is 71,000 years away) and is not scheduled. Below it, tick counts are exact
+# floats, so switch_tick finds the switch substep among five candidates.
+SWITCH_HORIZON_TICKS = 2**52
 ROBOT_COLLISION = 1
 OBSTACLE_COLLISION = 2
+
+
+def switch_tick(s: float, dt: float) -> int | None:
+    """Smallest k >= 0 with k·dt >= s (the float product the world hands to ``advance``), or None.
+
+    s [s] is a switch time on a robot's local clock, dt [s] the substep. None (no switch) if s is NaN,
+    +inf or later than SWITCH_HORIZON_TICKS substeps: the comparison is made in float seconds before
+    any integer is formed, so no rate, however small, can overflow or make this loop. Below the
+    horizon, ceil(s/dt) is within 2 of the answer (both s/dt and k·dt are correctly rounded and
+    k·dt is monotonic in k), so a window of five candidates always holds it.
+    """
+    if not s <= SWITCH_HORIZON_TICKS * dt:
+        return None
+    k0 = max(0, math.ceil(s / dt))
+    for k in range(max(0, k0 - 2), k0 + 3):
+        if k * dt >= s:
+            return k
+    raise RuntimeError(f"no switch tick near {k0} for s={s!r}, dt={dt!r}")  # unreachable, see above
 
 
 @dataclass(frozen=True)
@@ -338,19 +360,13 @@ class World:
         """Global tick of the first substep whose local time k·dt reaches robot j's next switch.
 
         Integer ticks make a robot's switches fall on the same substeps whatever the other robots
-        do and whenever it was reset, so a batch reproduces lone robots exactly.
+        do and whenever it was reset, so a batch reproduces lone robots exactly. A switch that never
+        comes (rate 0: ``next_switch`` = inf) or lies beyond SWITCH_HORIZON_TICKS (a tiny rate) is
+        not scheduled (``_NEVER``).
         """
         proc = self.contact_processes[j]
-        if proc is None or not math.isfinite(proc.next_switch):
-            self._switch_tick[j] = _NEVER
-            return
-        s, dt = proc.next_switch, self.dt
-        k = max(0, math.ceil(s / dt))
-        while k > 0 and (k - 1) * dt >= s:
-            k -= 1
-        while k * dt < s:
-            k += 1
-        self._switch_tick[j] = int(self.start_tick[j]) + k
+        k = None if proc is None else switch_tick(proc.next_switch, self.dt)
+        self._switch_tick[j] = _NEVER if k is None else int(self.start_tick[j]) + k
 
     def _advance_contacts(self, tick: int) -> None:
         for j in np.flatnonzero(self._switch_tick <= tick):

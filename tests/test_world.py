@@ -7,7 +7,7 @@ from omni_gym.friction import Surface
 from omni_gym.liftoff import ContactProcess
 from omni_gym.model import Actuation, SimModel, load_model
 from omni_gym.robot import phunopas2018
-from omni_gym.world import Arena, World
+from omni_gym.world import SWITCH_HORIZON_TICKS, Arena, World, switch_tick
 
 
 def twist_commands(model, twist):
@@ -172,6 +172,59 @@ def test_robot_reset_mid_run_replays_a_lone_robot_exactly_with_lift_off():
     np.testing.assert_array_equal(np.array(batch_traj), np.array(lone_traj))
     assert len({tuple(r[3:]) for r in lone_traj}) > 1  # the contact process did switch meanwhile
 
+
+
+@pytest.mark.parametrize("dt", [0.0005, 0.002, 1e-3, 0.1 / 3])
+def test_switch_tick_is_the_first_substep_reaching_the_switch(dt):
+    """k = switch_tick(s, dt) is the least k >= 0 whose local time k·dt (the float the world hands
+    to ``advance``) is >= s, including switch times on, just before and just after a substep and
+    far from 0; beyond the horizon, at +inf or NaN there is no switch (None)."""
+    rng = np.random.default_rng(0)
+    times = [0.0, 5e-324, 1e-300, dt, 0.1, 1.0, 1234.5678, 3.0e7]
+    for m in (1, 3, 7, 10**6, 2**40, SWITCH_HORIZON_TICKS - 3):
+        on = m * dt
+        times += [on, np.nextafter(on, 0.0), np.nextafter(on, np.inf)]
+    times += list(rng.uniform(0.0, 1e3, 50)) + list(10.0 ** rng.uniform(-6, 12, 50))
+    for s in times:
+        k = switch_tick(float(s), dt)
+        assert k * dt >= s and (k == 0 or (k - 1) * dt < s), (s, k)
+    beyond = SWITCH_HORIZON_TICKS * dt
+    for s in (np.nextafter(beyond, np.inf), 2 * beyond, 1e300, np.inf, np.nan):
+        assert switch_tick(float(s), dt) is None
+
+
+def test_rate_zero_means_the_switch_never_comes():
+    """lift_rate 0: all wheels stay down. recover_rate 0: a lifted wheel stays up until the robot's
+    reset, which puts every wheel down again."""
+    model = load_model("phunopas2018", "carpet", "initial")
+    w = World(model, n_robots=2)
+    w.set_contact_process(0, ContactProcess(4, lift_rate=0.0, recover_rate=5.0, rng=np.random.default_rng(0)))
+    w.set_contact_process(1, ContactProcess(4, lift_rate=50.0, recover_rate=0.0, rng=np.random.default_rng(0)))
+    w.reset()
+    never_lifted, lifted = [], []
+    for _ in range(100):
+        w.step(0.01)
+        never_lifted.append(w.contact[0].all())
+        lifted.append(not w.contact[1].all())
+    assert all(never_lifted)
+    # 50 /s lifts within 0.5 s with probability 1 - e^-25; after that the wheel never comes back.
+    assert any(lifted[:50]) and all(lifted[lifted.index(True):])
+    w.reset(robots=[1])
+    assert w.contact[1].all()
+
+
+def test_tiny_rates_schedule_no_switch_and_keep_running():
+    """Rates so small that the drawn switch lies past the horizon (or 1/rate overflows to inf)
+    schedule nothing: reset and stepping return (they used to loop or overflow)."""
+    model = load_model("phunopas2018", "carpet", "initial")
+    w = World(model, n_robots=3)
+    for j, (lift, recover) in enumerate([(1e-30, 5.0), (5e-324, 5.0), (1e3, 1e-300)]):
+        w.set_contact_process(j, ContactProcess(4, lift, recover, np.random.default_rng(j)))
+    w.reset()
+    w.step(0.5)
+    assert w.contact[0].all() and w.contact[1].all()
+    assert not w.contact[2].all()  # 1000 /s lifted it in the first ms; 1e-300 /s never brings it back
+    assert np.all(np.isfinite(w.pose))
 
 
 def test_large_batch_matches_lone_robots_bit_for_bit():
