@@ -350,9 +350,15 @@ def test_bad_kwargs_rejected(kwargs, names, allowed):
     assert "\n" not in message
 
 
+# 255 arenas of 2 km (2048 m apart) fill the 2^19 m of one space; 65535 of the smallest (8 m apart).
 @pytest.mark.parametrize(("kwargs", "names"), [({"obs_mode": "pixels"}, "obs_mode='pixels'"),
                                                ({"sufrace": "paper"}, "'sufrace'"),
-                                               ({"num_envs": 0}, "num_envs=0")])
+                                               ({"num_envs": 0}, "num_envs=0"),
+                                               ({"num_envs": 2.5}, "num_envs=2.5"),
+                                               ({"num_envs": "2"}, "num_envs='2'"),
+                                               ({"num_envs": 10**12}, "num_envs=1000000000000"),
+                                               ({"num_envs": 256, "arena_half_size": 1000}, "num_envs=256"),
+                                               ({"max_episode_steps": 0}, "max_episode_steps=0")])
 def test_bad_kwargs_rejected_by_vector_env(kwargs, names):
     kwargs = {"num_envs": 2, **kwargs}
     with pytest.raises(ValueError, match=re.escape(names)):

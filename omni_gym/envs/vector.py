@@ -23,6 +23,17 @@ from gymnasium.vector.utils import batch_space
 
 from omni_gym.envs.config import check_reset_options, check_seed, is_number, make_config
 from omni_gym.envs.core import OBS_CLIP, TaskCore, as_actions
+from omni_gym.world import ARENA_ROOM
+
+
+def max_robots(arena_half_size: float) -> int:
+    """How many robots one space holds: arenas are laid out along x, each ``2^ceil(log2(2h + 4))`` m wide,
+    within ``ARENA_ROOM`` (the rule of :class:`omni_gym.world.World`)."""
+    spacing = 2.0 ** math.ceil(math.log2(2.0 * arena_half_size + 4.0))
+    return int(ARENA_ROOM // spacing) - 1
+
+
+MAX_NUM_ENVS = max_robots(0.1)  # 65535: the smallest arenas (arena_half_size <= 2 m: 8 m apart)
 
 
 class OmniPathVectorEnv(VectorEnv):
@@ -33,12 +44,18 @@ class OmniPathVectorEnv(VectorEnv):
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, render_mode: str | None = None,
                  **kwargs: Any) -> None:
         num_envs = _positive_int("num_envs", num_envs)
+        if num_envs > MAX_NUM_ENVS:  # checked before anything is allocated per robot
+            raise ValueError(f"invalid num_envs={num_envs}; at most {MAX_NUM_ENVS} robots fit in one space")
         if max_episode_steps is not None:
             max_episode_steps = _positive_int("max_episode_steps", max_episode_steps)
         if render_mode is not None:
             raise ValueError(f"invalid render_mode={render_mode!r} for the vectorised environment; allowed: None "
                              "(render a single environment instead)")
         self.cfg = make_config(**kwargs)
+        limit = max_robots(self.cfg.arena_half_size)
+        if num_envs > limit:
+            raise ValueError(f"invalid num_envs={num_envs} with arena_half_size={self.cfg.arena_half_size:g}: at most "
+                             f"{limit} such arenas fit in one space")
         self.num_envs = num_envs
         self.core = TaskCore(self.cfg, self.num_envs)
         steps = self.cfg.episode_steps
