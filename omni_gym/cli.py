@@ -112,7 +112,26 @@ def _cmd_model_show(args: argparse.Namespace) -> int:
               f"drive ({w.drive[0]:+.4f}, {w.drive[1]:+.4f})")
     for key, why in r.assumptions.items():
         print(f"  assumption {key}: {why}")
+    if not model.effects:
+        print("  effects: none")
+    for name, params in model.effects.items():
+        print(f"  effect {name}:")
+        for key, line in _effect_param_lines(name, params):
+            print(f"    {key} = {line}")
     return 0
+
+
+def _effect_param_lines(name: str, params: dict) -> list[tuple[str, str]]:
+    """(parameter, "value unit") of one model effect (units from omni_gym.discrepancy.plausible)."""
+    from omni_gym.discrepancy.plausible import UNITS
+
+    units = UNITS.get(name, {})
+    out = []
+    for key, value in params.items():
+        text = ("[" + ", ".join(f"{float(v):.6g}" for v in value) + "]" if isinstance(value, (list, tuple))
+                else f"{float(value):.6g}")
+        out.append((key, f"{text} {units.get(key, '')}".rstrip()))
+    return out
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
@@ -153,12 +172,24 @@ def _cmd_gap(args: argparse.Namespace) -> int:
 
     result = gap(args.dataset, args.out, seed=args.seed, plots=not args.no_plots)
     if args.json:
-        print(json.dumps(result, indent=2))
+        print(json.dumps(result, indent=2, allow_nan=False))  # standard JSON (non-finite values are null)
     else:
         g = result["gap"]
+
+        def mm(v: float | None) -> str:
+            return "-" if v is None else f"{1e3 * v:.2f}"
+
         print(f"effect: {result['effect']} ({result['why']})")
-        print(f"held-out gap beyond noise: {1e3 * g['before']:.2f} mm -> {1e3 * g['after']:.2f} mm; "
+        print(f"held-out gap beyond noise: {mm(g['before'])} mm -> {mm(g['after'])} mm; "
               f"report: {args.out}/report.md")
+        flags = result["plausibility"]["flags"]
+        if flags:
+            print("implausible: " + "; ".join(
+                f"{f['param']} = {f['value']:.4g} outside [{f['lo']:.4g}, {f['hi']:.4g}]" for f in flags))
+        rows = result["outliers"]["rows"]
+        if rows:
+            print(f"tracker outliers excluded: {len(rows)} row(s) (" + ", ".join(
+                f"{o['run']} row {o['row']}" for o in rows[:5]) + (", ..." if len(rows) > 5 else "") + ")")
     return 0
 
 

@@ -8,7 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.discrepancy.dataset import Dataset, write_json_atomic
+from omni_gym.discrepancy.dataset import Dataset
+from omni_gym.discrepancy.finite import dumps_strict
+from omni_gym.discrepancy.plausible import UNITS
 from omni_gym.discrepancy.simulate import Job, simulate_jobs, wrap
 from omni_gym.model import SimModel
 
@@ -21,9 +23,10 @@ def write_report(out: Path, result: dict, ds: Dataset, nominal: SimModel, model:
     result.json is complete)."""
     out.mkdir(parents=True, exist_ok=True)
     figures = _plots(out, result, ds, nominal, model, lever, dt) if plots else []
-    write_json_atomic(out / "model.json", result["model"])  # replayable: omni-gym simulate --model
+    # Standard JSON only (allow_nan=False): the workflow has already turned non-finite values into null.
+    _write_text_atomic(out / "model.json", dumps_strict(result["model"]) + "\n")  # omni-gym simulate --model
     _write_text_atomic(out / "report.md", markdown(result, figures))
-    write_json_atomic(out / "result.json", result)
+    _write_text_atomic(out / "result.json", dumps_strict(result) + "\n")
 
 
 def _write_text_atomic(path: Path, text: str) -> None:
@@ -39,35 +42,187 @@ def _write_text_atomic(path: Path, text: str) -> None:
 
 
 def markdown(result: dict, figures: list[str]) -> str:
-    """report.md: outcome, gap before/after, ranking, localisation, uncertainty, plots."""
+    """report.md: outcome, what model.json is for (and next steps when nothing was named), how to read
+    the numbers, gap before/after, ranking, localisation, outliers, uncertainty, plots."""
     g = result["gap"]
-    mm = 1e3
-    lines = [f"# Model-discrepancy report: `{result['effect']}`", "",
+    effect = result["effect"]
+    lines = [f"# Model-discrepancy report: `{effect}`", "",
              f"Dataset `{result['dataset']['path']}`: {result['dataset']['runs']} runs. "
              f"{result['dataset']['description']}", "",
-             f"**Outcome: `{result['effect']}`**: {result['why']}.", ""]
+             f"**Outcome: `{effect}`**: {result['why']}.", ""]
     if result.get("params"):
-        lines += [f"Fitted parameters: `{_fmt(result['params'])}`", ""]
-    noise = "not estimable (sparse observations)" if g["noise"] is None else f"{mm * g['noise']:.2f} mm"
+        lines += ["Fitted parameters:", ""] + _param_lines(effect, result["params"]) + [""]
+    flags = result.get("plausibility", {}).get("flags", [])
+    if flags:
+        lines += ["**Implausible fitted values** (flagged, not changed; such a value usually means the effect "
+                  "absorbed another error):", ""]
+        lines += [f"* ⚠ {f['param']} = {f['value']:.4g}, plausible [{f['lo']:.4g}, {f['hi']:.4g}]: {f['why']}"
+                  for f in flags] + [""]
+    lines += _model_json_lines(effect)
+    if effect in ("unexplained", "none"):
+        lines += _next_steps(result)
+    if result.get("non_finite"):
+        lines += ["**Values that could not be computed** (non-finite, written as null in result.json): "
+                  + ", ".join(f"`{k}`" for k in result["non_finite"][:10])
+                  + (" …" if len(result["non_finite"]) > 10 else ""), ""]
+    lines += _how_to_read(result)
+    noise = "not estimable (sparse observations)" if g["noise"] is None else f"{_mm(g['noise'])} mm"
     lines += ["## Gap on held-out runs", "",
               f"Metric: {g['metric']}. Tracker noise estimate: {noise}.", "",
-              "| | nominal | with the effect |", "|---|---|---|",
-              f"| gap beyond noise [mm] | {mm * g['before']:.2f} | {mm * g['after']:.2f} |",
-              f"| RMS (geometric mean over runs) [mm] | {mm * g['rms_before']:.2f} | {mm * g['rms_after']:.2f} |", "",
-              f"Reduction of the gap: {100 * g['reduction']:.0f} %.", "",
-              "## Ranking (penalised held-out score, lower is better)", "",
-              "| candidate | score | held-out RMS [mm] | beyond noise [mm] | improvement | P(better than nominal) "
-              "| stability | parameters |", "|---|---|---|---|---|---|---|---|"]
+              "| | nominal | reported model (model.json) |", "|---|---|---|",
+              f"| gap beyond noise [mm] | {_mm(g['before'])} | {_mm(g['after'])} |",
+              f"| RMS (geometric mean over runs) [mm] | {_mm(g['rms_before'])} | {_mm(g['rms_after'])} |", "",
+              f"Gap removed by the reported model: {_pct(g['reduction'])}"
+              + (" (no effect was added)." if not result.get("params") else "."), ""]
+    best = result["ranking"][0] if result["ranking"] else None
+    if best is not None and effect in ("unexplained", "none"):
+        lines += [f"The best candidate, `{best['effect']}`, would remove {_pct(best.get('gap_reduction'))} of the "
+                  f"gap (a named effect needs {_pct(result['settings']['rules']['min_gap_reduction'])}).", ""]
+    lines += ["## Ranking (penalised held-out score, lower is better)", "",
+              "| candidate | score | held-out RMS [mm] | gap beyond noise [mm] | gap removed | MSE reduction "
+              "| P(better than nominal) | stability | parameters |", "|---|---|---|---|---|---|---|---|---|"]
     for r in result["ranking"]:
-        lines.append(f"| {r['effect']} | {r['score']:.0f} | {mm * r['heldout_rms']:.2f} | {mm * r['excess_rms']:.2f} "
-                     f"| {100 * r['improvement']:.0f} % | {r['p_better_than_nominal']:.2f} | {r['stability']:.2f} "
-                     f"| `{_fmt(r['params'])}` |")
+        warn = " ⚠" if r.get("implausible") else ""
+        lines.append(f"| {r['effect']} | {_num0(r['score'])} | {_mm(r['heldout_rms'])} | {_mm(r['excess_rms'])} "
+                     f"| {_pct(r.get('gap_reduction'))} | {_pct(r['improvement'])} "
+                     f"| {_num2(r['p_better_than_nominal'])} | {_num2(r['stability'])} | `{_fmt(r['params'])}`{warn} |")
     lines += ["", "Score: Σ_runs n_r·ln(held-out SSE_r / n_r) + p·ln(N) (per-run Gaussian likelihood, BIC penalty; "
-              "the nominal model scores {:.0f}). Held-out RMS: geometric mean over runs. Stability: share of bootstrap "
-              "resamples of the runs in which the candidate has the best held-out likelihood.".format(
-                  result.get("score_nominal", float("nan"))), ""]
+              f"the nominal model scores {_num0(result.get('score_nominal'))}). Held-out RMS: geometric mean over "
+              "runs. Stability: share of bootstrap resamples of the runs in which the candidate has the best held-out "
+              "likelihood. ⚠: a fitted value outside its plausible range:"]
+    lines += [f"* {r['effect']}: " + "; ".join(r["implausible"]) for r in result["ranking"] if r.get("implausible")]
+    lines += [""]
+    lines += _where_lines(result["where"])
+    lines += _outlier_lines(result.get("outliers"))
+    if result.get("uncertainty"):
+        u = result["uncertainty"]
+        lines += ["", "## Uncertainty", ""]
+        if "params_5_95" in u:
+            lines += [f"* {k}: [{_num(a)}, {_num(b)}]" for k, (a, b) in u["params_5_95"].items()]
+            lines.append(f"* {u['note']}")
+        if "noise" in u:
+            lines.append(f"* {u['noise']}")
+    if figures:
+        lines += ["", "## Plots", ""] + [f"![{f}]({f})" for f in figures]
+    return "\n".join(lines) + "\n"
+
+
+def _param_lines(effect: str, params: dict) -> list[str]:
+    """One bullet per fitted parameter, with its unit."""
+    units = UNITS.get(effect, {})
+    out = []
+    for k, v in params.items():
+        val = ", ".join(_num(x) for x in v) if isinstance(v, list) else _num(v)
+        out.append(f"* `{k}` = {'[' + val + ']' if isinstance(v, list) else val} {units.get(k, '')}".rstrip())
+    return out
+
+
+def _model_json_lines(effect: str) -> list[str]:
+    """What model.json is for."""
+    what = ("the nominal model with the named effect and its fitted parameters added (the extended model)"
+            if effect not in ("unexplained", "none") else "the nominal model unchanged (no effect was named)")
+    return ["## model.json", "",
+            f"`model.json` in this folder is {what}, in the model JSON format (`docs/formats.md`). Use it:", "",
+            "* replay wheel commands: `omni-gym simulate --model REPORT/model.json --commands cmds.csv "
+            "--out traj.csv`;",
+            "* train or evaluate a controller on it: `gym.make(ENV_ID, model=\"REPORT/model.json\")`, or "
+            "`omni-gym train`/`omni-gym evaluate` with `--env-kwargs '{\"model\": \"REPORT/model.json\"}'`;",
+            "* inspect it: `omni-gym model show REPORT/model.json` (every effect with its parameters and units).", ""]
+
+
+def _how_to_read(result: dict) -> list[str]:
+    """Definitions of the two percentages and the gap (they measure different things)."""
+    rules = result["settings"]["rules"]
+    return ["## How to read this report", "",
+            "Every error is a held-out error: each run is predicted by a fit that did not see it. M is the "
+            "geometric mean over runs (weighted by observed rows) of a run's mean squared pose residual (x, y and "
+            "heading × lever, in m²); σ̂ is the tracker noise estimated from the data.", "",
+            "* **gap beyond noise** = sqrt(max(0, M − σ̂²)) [mm]: the part of the pose error a model could remove.",
+            "* **gap removed** = 1 − gap_after / gap_before: the share of the nominal gap beyond noise that a "
+            "model removes. The outcome line and the naming rule use this measure: an effect is named only if it "
+            f"removes ≥ {_pct(rules['min_gap_reduction'])} (or leaves the error at the noise level).",
+            "* **MSE reduction** (`improvement` in result.json) = 1 − M_candidate / M_nominal: the share of the "
+            "mean squared error removed, noise included. A candidate must reach "
+            f"≥ {_pct(rules['min_improvement'])} (and be better in ≥ {_pct(rules['significance'])} of run "
+            "resamples) to count as better than nominal at all.",
+            "* The two differ because one is squared and the other is not: removing 64 % of the gap leaves "
+            "(1 − 0.64)² = 13 % of the squared gap, so with little noise the MSE reduction is about 87 %. "
+            "Compare gap removed with gap removed, and MSE reduction with MSE reduction.", ""]
+
+
+def _next_steps(result: dict) -> list[str]:
+    """Concrete next steps for an ``unexplained`` or ``none`` outcome, from the localisation."""
     w = result["where"]
-    lines += ["## Where the nominal model disagrees", "", f"Method: {w['method']}.", ""]
+    g = result["gap"]
+    out = ["## Next steps", ""]
+    if result["effect"] == "none":
+        if g["noise"] is None:
+            out += ["* Tracker noise cannot be estimated from these data (too few consecutive tracked rows), so "
+                    "`none` means \"no effect could be told from noise\", not \"the model is right\". Track every "
+                    "row (≥ 20 consecutive rows per run) and run again."]
+        else:
+            out += [f"* The nominal model predicts the held-out runs to within the tracker noise ({_mm(g['noise'])} "
+                    "mm): nothing to add; `model.json` is the nominal model.",
+                    "* If you expected an effect, check the runs excite it: slow wheel turns through the roller pitch "
+                    "(roller_gap), command steps (motor_lag), fast slip (kinetic_friction), long straight drives "
+                    "(wheel_radius, com_offset), long runs (wheel_liftoff); more and longer runs, or a less noisy "
+                    "tracker, make a small effect visible."]
+        return out + [""]
+    runs = sorted((r for r in w["runs"] if r["open_loop_rms"] is not None), key=lambda r: -r["open_loop_rms"])
+    if runs:
+        ol = float(np.median([r["open_loop_rms"] for r in runs]))
+        sh = [r["shooting_rms"] for r in runs if r["shooting_rms"] is not None]
+        shape = "a drift that builds up over a run" if sh and ol > 2 * float(np.median(sh)) else \
+            "a local error (restarting from the measured state does not remove it)"
+        out.append(f"* **What the residual looks like**: {shape}; median open-loop RMS {_mm(ol)} mm"
+                   + (f" against {_mm(float(np.median(sh)))} mm restarted every 0.5 s." if sh else "."))
+        out.append("* **Where**: worst runs " + ", ".join(f"{r['run']} ({_mm(r['open_loop_rms'])} mm)"
+                                                         for r in runs[:3])
+                   + ("; worst windows " + ", ".join(f"{x['run']} {x['t0']:.2f}-{x['t1']:.2f} s"
+                                                     for x in w.get("windows", [])[:3]) if w.get("windows") else "")
+                   + ". Look at these stretches in residuals.png and in your logs first.")
+    hints = {"accelerating": "actuation (a motor lag beyond first order, current or torque limits, a speed "
+                             "controller overshooting): log the wheel encoders at the command steps",
+             "rotating": "the wheel positions, the inertia or the heading (tracker frame rotation, gyro): "
+                         "re-measure the wheel positions and the tracker's heading offset",
+             "fast_slip": "the friction law at high slip speed: measure the drive and transverse friction of "
+                          "the wheels on this floor (pull test)"}
+    for k, c in w.get("conditions", {}).items():
+        if c.get("ratio") is not None and c["ratio"] >= 2.0 and k in hints:
+            out.append(f"* The local error grows {c['ratio']:.1f}× faster in {k.replace('_', ' ')} rows: check "
+                       f"{hints[k]}.")
+    mod = {k: v["modulation"] for k, v in w.get("wheel_phase", {}).items() if v.get("modulation") is not None}
+    if mod and max(mod.values()) >= 2.0:
+        k = max(mod, key=mod.get)
+        out.append(f"* The error is modulated over the roller pitch ({k} {mod[k]:.1f}× its mean): check the "
+                   "rollers of that wheel (worn, stuck or missing rollers, the gap between them).")
+    wheels = w.get("wheels", {})
+    for key, what in (("actuation_rms", "its encoder does not follow the command (motor, driver, encoder)"),
+                      ("rolling_rms", "its rim speed does not match its ground speed (radius, slip, contact)")):
+        vals = {k: v[key] for k, v in wheels.items() if v.get(key) is not None}
+        if len(vals) >= 2:
+            k = max(vals, key=vals.get)
+            others = float(np.median([v for j, v in vals.items() if j != k]))
+            if others > 0 and vals[k] > 2 * others:
+                out.append(f"* {k}: {what}; {vals[k]:.3g} against {others:.3g} for the others.")
+    if result["ranking"]:
+        b = result["ranking"][0]
+        out.append(f"* The best library effect, `{b['effect']}`, removes {_pct(b.get('gap_reduction'))} of the gap: "
+                   "part of the error may be that effect, the rest another one (the library fits one effect at a "
+                   "time).")
+    out += ["* **Effects not in the library** that leave such a gap: speed-proportional drag (rolling resistance, "
+            "a cable), a floor slope or unevenness (a drift in one world direction), a time offset between commands "
+            "and tracked poses, tracker calibration (scale, a rotated or shifted frame, latency), wheel-speed "
+            "saturation, two effects at once.",
+            "* **To measure**: the tracker at rest (noise, drift), straight drives at several constant speeds "
+            "(drag, slope, radius), the time offset between command and tracker logs; add encoders if the runs "
+            "have none.", ""]
+    return out
+
+
+def _where_lines(w: dict) -> list[str]:
+    """The localisation section."""
+    lines = ["## Where the nominal model disagrees", "", f"Method: {w['method']}.", ""]
     lines += [f"* {s}" for s in w.get("summary", [])]
     if w.get("note"):
         lines.append(f"* {w['note']}")
@@ -78,9 +233,8 @@ def markdown(result: dict, figures: list[str]) -> str:
         lines += ["", "| condition | rows | mean squared growth over 5 rows [mm²] | elsewhere [mm²] | ratio |",
                   "|---|---|---|---|---|"]
         for k, c in w["conditions"].items():
-            ratio = "–" if c["ratio"] is None else f"{c['ratio']:.2f}"
-            lines.append(f"| {k} | {c['rows']} | {1e6 * c['mean_sq_growth']:.3f} | {1e6 * c['elsewhere']:.3f} "
-                         f"| {ratio} |")
+            lines.append(f"| {k} | {c['rows']} | {_scaled(c['mean_sq_growth'], 1e6, 3)} "
+                         f"| {_scaled(c['elsewhere'], 1e6, 3)} | {_num2(c['ratio'])} |")
     if w.get("wheel_phase"):
         lines += ["", "Modulation of the local error over the roller pitch (max bin / mean; 1 = none): "
                   + ", ".join(f"{k} {v['modulation']:.2f}" for k, v in w["wheel_phase"].items()
@@ -89,22 +243,28 @@ def markdown(result: dict, figures: list[str]) -> str:
         lines += ["", "| wheel | encoder − command RMS [rad/s] | r·encoder − ground speed RMS [m/s] |", "|---|---|---|"]
         for k, v in w["wheels"].items():
             lines.append(f"| {k} | {_num(v['actuation_rms'])} | {_num(v['rolling_rms'])} |")
-    if result.get("uncertainty"):
-        u = result["uncertainty"]
-        lines += ["", "## Uncertainty", ""]
-        if "params_5_95" in u:
-            lines += [f"* {k}: [{a:.4g}, {b:.4g}]" for k, (a, b) in u["params_5_95"].items()]
-            lines.append(f"* {u['note']}")
-        if "noise" in u:
-            lines.append(f"* {u['noise']}")
-    if figures:
-        lines += ["", "## Plots", ""] + [f"![{f}]({f})" for f in figures]
-    return "\n".join(lines) + "\n"
+    return lines
+
+
+def _outlier_lines(outliers: dict | None) -> list[str]:
+    """The tracker outlier rows and what was done with them."""
+    if not outliers:
+        return []
+    rows = outliers["rows"]
+    lines = ["", "## Tracker outliers", "", f"Rule: {outliers['rule']}.", ""]
+    if not rows:
+        return lines + ["None found."]
+    lines += ["| run | CSV row | t [s] | component | deviation [mm] | threshold [mm] |", "|---|---|---|---|---|---|"]
+    lines += [f"| {o['run']} | {o['row']} | {o['t']:.3f} | {o['component']} | {_mm(o['deviation'])} "
+              f"| {_mm(o['threshold'])} |" for o in rows]
+    return lines
 
 
 def _fmt(params: dict) -> str:
     def f(v):
-        return [round(float(x), 4) for x in v] if isinstance(v, list) else round(float(v), 4)
+        if isinstance(v, list):
+            return [f(x) for x in v]
+        return None if v is None else round(float(v), 4)
 
     return ", ".join(f"{k}={f(v)}" for k, v in params.items())
 
@@ -115,6 +275,22 @@ def _mm(v: float | None) -> str:
 
 def _num(v: float | None) -> str:
     return "–" if v is None else f"{v:.4g}"
+
+
+def _num0(v: float | None) -> str:
+    return "–" if v is None else f"{v:.0f}"
+
+
+def _num2(v: float | None) -> str:
+    return "–" if v is None else f"{v:.2f}"
+
+
+def _pct(v: float | None) -> str:
+    return "–" if v is None else f"{100 * v:.0f} %"
+
+
+def _scaled(v: float | None, scale: float, digits: int) -> str:
+    return "–" if v is None else f"{scale * v:.{digits}f}"
 
 
 def _plots(out: Path, result: dict, ds: Dataset, nominal: SimModel, model: SimModel, lever: float,
