@@ -332,6 +332,9 @@ BAD_KWARGS = [
     ({"control_hz": "1_000"}, "control_hz='1_000'", ["a number"]),
     ({"ref_speed": 0.3 + 0j}, "ref_speed=(0.3+0j)", ["a number"]),
     ({"lost_distance": True}, "lost_distance=True", ["a number"]),
+    ({"control_hz": 10**400}, "control_hz=1000000", ["[1, 10000] Hz"]),
+    ({"obstacles": [(10**400, 0.0, 0.1)]}, "obstacles[0]", ["finite"]),
+    ({"randomize_mass": (1, 10**400)}, "randomize_mass", ["low <= high"]),
     ({"randomize_mass": "12"}, "randomize_mass='12'", ["(low, high)"]),
     ({"walls": 1}, "walls=1", ["True", "False"]),
     # issue 12, item 7: an obstacle or a wall at the start pose (the arena centre) would end every episode.

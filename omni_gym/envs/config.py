@@ -162,13 +162,23 @@ def is_number(value) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
 
 
+def _show(value) -> str:
+    """repr of a user value, cut to 60 characters (a 400-digit integer stays readable)."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def _number(name: str, value, bound: Bound | None = None) -> float:
     if not is_number(value):
-        raise ValueError(f"invalid {name}={value!r}; must be a number" + (f" {bound.describe()}" if bound else ""))
-    v = float(value)
+        raise ValueError(f"invalid {name}={_show(value)}; must be a number" + (f" {bound.describe()}" if bound
+                                                                                else ""))
+    try:
+        v = float(value)
+    except OverflowError:  # an integer beyond float range
+        v = math.inf
     if not math.isfinite(v) or (bound is not None and not bound.contains(v)):
-        raise ValueError(f"invalid {name}={value!r}; must be a finite number" + (f" {bound.describe()}" if bound
-                                                                                 else ""))
+        raise ValueError(f"invalid {name}={_show(value)}; must be a finite number" + (f" {bound.describe()}" if bound
+                                                                                      else ""))
     return v
 
 
@@ -212,7 +222,10 @@ def _range(name: str, value, lower: float, upper: float) -> tuple[float, float] 
     items = _sequence(value)
     if items is None or len(items) != 2 or not all(is_number(v) for v in items):
         raise ValueError(f"invalid {name}={value!r}; must be None or a (low, high) pair of numbers")
-    lo, hi = float(items[0]), float(items[1])
+    try:
+        lo, hi = float(items[0]), float(items[1])
+    except OverflowError:  # an integer beyond float range
+        lo, hi = math.nan, math.nan
     if not (math.isfinite(lo) and math.isfinite(hi) and lower <= lo <= hi <= upper):
         raise ValueError(f"invalid {name}={value!r}; need {lower:g} <= low <= high <= {upper:g}")
     return (lo, hi)
@@ -233,7 +246,10 @@ def _obstacles(value, half_size: float) -> tuple[tuple[float, float, float], ...
         if entry is None or len(entry) != 3 or not all(is_number(v) for v in entry):
             raise ValueError(f"invalid obstacles[{i}]={o!r}; each obstacle is an (x, y, radius) triple of numbers "
                              f"in metres, {example}")
-        x, y, r = (float(v) for v in entry)
+        try:
+            x, y, r = (float(v) for v in entry)
+        except OverflowError:  # an integer beyond float range
+            x = y = r = math.nan
         if not all(math.isfinite(v) for v in (x, y, r)) or r < MIN_OBSTACLE_RADIUS:
             raise ValueError(f"invalid obstacles[{i}]={o!r}; x, y must be finite and the radius >= "
                              f"{MIN_OBSTACLE_RADIUS} m")
