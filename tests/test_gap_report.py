@@ -247,3 +247,14 @@ def test_gap_outputs_stay_standard_json_whatever_happens_upstream(lag_dataset, t
     assert written["where"]["runs"][0]["open_loop_rms"] is None
     report = (tmp_path / "rep" / "report.md").read_text()
     assert "could not be computed" in report and re.search(r"\b(nan|inf|infinity)\b", report, re.I) is None
+
+
+def test_none_outcome_says_what_none_means_and_what_to_try(tmp_path, only_motor_lag):
+    folder = tmp_path / "null"
+    write_synthetic(folder, nominal_model(), "none", 3, 0.001, 4, 1.5)
+    result = workflow.gap(folder, tmp_path / "rep", progress=False, plots=False)
+    assert result["effect"] == "none" and result["model"]["effects"] == {}
+    report = (tmp_path / "rep" / "report.md").read_text()
+    steps = report[report.index("## Next steps"):report.index("## How to read")]
+    assert "within the tracker noise" in steps and "nominal model" in steps and "more and longer runs" in steps
+    assert "the nominal model unchanged" in report  # what model.json then holds
