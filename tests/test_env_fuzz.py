@@ -25,7 +25,7 @@ STEPS = 3
 
 # Values no numeric keyword may take, or that only some may (0, tiny, huge): wrong types included.
 ODD_NUMBERS = [math.nan, math.inf, -math.inf, -1.0, 0.0, 1e308, -1e308, 1e-300, 5e-324, "1", "1_000", None, 1 + 2j,
-               True, np.bool_(False), [1.0], np.float64(math.nan), np.float32(1e38)]
+               True, np.bool_(False), [1.0], np.float64(math.nan), np.float32(1e38), 10**400, -(10**400)]
 NUMERIC = {
     "control_hz": [1, 20, 100, 200, 1000, 10000, 3],
     "physics_dt": [1e-5, 1e-4, 0.0005, 0.001, 0.002],

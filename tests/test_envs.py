@@ -420,6 +420,15 @@ def test_obstacle_just_clear_of_the_start_pose_is_accepted():
     assert not terminated and not info["collided"]
 
 
+def test_diverged_simulation_raises_instead_of_returning_nan():
+    # Within the bounds nothing diverges (tests/test_env_fuzz.py); a corrupted state stands in for a bug.
+    env = gym.make(WILLIAMS)
+    env.reset(seed=0)
+    env.unwrapped.core.world.bodies[0].velocity = (math.nan, 0.0)
+    with pytest.raises(FloatingPointError, match=re.escape("robot(s) [0]")):
+        env.step(np.zeros(3, dtype=np.float32))
+
+
 # --- 7. invalid and out-of-range actions -------------------------------------------------------
 
 

@@ -261,6 +261,11 @@ class TaskCore:
         else:
             for j in range(self.B):
                 self._observe_sensors(j)
+        if not (np.isfinite(self.obs).all() and np.isfinite(self.reward).all()):
+            # Never hand NaN to a learner: within the keyword and model bounds this should not happen.
+            bad = np.flatnonzero(~(np.isfinite(self.obs).all(axis=1) & np.isfinite(self.reward)))
+            raise FloatingPointError(f"the simulation diverged (non-finite observation or reward) for robot(s) "
+                                     f"{bad.tolist()}; please report the keywords and model that caused it")
 
     def _observe_sensors(self, j: int) -> None:
         cfg = self.cfg
