@@ -142,8 +142,11 @@ def test_model_defines_robot_surface_friction_and_sizes(tmp_path):
 
 
 def test_vector_env_with_model_matches_single_envs(tmp_path):
-    path = str(write_model(tmp_path / "m.json", three_wheel_model()))
-    n, kwargs = 3, {"model": path, "action_mode": "wheels", "episode_seconds": 0.2}
+    # Every per-episode draw is exercised too: the model's lift-off process and randomisation on top of it.
+    model = three_wheel_model().with_effect("wheel_liftoff", {"lift_rate": 5.0, "recover_rate": 10.0})
+    path = str(write_model(tmp_path / "m.json", model))
+    n, kwargs = 3, {"model": path, "action_mode": "wheels", "episode_seconds": 0.2,
+                    "randomize_friction": (0.7, 1.3), "randomize_mass": (0.8, 1.2)}
     venv = gym.make_vec(PHUNOPAS, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
     singles = [gym.make(PHUNOPAS, **kwargs) for _ in range(n)]
     assert venv.single_action_space.shape == (3,)
