@@ -324,7 +324,7 @@ BAD_KWARGS = [
     ({"obstacles": "abc"}, "obstacles='abc'", ["(x, y, radius)"]),
     ({"obstacles": [("a", 1.0, 0.1)]}, "obstacles[0]=('a', 1.0, 0.1)", ["numbers"]),
     ({"lift_rate": 1e-30}, "lift_rate=1e-30", ["0 or in [1e-06, 1000] 1/s"]),
-    ({"recover_rate": 1e-30}, "recover_rate=1e-30", ["[1e-06, 1000] 1/s"]),
+    ({"recover_rate": 1e-30}, "recover_rate=1e-30", ["0 or in [1e-06, 1000] 1/s"]),
     ({"sensor_noise": 1e308}, "sensor_noise=1e+308", ["[0, 100]"]),
     ({"success_heading": 4.0}, "success_heading=4.0", ["(0, 3.14159] rad"]),
     # issue 13, item 14: no silent conversion of strings, complex numbers or booleans into numbers.
@@ -418,6 +418,17 @@ def test_obstacle_just_clear_of_the_start_pose_is_accepted():
     env.reset(seed=0)
     _, _, terminated, _, info = env.step(np.zeros(3, dtype=np.float32))
     assert not terminated and not info["collided"]
+
+
+def test_recover_rate_zero_keeps_a_lifted_wheel_up():
+    # lift_rate 50 /s: P(no lift within 1 s) = e^-50; the seed is fixed anyway.
+    env = gym.make(PHUNOPAS, lift_rate=50.0, recover_rate=0.0, lost_distance=1e4, episode_seconds=1.0)
+    env.reset(seed=0)
+    lifted = []
+    for _ in range(100):
+        lifted.append(not env.step(np.zeros(3, dtype=np.float32))[4]["contact"].all())
+    first = lifted.index(True)
+    assert all(lifted[first:])
 
 
 def test_diverged_simulation_raises_instead_of_returning_nan():

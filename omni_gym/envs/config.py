@@ -74,7 +74,7 @@ BOUNDS: dict[str, Bound] = {
     "physics_dt": Bound(1e-5, 0.002, "s"),
     "episode_seconds": Bound(0.0, 3600.0, "s", lo_open=True),
     "lift_rate": Bound(MIN_RATE, MAX_RATE, "1/s", zero=True),
-    "recover_rate": Bound(MIN_RATE, MAX_RATE, "1/s"),
+    "recover_rate": Bound(MIN_RATE, MAX_RATE, "1/s", zero=True),  # 0: a lifted wheel stays up until reset
     "sensor_noise": Bound(0.0, 100.0, ""),
     "arena_half_size": Bound(0.1, 1000.0, "m"),
     "ref_speed": Bound(0.001, 10.0, "m/s"),
