@@ -31,7 +31,7 @@ NUMERIC = {
     "physics_dt": [1e-5, 1e-4, 0.0005, 0.001, 0.002],
     "episode_seconds": [0.01, 0.05, 1.0, 20.0, 3600.0],
     "lift_rate": [0, 1e-6, 0.5, 1000.0],
-    "recover_rate": [1e-6, 5.0, 1000.0],
+    "recover_rate": [0, 1e-6, 5.0, 1000.0],
     "sensor_noise": [0, 1.0, 100.0],
     "arena_half_size": [0.1, 2.0, 1000.0],
     "ref_speed": [0.001, 0.25, 10.0],
