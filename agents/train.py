@@ -34,6 +34,8 @@ from __future__ import annotations
 
 import argparse
 import ast
+import inspect
+import io
 import json
 import math
 import os
@@ -182,12 +184,35 @@ def _init_residual(model, algo: str, factor: float, init_log_std: float | None) 
             model.actor_target.load_state_dict(model.actor.state_dict())
 
 
-def train(algo: str, env_id: str, timesteps: int | None, seed: int, out: str | Path, env_kwargs: dict | None = None,
-          hyperparams: str | Path | None = None, n_envs: int | None = None, vec_env: str = "dummy",
-          eval_freq: int = 50_000, eval_episodes: int = 5, checkpoint_freq: int = 0, tensorboard: str | None = None,
-          progress: bool | None = None, max_minutes: float | None = None, command: str | None = None,
-          threads: int = 1) -> dict:
-    """Train and save into ``out``; returns the meta dict written to ``out/meta.json``.
+def train(*args, force: bool = False, **kwargs) -> dict:
+    """Train into the model directory ``out`` (arguments of :func:`train_into`); returns the meta dict.
+
+    The directory is checked and locked before anything is imported or trained
+    (:class:`omni_gym.outputs.Output`): an existing model directory is refused unless ``force``; an
+    ``out`` that is the hyperparameter file (or a file named in ``env_kwargs``) is refused. Training
+    writes into a temporary sibling ``.NAME.tmp-PID``, renamed to ``out`` at the end: an interrupted
+    or killed training leaves the old directory (or none) in place.
+    """
+    from omni_gym.outputs import Output
+
+    bound = inspect.signature(train_into).bind(*args, **kwargs)
+    kw = bound.arguments.get("env_kwargs")
+    inputs = [bound.arguments.get("hyperparams"),
+              *(v for v in (kw.values() if isinstance(kw, dict) else ()) if isinstance(v, str))]
+    with Output(Path(bound.arguments["out"]), "dir", force=force, inputs=inputs, marker="meta.json",
+                what="model directory") as tx:
+        bound.arguments["out"] = tx.path
+        return train_into(*bound.args, **bound.kwargs)
+
+
+def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: str | Path,
+               env_kwargs: dict | None = None, hyperparams: str | Path | None = None, n_envs: int | None = None,
+               vec_env: str = "dummy", eval_freq: int = 50_000, eval_episodes: int = 5, checkpoint_freq: int = 0,
+               tensorboard: str | None = None, progress: bool | None = None, max_minutes: float | None = None,
+               command: str | None = None, threads: int = 1) -> dict:
+    """Train and save into ``out`` directly (no transaction: :func:`train` gives one); returns the meta
+    dict written to ``out/meta.json``.
+
 
     Args: see the module docstring; ``eval_freq`` and ``checkpoint_freq`` count environment steps over
     all environments (0 disables); ``max_minutes`` stops training early (the meta says so).
@@ -294,9 +319,9 @@ def train(algo: str, env_id: str, timesteps: int | None, seed: int, out: str | P
 
 
 def _write_json(path: Path, data: dict) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=str) + "\n")
-    os.replace(tmp, path)
+    from omni_gym.outputs import write_text_atomic
+
+    write_text_atomic(path, json.dumps(data, indent=2, default=str) + "\n")
 
 
 def _Training(*args, **kwargs):
@@ -413,6 +438,8 @@ def _plot_curve(path: Path, data: np.ndarray, meta: dict) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from omni_gym.outputs import write_bytes_atomic
+
     fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
     ax[0].plot(data[:, 0], data[:, 2], "o-", ms=3)
     ax[0].set_xlabel("timesteps")
@@ -424,10 +451,10 @@ def _plot_curve(path: Path, data: np.ndarray, meta: dict) -> None:
     ax[1].grid(alpha=0.3)
     fig.suptitle(f"{meta['algo']} / {meta['wrapper']} on {meta['env_id']} (seed {meta['seed']})")
     fig.tight_layout()
-    tmp = path.with_name(path.stem + ".tmp.png")
-    fig.savefig(tmp, dpi=100)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
     plt.close(fig)
-    os.replace(tmp, path)
+    write_bytes_atomic(path, buf.getvalue())
 
 
 def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
@@ -448,6 +475,9 @@ def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.
     p.add_argument("--tensorboard", default=None, help="TensorBoard log directory (needs tensorboard)")
     p.add_argument("--max-minutes", type=float, default=None, help="stop training after this wall time")
     p.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing model directory (default: refuse; the directory appears complete "
+                        "or not at all, see docs/formats.md)")
     bar = p.add_mutually_exclusive_group()
     bar.add_argument("--progress", dest="progress", action="store_true", default=None, help="always show the bar")
     bar.add_argument("--no-progress", dest="progress", action="store_false", help="never show the bar")
@@ -492,7 +522,8 @@ def run_from_args(args: argparse.Namespace, command: str | None = None) -> dict:
     command = command or command_line("python -m agents.train", args)
     return train(args.algo, args.env, None if args.timesteps is None else int(args.timesteps), args.seed, args.out,
                  kwargs, args.hyperparams, args.n_envs, args.vec_env, args.eval_freq, args.eval_episodes,
-                 args.checkpoint_freq, args.tensorboard, args.progress, args.max_minutes, command, args.threads)
+                 args.checkpoint_freq, args.tensorboard, args.progress, args.max_minutes, command, args.threads,
+                 force=getattr(args, "force", False))
 
 
 def main(argv: list[str] | None = None) -> int:

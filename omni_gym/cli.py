@@ -41,6 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--dt", type=float, default=None, help="physics substep [s] (default 0.0005)")
     sim.add_argument("--actuation", choices=("ideal", "servo"), default="ideal", help="wheel actuation")
     sim.add_argument("--seed", type=int, default=0, help="seed for random effects (wheel lift-off)")
+    _add_force_option(sim, "an existing --out file")
 
     ev = sub.add_parser("evaluate", help="evaluate a policy on held-out seeds (mean and 95%% CI per metric)")
     ev.add_argument("--policy", required=True, help="open-loop, odometry-pid, ekf-pid or a saved SB3 model path")
@@ -62,6 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     gp.add_argument("--json", action="store_true", help="print result.json")
     gp.add_argument("--seed", type=int, default=0, help="seed of folds, designs and bootstraps")
     gp.add_argument("--no-plots", action="store_true", help="skip the plots")
+    _add_force_option(gp, "an existing report folder")
     gp.set_defaults(handler=_cmd_gap)
     sy = sub.add_parser("synth", help="write a dataset with a hidden effect (truth to DATASET.truth.json)")
     sy.add_argument("--model", required=True, help="nominal model: preset name or model JSON file")
@@ -73,9 +75,22 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--seed", type=int, default=0, help="seed of maneuvers, noise and random effects")
     sy.add_argument("--observe", choices=("all", "end"), default="all", help="track every row or only end points")
     sy.add_argument("--out", required=True, help="dataset folder to write")
+    _add_force_option(sy, "an existing dataset folder and its DATASET.truth.json")
     sy.set_defaults(handler=_cmd_synth)
     # Further subcommands register here with their own set_defaults(handler=...).
     return parser
+
+
+def _add_force_option(p: argparse.ArgumentParser, what: str) -> None:
+    p.add_argument("--force", action="store_true",
+                   help=f"replace {what} (default: refuse; the output appears complete or not at all, "
+                        "see docs/formats.md)")
+
+
+def _add_train_options(p: argparse.ArgumentParser) -> None:
+    from agents.train import build_arg_parser  # argparse only; the heavy imports happen in the handler
+
+    build_arg_parser(p)
 
 
 def _add_train_options(p: argparse.ArgumentParser) -> None:
@@ -135,6 +150,15 @@ def _effect_param_lines(name: str, params: dict) -> list[tuple[str, str]]:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    from omni_gym.outputs import Output
+
+    # Checked and locked before the work; an output that is an input (commands, model file) is refused.
+    with Output(args.out, "file", force=args.force, inputs=[args.commands, args.model], what="trajectory CSV") as tx:
+        return _simulate_into(args, tx.path)
+
+
+def _simulate_into(args: argparse.Namespace, out) -> int:
+    """The simulation of ``omni-gym simulate``, written to ``out`` (the transaction's temporary file)."""
     from omni_gym.io import TRAJECTORY_HEADER, read_commands, write_csv_atomic
     from omni_gym.model import Actuation, load_model
     from omni_gym.replay import simulate_commands
@@ -147,7 +171,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise ValueError(f"--dt must be in (0, 0.01] seconds, got {dt}")
     states = simulate_commands(model, times, commands, dt=dt, actuation=Actuation(kind=args.actuation),
                                seed=args.seed)
-    write_csv_atomic(args.out, TRAJECTORY_HEADER, np.column_stack([times, states]))
+    write_csv_atomic(out, TRAJECTORY_HEADER, np.column_stack([times, states]))
     return 0
 
 
@@ -168,9 +192,14 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def _cmd_gap(args: argparse.Namespace) -> int:
+    from omni_gym.outputs import Output
+
+    # Refuse a bad --out in a fraction of a second, before the slow imports and the work.
+    Output(args.out, "dir", force=args.force, inputs=[args.dataset], marker="result.json",
+           what="gap report").preflight()
     from omni_gym.discrepancy.workflow import gap
 
-    result = gap(args.dataset, args.out, seed=args.seed, plots=not args.no_plots)
+    result = gap(args.dataset, args.out, seed=args.seed, plots=not args.no_plots, force=args.force)
     if args.json:
         print(json.dumps(result, indent=2, allow_nan=False))  # standard JSON (non-finite values are null)
     else:
@@ -194,11 +223,16 @@ def _cmd_gap(args: argparse.Namespace) -> int:
 
 
 def _cmd_synth(args: argparse.Namespace) -> int:
+    from omni_gym.outputs import Output
+
+    # Refuse a bad --out before the slow imports; write_synthetic checks again (with the truth file).
+    Output(args.out, "dir", force=args.force, inputs=[args.model], marker="dataset.json", what="dataset").preflight()
     from omni_gym.discrepancy.synth import truth_path, write_synthetic
     from omni_gym.model import load_model
 
     model = load_model(args.model, args.surface, args.friction)
-    write_synthetic(args.out, model, args.hidden, args.runs, args.noise, args.seed, args.duration, args.observe)
+    write_synthetic(args.out, model, args.hidden, args.runs, args.noise, args.seed, args.duration, args.observe,
+                    force=args.force, inputs=(args.model,))
     print(f"wrote {args.out} ({args.runs} runs); truth in {truth_path(args.out)}")
     return 0
 

@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import csv
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -77,21 +75,11 @@ def _parse_float(cell: str, path: Path, row: int, column: str) -> float:
 
 
 def write_csv_atomic(path: str | Path, header: list[str], rows: np.ndarray) -> None:
-    """Write a CSV through a temporary file and rename, so a failure never leaves a partial file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="") as fh:
-            writer = csv.writer(fh)
-            writer.writerow(header)
-            for row in np.asarray(rows, dtype=float):
-                writer.writerow([repr(float(v)) for v in row])
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    """Write a CSV through a temporary file and rename, so a failure never leaves a partial file
+    (``omni_gym.outputs``: the user's umask applies)."""
+    from omni_gym.outputs import write_csv_atomic as write
+
+    write(path, header, rows)
 
 
 TRAJECTORY_HEADER = ["t", "x", "y", "theta", "vx", "vy", "omega"]

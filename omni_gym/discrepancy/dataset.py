@@ -20,13 +20,12 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from omni_gym import outputs
 from omni_gym.io import InputError
 from omni_gym.model import SimModel
 
@@ -85,6 +84,8 @@ def load_dataset(folder: str | Path) -> Dataset:
     """Read and validate a dataset folder; raise InputError (one line: file, row, what) on bad input."""
     folder = Path(folder)
     meta_path = folder / "dataset.json"
+    if outputs.is_temporary(folder):
+        raise InputError(f"{folder}: a temporary folder of an unfinished or killed omni-gym write, not a dataset")
     if not folder.is_dir():
         raise InputError(f"{folder}: not a dataset folder (expected dataset.json and runs/*.csv)")
     try:
@@ -99,7 +100,8 @@ def load_dataset(folder: str | Path) -> Dataset:
     desc = meta.get("description", "")
     if not isinstance(desc, str):
         raise InputError(f"{meta_path}: 'description' must be a string")
-    files = sorted((folder / "runs").glob("*.csv"))
+    # Hidden files (e.g. an editor's or an unfinished write's temporary file) are not runs.
+    files = sorted(f for f in (folder / "runs").glob("*.csv") if not f.name.startswith("."))
     if not files:
         raise InputError(f"{folder / 'runs'}: no run files (*.csv)")
     runs = [read_run(f, model.n_wheels) for f in files]
@@ -171,39 +173,13 @@ def read_run(path: Path, n_wheels: int) -> Run:
 
 
 def write_json_atomic(path: str | Path, data: dict) -> None:
-    """Write JSON through a temporary file and rename (never a partial file)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            json.dump(data, fh, indent=2)
-            fh.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
-def _write_cells_atomic(path: Path, header: list[str], rows: np.ndarray) -> None:
-    """CSV with NaN written as an empty cell (not observed), through a temporary file and rename."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="") as fh:
-            writer = csv.writer(fh)
-            writer.writerow(header)
-            for row in rows:
-                writer.writerow(["" if not math.isfinite(v) else repr(float(v)) for v in row])
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    """Write JSON through a temporary file and rename (never a partial file; ``omni_gym.outputs``)."""
+    outputs.write_json_atomic(path, data)
 
 
 def write_dataset(folder: str | Path, model_json: dict, description: str, runs: list[Run]) -> None:
-    """Write a dataset folder (runs first, dataset.json last: a folder with dataset.json is complete)."""
+    """Write a dataset folder (runs first, dataset.json last). For a complete-or-absent dataset write
+    into the temporary folder of an :class:`omni_gym.outputs.Output` (as ``omni-gym synth`` does)."""
     folder = Path(folder)
     (folder / "runs").mkdir(parents=True, exist_ok=True)
     for run in runs:
@@ -214,6 +190,7 @@ def write_dataset(folder: str | Path, model_json: dict, description: str, runs: 
         cols.append(run.pose)
         if run.gyro is not None:
             cols.append(run.gyro[:, None])
-        _write_cells_atomic(folder / "runs" / f"{run.name}.csv",
-                            run_header(n, run.enc is not None, run.gyro is not None), np.column_stack(cols))
+        outputs.write_csv_atomic(folder / "runs" / f"{run.name}.csv",
+                                 run_header(n, run.enc is not None, run.gyro is not None), np.column_stack(cols),
+                                 empty_nan=True)
     write_json_atomic(folder / "dataset.json", {"model": model_json, "description": description})

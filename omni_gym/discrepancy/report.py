@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
+import io
 from pathlib import Path
 
 import numpy as np
 
+from omni_gym import outputs
 from omni_gym.discrepancy.dataset import Dataset
 from omni_gym.discrepancy.finite import dumps_strict
 from omni_gym.discrepancy.plausible import UNITS
@@ -19,8 +19,10 @@ PLOTTED_RUNS = 4
 
 def write_report(out: Path, result: dict, ds: Dataset, nominal: SimModel, model: SimModel, lever: float,
                  dt: float, plots: bool = True) -> None:
-    """Write plots, model.json (the extended model), report.md and result.json (last: a folder with
-    result.json is complete)."""
+    """Write plots, model.json (the extended model), report.md and result.json into ``out``.
+
+    ``omni-gym gap`` passes the temporary folder of an :class:`omni_gym.outputs.Output`: the report
+    folder appears complete, by one rename, or not at all."""
     out.mkdir(parents=True, exist_ok=True)
     figures = _plots(out, result, ds, nominal, model, lever, dt) if plots else []
     # Standard JSON only (allow_nan=False): the workflow has already turned non-finite values into null.
@@ -30,15 +32,7 @@ def write_report(out: Path, result: dict, ds: Dataset, nominal: SimModel, model:
 
 
 def _write_text_atomic(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    outputs.write_text_atomic(path, text)
 
 
 def markdown(result: dict, figures: list[str]) -> str:
@@ -364,13 +358,7 @@ def _plots(out: Path, result: dict, ds: Dataset, nominal: SimModel, model: SimMo
 
 
 def _save(fig, out: Path, name: str) -> str:
-    fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=".png", dir=out)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=110)
-        os.replace(tmp, out / name)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    outputs.write_bytes_atomic(out / name, buf.getvalue())
     return name

@@ -30,6 +30,7 @@ from omni_gym.discrepancy.outliers import OUTLIER_RULE, drop_outliers, find_outl
 from omni_gym.discrepancy.simulate import FIT_DT
 from omni_gym.discrepancy.synth import pose_lever
 from omni_gym.liftoff import contact_cases
+from omni_gym.outputs import Output
 
 METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2)), M the geometric mean over runs "
           "(weighted by observed rows) of each run's mean squared residual over x, y and heading x lever; each run is "
@@ -37,11 +38,23 @@ METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2
 
 
 def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds: int = 3,
-        progress: bool | None = None, dt: float = FIT_DT, plots: bool = True) -> dict:
-    """Run the workflow on ``dataset``; write ``out``/result.json and report.md (if ``out``); return the result.
+        progress: bool | None = None, dt: float = FIT_DT, plots: bool = True, force: bool = False) -> dict:
+    """Run the workflow on ``dataset``; write the report folder ``out`` (if given); return the result.
 
     ``progress``: tqdm bar on stderr (None: only when stderr is a terminal). Same seed, same result.
+    ``out`` is checked and locked before the work starts and appears complete or not at all
+    (:class:`omni_gym.outputs.Output`): an existing report is refused unless ``force``; a report that
+    is, contains or lies inside the dataset is refused.
     """
+    if out is None:
+        return _gap(dataset, None, seed, folds, progress, dt, plots)
+    with Output(Path(out), "dir", force=force, inputs=[dataset], marker="result.json", what="gap report") as tx:
+        return _gap(dataset, tx.path, seed, folds, progress, dt, plots)
+
+
+def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress: bool | None, dt: float,
+         plots: bool) -> dict:
+    """The workflow of :func:`gap`; the report is written into ``out`` as it is (no transaction)."""
     from tqdm import tqdm
 
     show = sys.stderr.isatty() if progress is None else progress
