@@ -163,8 +163,8 @@ def is_number(value) -> bool:
 
 
 def _show(value) -> str:
-    """repr of a user value, cut to 60 characters (a 400-digit integer stays readable)."""
-    text = repr(value)
+    """repr of a user value on one line, cut to 60 characters (a 400-digit integer stays readable)."""
+    text = " ".join(repr(value).split())  # one line: numpy wraps long arrays
     return text if len(text) <= 60 else text[:57] + "..."
 
 
@@ -184,9 +184,9 @@ def _number(name: str, value, bound: Bound | None = None) -> float:
 
 def _choice(name: str, value, allowed) -> str | None:
     if value is not None and not isinstance(value, str):
-        raise ValueError(f"invalid {name}={value!r}; allowed values: {', '.join(map(repr, allowed))}")
+        raise ValueError(f"invalid {name}={_show(value)}; allowed values: {', '.join(map(repr, allowed))}")
     if value not in allowed:
-        raise ValueError(f"invalid {name}={value!r}; allowed values: {', '.join(map(repr, allowed))}")
+        raise ValueError(f"invalid {name}={_show(value)}; allowed values: {', '.join(map(repr, allowed))}")
     return None if value is None else str(value)
 
 
@@ -198,12 +198,12 @@ def _robot(value) -> str:
             return str(value)
         if value.endswith(".json") or os.sep in value:
             allowed += "; a model JSON file goes in model=, e.g. gym.make(ID, model='model.json')"
-    raise ValueError(f"invalid robot={value!r}; allowed values: {allowed}")
+    raise ValueError(f"invalid robot={_show(value)}; allowed values: {allowed}")
 
 
 def _flag(name: str, value) -> bool:
     if not isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"invalid {name}={value!r}; allowed values: True, False")
+        raise ValueError(f"invalid {name}={_show(value)}; allowed values: True, False")
     return bool(value)
 
 
@@ -221,13 +221,13 @@ def _range(name: str, value, lower: float, upper: float) -> tuple[float, float] 
         return None
     items = _sequence(value)
     if items is None or len(items) != 2 or not all(is_number(v) for v in items):
-        raise ValueError(f"invalid {name}={value!r}; must be None or a (low, high) pair of numbers")
+        raise ValueError(f"invalid {name}={_show(value)}; must be None or a (low, high) pair of numbers")
     try:
         lo, hi = float(items[0]), float(items[1])
     except OverflowError:  # an integer beyond float range
         lo, hi = math.nan, math.nan
     if not (math.isfinite(lo) and math.isfinite(hi) and lower <= lo <= hi <= upper):
-        raise ValueError(f"invalid {name}={value!r}; need {lower:g} <= low <= high <= {upper:g}")
+        raise ValueError(f"invalid {name}={_show(value)}; need {lower:g} <= low <= high <= {upper:g}")
     return (lo, hi)
 
 
@@ -236,7 +236,7 @@ def _obstacles(value, half_size: float) -> tuple[tuple[float, float, float], ...
     example = "e.g. obstacles=((0.8, 0.0, 0.1),)"
     items = _sequence(value)
     if items is None:
-        raise ValueError(f"invalid obstacles={value!r}; must be a sequence of (x, y, radius) triples in metres, "
+        raise ValueError(f"invalid obstacles={_show(value)}; must be a sequence of (x, y, radius) triples in metres, "
                          f"{example}")
     if len(items) > MAX_OBSTACLES:
         raise ValueError(f"invalid obstacles: {len(items)} obstacles; at most {MAX_OBSTACLES}")
@@ -244,17 +244,17 @@ def _obstacles(value, half_size: float) -> tuple[tuple[float, float, float], ...
     for i, o in enumerate(items):
         entry = _sequence(o)
         if entry is None or len(entry) != 3 or not all(is_number(v) for v in entry):
-            raise ValueError(f"invalid obstacles[{i}]={o!r}; each obstacle is an (x, y, radius) triple of numbers "
+            raise ValueError(f"invalid obstacles[{i}]={_show(o)}; each obstacle is an (x, y, radius) triple of numbers "
                              f"in metres, {example}")
         try:
             x, y, r = (float(v) for v in entry)
         except OverflowError:  # an integer beyond float range
             x = y = r = math.nan
         if not all(math.isfinite(v) for v in (x, y, r)) or r < MIN_OBSTACLE_RADIUS:
-            raise ValueError(f"invalid obstacles[{i}]={o!r}; x, y must be finite and the radius >= "
+            raise ValueError(f"invalid obstacles[{i}]={_show(o)}; x, y must be finite and the radius >= "
                              f"{MIN_OBSTACLE_RADIUS} m")
         if max(abs(x), abs(y)) + r > half_size:
-            raise ValueError(f"invalid obstacles[{i}]={o!r}; the disc must lie inside the arena "
+            raise ValueError(f"invalid obstacles[{i}]={_show(o)}; the disc must lie inside the arena "
                              f"(|x|, |y| <= arena_half_size - radius, arena_half_size={half_size:g} m)")
         out.append((x, y, r))
     return tuple(out)
@@ -263,7 +263,7 @@ def _obstacles(value, half_size: float) -> tuple[tuple[float, float, float], ...
 def _read_model_file(value) -> SimModel:
     """A model JSON file (UTF-8, a byte-order mark allowed) → SimModel; errors name the file."""
     path = Path(os.fsdecode(value))
-    label = f"model={str(path)!r}"
+    label = f"model={str(path)!r}"  # the whole path (repr of a str is one line)
     try:
         text = path.read_bytes().decode("utf-8-sig")
     except FileNotFoundError:
@@ -286,6 +286,8 @@ def _read_model_file(value) -> SimModel:
 def _model_from_json(data, label: str) -> SimModel:
     try:
         return SimModel.from_json(data, where=f"invalid {label}")
+    except ValueError as exc:
+        raise ValueError(" ".join(str(exc).split())) from None  # one line, whatever the value's repr
     except (TypeError, KeyError, AttributeError) as exc:  # defensive: a malformed value deep inside
         raise ValueError(f"invalid {label}: {exc}") from None
 
@@ -302,7 +304,7 @@ def _model(value) -> SimModel | None:
     elif isinstance(value, (str, os.PathLike)):
         model = _read_model_file(value)
     else:
-        raise ValueError(f"invalid model={value!r}; must be a model JSON file path or a dict as "
+        raise ValueError(f"invalid model={_show(value)}; must be a model JSON file path or a dict as "
                          "'omni-gym model show --json' prints it")
     n = model.n_wheels
     if not WHEEL_COUNT[0] <= n <= WHEEL_COUNT[1]:
@@ -313,7 +315,7 @@ def _model(value) -> SimModel | None:
         for key in ("lift_rate", "recover_rate") if float(lift["lift_rate"]) > 0 else ("lift_rate",):
             bound = BOUNDS[key]
             if not bound.contains(float(lift[key])):
-                raise ValueError(f"invalid model: effect 'wheel_liftoff' {key}={lift[key]!r}; the environments "
+                raise ValueError(f"invalid model: effect 'wheel_liftoff' {key}={_show(lift[key])}; the environments "
                                  f"need it {bound.describe()}")
     return model
 
@@ -390,7 +392,7 @@ def check_seed(seed, name: str = "seed") -> int | None:
         return None
     if isinstance(seed, numbers.Integral) and not isinstance(seed, (bool, np.bool_)) and seed >= 0:
         return int(seed)
-    raise ValueError(f"invalid {name}={seed!r}; must be None or a non-negative integer")
+    raise ValueError(f"invalid {name}={_show(seed)}; must be None or a non-negative integer")
 
 
 def check_reset_options(options) -> None:
@@ -398,7 +400,7 @@ def check_reset_options(options) -> None:
     if options is None:
         return
     if not isinstance(options, dict):
-        raise ValueError(f"invalid reset options={options!r}; must be None or a dict")
+        raise ValueError(f"invalid reset options={_show(options)}; must be None or a dict")
     unknown = sorted(map(repr, options))
     if unknown:
         supported = ", ".join(RESET_OPTIONS) or "none (the episode is set by the seed and the keywords)"

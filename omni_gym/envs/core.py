@@ -140,6 +140,12 @@ def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action
                 o[j] = -OBS_CLIP
 
 
+def _brief(value) -> str:
+    """repr on one line (numpy wraps long arrays), cut to 80 characters."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
 def as_actions(actions, shape: tuple[int, ...]) -> np.ndarray:
     """``actions`` as a float64 array of exactly ``shape``; ValueError for other shapes or non-real values.
 
@@ -149,9 +155,9 @@ def as_actions(actions, shape: tuple[int, ...]) -> np.ndarray:
     try:
         arr = np.asarray(actions)
     except (TypeError, ValueError):
-        raise ValueError(f"action must be an array of real numbers of shape {shape}, got {actions!r}") from None
+        raise ValueError(f"action must be an array of real numbers of shape {shape}, got {_brief(actions)}") from None
     if arr.dtype.kind not in "fiu":
-        raise ValueError(f"action must hold real numbers (int or float), got dtype {arr.dtype}: {actions!r}")
+        raise ValueError(f"action must hold real numbers (int or float), got dtype {arr.dtype}: {_brief(actions)}")
     if arr.shape != shape:
         raise ValueError(f"action must have shape {shape}, got shape {arr.shape}")
     return arr.astype(np.float64)
@@ -241,7 +247,7 @@ class TaskCore:
             raise ValueError(f"action must have {self.action_dim} values per robot, got shape {raw.shape}")
         if not apply_actions(raw.reshape(self._clipped.shape), self._twist_mode, self._action_scale, self.W,
                              self.world.wheels, self._clipped):
-            raise ValueError(f"action contains NaN or infinity: {raw.tolist()}")
+            raise ValueError(f"action contains NaN or infinity: {_brief(raw.tolist())}")
         self.prev_true[:] = self.true
         self.world.substeps(self.cfg.substeps)
         self.step_count += 1
