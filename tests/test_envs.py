@@ -368,6 +368,19 @@ def test_bad_kwargs_rejected_by_vector_env(kwargs, names):
         gym.make_vec(PHUNOPAS, vectorization_mode="vector_entry_point", **kwargs)
 
 
+@pytest.mark.parametrize("env_kwargs", ['{"robot": 5}', '{"episode_seconds": 1e308}', '{"arena_half_size": 1e308}',
+                                        '{"obstacles": [1, 2, 3]}', '{"control_hz": 1e-300}'])
+def test_cli_bad_env_kwargs_one_line_exit_2(env_kwargs, capsys):
+    from omni_gym.cli import main
+
+    argv = ["evaluate", "--policy", "ekf-pid", "--env", GOTO, "--episodes", "1", "--seed", "0",
+            "--env-kwargs", env_kwargs]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    key = env_kwargs.split('"')[1]
+    assert err.startswith("omni-gym: error: ") and key in err and err.count("\n") == 1, err
+
+
 def test_numpy_scalars_accepted_as_python_values():
     numpy_kwargs = {"max_speed": np.float32(0.6), "episode_seconds": np.int64(1), "walls": np.bool_(True),
                     "obstacles": np.array([[1.0, 0.5, 0.1]]), "randomize_mass": np.array([0.9, 1.1]),
