@@ -22,10 +22,11 @@ test: $(STAMP)
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -n 2 --dist worksteal -m slow
 
+# Writes into out/demo/ (untracked); tests/test_demo.py runs these lines with --quick.
 demo: $(STAMP)
-	$(PY) benchmarks/paper_replication.py --out benchmarks/results
-	$(PY) benchmarks/max_force.py --out benchmarks/results
-	$(PY) benchmarks/demo_episodes.py --out benchmarks/results/demo
+	$(PY) benchmarks/paper_replication.py --out out/demo
+	$(PY) benchmarks/max_force.py --out out/demo
+	$(PY) benchmarks/demo_episodes.py --out out/demo
 
 bench: $(STAMP)
 	$(PY) benchmarks/convergence.py --out benchmarks/results

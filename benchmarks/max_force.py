@@ -1,6 +1,7 @@
 """Maximum force before sliding vs robot orientation, after Williams et al. (2002), Fig. 8.
 
-For the williams2002 robot on the paper and carpet surfaces of Table I, compute the largest force
+For the williams2002 robot on every surface of ``omni_gym.friction.SURFACES`` (paper and carpet of
+Table I, and the high-friction ``grip`` reference surface), compute the largest force
 F_max [N] at the centre of mass along world +x that friction can hold, as the robot's orientation θ
 sweeps one symmetry period 2π/3 of a three-wheeled robot. Two contact cases per surface:
 
@@ -9,7 +10,9 @@ sweeps one symmetry period 2π/3 of a three-wheeled robot. Two contact cases per
 
 Loads are equal, m·g/3 per wheel, as in the paper. Writes DIR/max_force.md and DIR/max_force.png.
 
-    .venv/bin/python benchmarks/max_force.py --out benchmarks/results
+    .venv/bin/python benchmarks/max_force.py [--out benchmarks/results] [--quick]
+
+``make demo`` runs it with ``--out out/demo`` (untracked). ``--quick`` (tests) plots 25 points, not 241.
 """
 
 from __future__ import annotations
@@ -33,10 +36,11 @@ from omni_gym.robot import williams2002  # noqa: E402
 PERIOD = 2 * math.pi / 3  # rad, symmetry period of a regular three-wheeled robot
 TABLE_POINTS = 13  # every 10°
 PLOT_POINTS = 241  # every 0.5°
+QUICK_POINTS = 25  # every 5°, --quick
 
 
 def compute(thetas: np.ndarray, loads: np.ndarray | None = None) -> dict[tuple[str, str], np.ndarray]:
-    """F_max [N] at each θ [rad] for (surface, contact) in {paper, carpet} × {rollers, gap}."""
+    """F_max [N] at each θ [rad] for (surface, contact) in SURFACES × {rollers, gap}."""
     robot = williams2002()
     all_gap = np.ones(robot.n_wheels, dtype=bool)
     out = {}
@@ -64,7 +68,8 @@ def markdown(command: str, thetas: np.ndarray, curves: dict, extremes: dict, sta
     for i, th in enumerate(thetas):
         cells = " | ".join(f"{curves[k][i]:.3f}" for k in keys)
         lines.append(f"| {th:.3f} | {math.degrees(th):.0f} | {cells} |")
-    lines += ["", f"Min / max over θ ∈ [0, 2π/3] on a {PLOT_POINTS}-point grid. The layout is not three-fold",
+    grid = len(next(iter(extremes.values())))
+    lines += ["", f"Min / max over θ ∈ [0, 2π/3] on a {grid}-point grid. The layout is not three-fold",
               "symmetric, but F(θ) = F(−θ) (mirror symmetry about the body y axis) and F(θ) = F(θ + π)",
               "(the friction boxes are symmetric), so [0, π/2] ⊂ [0, 2π/3] already covers a full turn:", ""]
     lines += [f"- {s} {c}: {v.min():.3f} / {v.max():.3f} N" for (s, c), v in extremes.items()]
@@ -75,9 +80,18 @@ def markdown(command: str, thetas: np.ndarray, curves: dict, extremes: dict, sta
     return "\n".join(lines) + "\n"
 
 
+def surface_colours(names: list[str]) -> dict[str, str]:
+    """One colour per surface: paper and carpet keep their historical blue and red, others take the next
+    tab10 colours (so a surface added to SURFACES is plotted rather than raising a KeyError)."""
+    fixed = {"paper": "tab:blue", "carpet": "tab:red"}
+    spare = iter(c for c in ("tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:olive",
+                             "tab:cyan", "tab:gray") if c not in fixed.values())
+    return {n: fixed.get(n) or next(spare, "k") for n in names}
+
+
 def plot(path: Path, thetas: np.ndarray, curves: dict) -> None:
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    colours = {"paper": "tab:blue", "carpet": "tab:red"}
+    colours = surface_colours(sorted({s for s, _ in curves}))
     for (s, c), v in curves.items():
         ax.plot(thetas, v, color=colours[s], linestyle="-" if c == "rollers" else "--",
                 label=f"{s}, {'rollers' if c == 'rollers' else 'all wheels on gap'}")
@@ -98,12 +112,14 @@ def plot(path: Path, thetas: np.ndarray, curves: dict) -> None:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results"), help="output directory")
+    parser.add_argument("--quick", action="store_true", help=f"{QUICK_POINTS} plot points, not {PLOT_POINTS} (tests)")
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     command = shlex.join([".venv/bin/python", "benchmarks/max_force.py", *sys.argv[1:]])
 
     table_thetas = np.linspace(0.0, PERIOD, TABLE_POINTS)
-    plot_thetas = np.linspace(0.0, PERIOD, PLOT_POINTS)
+    points = QUICK_POINTS if args.quick else PLOT_POINTS
+    plot_thetas = np.linspace(0.0, PERIOD, points)
     fine = compute(plot_thetas)
     static_n = static_loads(williams2002())
     text = markdown(command, table_thetas, compute(table_thetas), fine, compute(plot_thetas, static_n), static_n)

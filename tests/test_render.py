@@ -3,6 +3,7 @@ wheel state colours, and gymnasium's RecordVideo wrapper."""
 
 import math
 import os
+import sys
 import warnings
 
 import gymnasium as gym
@@ -137,3 +138,24 @@ def test_record_video(tmp_path):
     env.close()
     videos = list((tmp_path / "videos").glob("*.mp4"))
     assert videos and videos[0].stat().st_size > 0
+
+
+def test_render_without_pygame_names_the_extra(monkeypatch):
+    """A missing pygame gives a one-line ModuleNotFoundError naming the render extra, not a bare import error."""
+    env = gym.make(PHUNOPAS, render_mode="rgb_array", episode_seconds=1.0)
+    env.reset(seed=0)
+    monkeypatch.setitem(sys.modules, "pygame", None)  # `import pygame` now fails as if not installed
+    with pytest.raises(ModuleNotFoundError) as info:
+        env.render()
+    message = str(info.value)
+    assert 'pip install "omni-gym[render]"' in message and "pygame" in message and "rgb_array" in message
+    assert "\n" not in message
+    assert info.value.name == "pygame"
+    env.close()
+
+
+def test_gif_writing_without_imageio_names_the_extra(monkeypatch):
+    monkeypatch.setitem(sys.modules, "imageio", None)
+    monkeypatch.setitem(sys.modules, "imageio.v3", None)
+    with pytest.raises(ModuleNotFoundError, match=r'writing GIFs needs the .imageio. package.*omni-gym\[render\]'):
+        render.require("imageio.v3", "writing GIFs")

@@ -1,7 +1,9 @@
 """Top-down pygame rendering of robot 0 of a :class:`~omni_gym.envs.core.TaskCore`.
 
 Imported only when an environment is made with a ``render_mode`` and ``render()`` is first called;
-pygame itself is imported inside :class:`Renderer`, so the rest of the package never needs it.
+pygame itself is imported inside :class:`Renderer`, so the rest of the package never needs it. Without
+pygame (or, for GIF writing, imageio) :func:`require` raises a ``ModuleNotFoundError`` that names the
+extra to install: ``pip install "omni-gym[render]"``.
 
 What is drawn (world frame, x right, y up, the arena ``[-h, h]²`` filling the canvas below a text band):
 
@@ -17,7 +19,9 @@ What is drawn (world frame, x right, y up, the arena ``[-h, h]²`` filling the c
 
 from __future__ import annotations
 
+import importlib
 import math
+from types import ModuleType
 
 import numpy as np
 
@@ -54,6 +58,22 @@ MIN_WHEEL_PX = 3.0  # px, smallest drawn wheel side
 PX_LIMIT = 10_000  # px, coordinates are clipped to ±this so a runaway robot cannot overflow pygame
 
 
+RENDER_EXTRA = 'pip install "omni-gym[render]"'
+# module -> the distribution the render extra installs it from
+RENDER_PACKAGES = {"pygame": "pygame-ce", "imageio": "imageio", "imageio.v3": "imageio"}
+
+
+def require(module: str, purpose: str) -> ModuleType:
+    """Import ``module`` for ``purpose``; if it is missing, a one-line ModuleNotFoundError naming the extra."""
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        package = RENDER_PACKAGES.get(module, module.split(".")[0])
+        raise ModuleNotFoundError(f"{purpose} needs the {package!r} package ({module!r} could not be imported: "
+                                  f"{exc}); install the render extra: {RENDER_EXTRA}",
+                                  name=module.split(".")[0]) from None
+
+
 def wheel_color(contact: bool, drive_slip: float) -> tuple[int, int, int]:
     """Colour of a wheel: lifted, slipping (red, darker with |v_W|) or rolling."""
     if not contact:
@@ -73,7 +93,7 @@ class Renderer:
     """
 
     def __init__(self, cfg: EnvConfig, robot: RobotSpec, human: bool, fps: int, size: int = SIZE) -> None:
-        import pygame
+        pygame = require("pygame", f"rendering (render_mode={'human' if human else 'rgb_array'!r})")
 
         self._pg = pygame
         self.cfg = cfg
