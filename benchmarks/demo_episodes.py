@@ -87,6 +87,7 @@ def colour_key(width: int) -> np.ndarray:
     """RGB strip explaining the renderer's colours (drawn below every GIF frame)."""
     img = Image.new("RGB", (width, KEY_BAND), render.BACKGROUND)
     d = ImageDraw.Draw(img)
+    d.fontmode = "1"  # no anti-aliasing: few colours, so the GIF palette stays exact (3x smaller files)
     items = [("reference path", render.REFERENCE, "line"), ("reference now", render.REF_POINT, "ring"),
              ("driven", render.TRAIL, "line")]
     wheels = [("rolling", render.ROLLING), ("slipping", render.SLIP_HIGH), ("lifted", render.LIFTED)]
