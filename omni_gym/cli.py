@@ -12,6 +12,7 @@ import sys
 
 import numpy as np
 
+from omni_gym.bounds import CLI as CLI_BOUNDS
 from omni_gym.friction import FRICTION_MODELS, SURFACES
 
 EXIT_BAD_INPUT = 2
@@ -38,9 +39,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_model_options(sim)
     sim.add_argument("--commands", required=True, help="CSV with header t,w1,...,wn")
     sim.add_argument("--out", required=True, help="trajectory CSV to write (t,x,y,theta,vx,vy,omega)")
-    sim.add_argument("--dt", type=float, default=None, help="physics substep [s] (default 0.0005)")
+    sim.add_argument("--dt", type=float, default=None,
+                     help="physics substep [s], 1e-05 to 0.002 (default 0.0005; docs/bounds.md)")
     sim.add_argument("--actuation", choices=("ideal", "servo"), default="ideal", help="wheel actuation")
-    sim.add_argument("--seed", type=int, default=0, help="seed for random effects (wheel lift-off)")
+    sim.add_argument("--seed", type=int, default=0, help="seed (>= 0) for random effects (wheel lift-off)")
     _add_force_option(sim, "an existing --out file")
 
     ev = sub.add_parser("evaluate", help="evaluate a policy on held-out seeds (mean and 95%% CI per metric)")
@@ -61,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     gp.add_argument("dataset", help="dataset folder (dataset.json + runs/*.csv, see docs/formats.md)")
     gp.add_argument("--out", required=True, help="report folder (result.json, report.md, plots)")
     gp.add_argument("--json", action="store_true", help="print result.json")
-    gp.add_argument("--seed", type=int, default=0, help="seed of folds, designs and bootstraps")
+    gp.add_argument("--seed", type=int, default=0, help="seed (>= 0) of folds, designs and bootstraps")
     gp.add_argument("--no-plots", action="store_true", help="skip the plots")
     _add_force_option(gp, "an existing report folder")
     gp.set_defaults(handler=_cmd_gap)
@@ -97,6 +99,13 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
     from agents.train import build_arg_parser  # argparse only; the heavy imports happen in the handler
 
     build_arg_parser(p)
+
+
+def check_option(option: str, value) -> None:
+    """Refuse a command-line value outside its bound in ``bounds.CLI`` (one line naming the option)."""
+    bound = CLI_BOUNDS[option]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not bound.contains(value):
+        raise ValueError(f"{option} {bound.describe()}, got {value!r}")
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
@@ -164,13 +173,22 @@ def _simulate_into(args: argparse.Namespace, out) -> int:
     from omni_gym.replay import simulate_commands
     from omni_gym.world import DEFAULT_DT
 
+    dt = DEFAULT_DT if args.dt is None else args.dt
+    check_option("--dt", dt)
+    check_option("--seed", args.seed)
     model = load_model(args.model, args.surface, args.friction)
     times, commands = read_commands(args.commands, model.n_wheels)
-    dt = DEFAULT_DT if args.dt is None else args.dt
-    if not (np.isfinite(dt) and 0 < dt <= 0.01):
-        raise ValueError(f"--dt must be in (0, 0.01] seconds, got {dt}")
+    substeps = CLI_BOUNDS["run duration / --dt"]
+    if not substeps.contains(round(times[-1] / dt)):
+        raise ValueError(f"--dt {dt:g} s: the commands in {args.commands} last {times[-1]:g} s, "
+                         f"{times[-1] / dt:.3g} substeps; at most {substeps.hi:.3g} are allowed "
+                         f"(a few minutes): use a larger --dt or a shorter run")
     states = simulate_commands(model, times, commands, dt=dt, actuation=Actuation(kind=args.actuation),
                                seed=args.seed)
+    bad = np.nonzero(~np.all(np.isfinite(states), axis=1))[0]
+    if bad.size:  # never write a non-finite number: refuse instead
+        raise ValueError(f"simulate: the state became non-finite at t = {times[bad[0]]:g} s "
+                         f"(row {int(bad[0]) + 2} of {args.commands}); nothing written to {args.out}")
     write_csv_atomic(out, TRAJECTORY_HEADER, np.column_stack([times, states]))
     return 0
 
@@ -199,6 +217,7 @@ def _cmd_gap(args: argparse.Namespace) -> int:
            what="gap report").preflight()
     from omni_gym.discrepancy.workflow import gap
 
+    check_option("--seed", args.seed)
     result = gap(args.dataset, args.out, seed=args.seed, plots=not args.no_plots, force=args.force)
     if args.json:
         print(json.dumps(result, indent=2, allow_nan=False))  # standard JSON (non-finite values are null)
@@ -230,6 +249,7 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     from omni_gym.discrepancy.synth import truth_path, write_synthetic
     from omni_gym.model import load_model
 
+    check_option("--seed", args.seed)
     model = load_model(args.model, args.surface, args.friction)
     write_synthetic(args.out, model, args.hidden, args.runs, args.noise, args.seed, args.duration, args.observe,
                     force=args.force, inputs=(args.model,))

@@ -7,10 +7,13 @@ Every reader error is a :class:`InputError` whose one-line message names the fil
 from __future__ import annotations
 
 import csv
-import math
+import io
+import re
 from pathlib import Path
 
 import numpy as np
+
+from omni_gym.bounds import FILES, Bound
 
 
 class InputError(ValueError):
@@ -20,10 +23,10 @@ class InputError(ValueError):
 def read_commands(path: str | Path, n_wheels: int) -> tuple[np.ndarray, np.ndarray]:
     """Read ``t,w1,…,wn``: times [s] from 0, strictly increasing; wheel speeds [rad/s].
 
-    Returns (times (K,), commands (K, n)).
+    Returns (times (K,), commands (K, n)). Values outside ``omni_gym.bounds.FILES`` are refused.
     """
     path = Path(path)
-    rows = _read_rows(path)
+    rows = read_csv_rows(path)
     header = [h.strip() for h in rows[0]]
     expected = ["t"] + [f"w{i + 1}" for i in range(n_wheels)]
     if header != expected:
@@ -39,8 +42,14 @@ def read_commands(path: str | Path, n_wheels: int) -> tuple[np.ndarray, np.ndarr
         if len(row) != n_wheels + 1:
             raise InputError(f"{path}: row {r}: expected {n_wheels + 1} values, got {len(row)}")
         for c, cell in enumerate(row):
-            data[r - 2, c] = _parse_float(cell, path, r, expected[c])
+            data[r - 2, c] = parse_cell(cell, path, r, expected[c])
     times = data[:, 0]
+    check_times(path, times)
+    return times, data[:, 1:]
+
+
+def check_times(path: Path, times: np.ndarray) -> None:
+    """Refuse times [s] that do not start at 0 or do not strictly increase (rows counted from 2)."""
     if times[0] != 0.0:
         raise InputError(f"{path}: row 2: the first time must be 0, got {times[0]:g}")
     bad = np.nonzero(np.diff(times) <= 0)[0]
@@ -48,30 +57,74 @@ def read_commands(path: str | Path, n_wheels: int) -> tuple[np.ndarray, np.ndarr
         r = int(bad[0]) + 3
         raise InputError(f"{path}: row {r}: times must be strictly increasing "
                          f"({times[bad[0] + 1]:g} after {times[bad[0]]:g})")
-    return times, data[:, 1:]
 
 
-def _read_rows(path: Path) -> list[list[str]]:
+def read_text(path: str | Path) -> str:
+    """The text of a UTF-8 file, without a leading byte-order mark; InputError naming the file.
+
+    Spreadsheet programs and some editors start UTF-8 files with a byte-order mark (and end lines
+    with CRLF, which the CSV and JSON readers accept): both are read as if absent.
+    """
+    path = Path(path)
     try:
-        with path.open(newline="") as fh:
-            rows = [row for row in csv.reader(fh) if row and any(cell.strip() for cell in row)]
+        raw = path.read_bytes()
     except FileNotFoundError:
         raise InputError(f"{path}: file not found") from None
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+    except IsADirectoryError:
+        raise InputError(f"{path}: is a directory, expected a file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise InputError(f"{path}: UTF-16 text; save it as UTF-8 (e.g. 'CSV UTF-8')")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not a UTF-8 text file (byte 0x{raw[exc.start]:02x} at offset {exc.start})") from None
+
+
+def read_csv_rows(path: Path) -> list[list[str]]:
+    """Non-blank rows of a CSV file (BOM and CRLF accepted); InputError naming the file."""
+    text = read_text(path)
+    try:
+        rows = [row for row in csv.reader(io.StringIO(text, newline=""))
+                if row and any(cell.strip() for cell in row)]
+    except csv.Error as exc:
         raise InputError(f"{path}: cannot read ({exc})") from None
     if not rows:
-        raise InputError(f"{path}: empty file (expected a header row)")
+        raise InputError(f"{path}: row 1: empty file (expected a header row)")
     return rows
 
 
-def _parse_float(cell: str, path: Path, row: int, column: str) -> float:
-    try:
-        value = float(cell)
-    except ValueError:
-        raise InputError(f"{path}: row {row}: column {column}: not a number: {cell.strip()!r}") from None
-    if not math.isfinite(value):
-        raise InputError(f"{path}: row {row}: column {column}: value must be finite, got {cell.strip()}")
+# A decimal number as spreadsheets write it: no digit-group underscores, no non-ASCII digits.
+_NUMBER = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
+_NON_FINITE = re.compile(r"[+-]?(nan|inf|infinity)", re.IGNORECASE)
+
+
+def parse_cell(cell: str, path: Path, row: int, column: str) -> float:
+    """One CSV cell as a float inside ``bounds.FILES`` for ``column``; InputError naming file/row/column."""
+    text = cell.strip()
+    if _NON_FINITE.fullmatch(text):
+        raise InputError(f"{path}: row {row}: column {column}: value must be finite, got {text}")
+    if not _NUMBER.fullmatch(text):
+        hint = " (write digits without '_' group separators)" if "_" in text else ""
+        raise InputError(f"{path}: row {row}: column {column}: not a number: {text!r}{hint}")
+    value = float(text)
+    bound = column_bound(column)
+    if bound is not None and not bound.contains(value):
+        raise InputError(f"{path}: row {row}: column {column}: {bound.describe()}, got {text}")
     return value
+
+
+def column_bound(column: str) -> Bound | None:
+    """The bound of a command or run CSV column (``t``, ``w3``, ``enc2``, ``x``, …), None if unknown."""
+    if column in ("x", "y"):
+        return FILES["x, y"]
+    if column in ("t", "theta", "gyro"):
+        return FILES[column]
+    for prefix, key in (("enc", "enc1 … encn"), ("w", "w1 … wn")):
+        if column.startswith(prefix) and column[len(prefix):].isdigit():
+            return FILES[key]
+    return None
 
 
 def write_csv_atomic(path: str | Path, header: list[str], rows: np.ndarray) -> None:

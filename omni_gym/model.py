@@ -14,12 +14,17 @@ reads (:meth:`SimModel.kernel_params`), so a new effect never needs a change to 
 
 from __future__ import annotations
 
+import json
 import math
+import numbers
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
-from omni_gym.friction import Surface, check_friction_model, surface_preset
+from omni_gym.bounds import MODEL as MODEL_BOUNDS
+from omni_gym.friction import DEFAULT_K, Surface, check_friction_model, surface_preset
+from omni_gym.io import InputError, read_text
 from omni_gym.robot import GRAVITY, RobotSpec, Wheel, robot_preset
 
 # Layout of the per-robot scalar parameter vector read by the kernel.
@@ -176,17 +181,7 @@ class SimModel:
         wheels = data["wheels"]
         if not isinstance(wheels, list) or not wheels:
             raise ValueError(f"{where}: 'wheels' must be a non-empty list")
-        parsed = []
-        for i, w in enumerate(wheels):
-            try:
-                pos = _vec2(w["position"])
-                drive = _vec2(w["drive"])
-            except (KeyError, TypeError, ValueError) as exc:
-                raise ValueError(f"{where}: wheels[{i}] needs 'position' and 'drive' as [x, y] numbers") from exc
-            norm = math.hypot(*drive)
-            if norm == 0 or not math.isfinite(norm):
-                raise ValueError(f"{where}: wheels[{i}].drive must be a non-zero vector")
-            parsed.append(Wheel(position=pos, drive=(drive[0] / norm, drive[1] / norm)))
+        parsed = [_wheel(w, i, where) for i, w in enumerate(wheels)]
         surf = data["surface"]
         if not isinstance(surf, dict):
             raise ValueError(f"{where}: 'surface' must be an object")
@@ -196,44 +191,75 @@ class SimModel:
         try:
             surface = Surface(
                 name=str(surf.get("name", "custom")),
-                mu_drive=_number(surf["mu_drive"], "surface.mu_drive"),
-                mu_transverse=_number(surf["mu_transverse"], "surface.mu_transverse"),
-                mu_gap=_number(surf["mu_gap"], "surface.mu_gap"),
-                k=_number(surf.get("k", 1000.0), "surface.k"),
+                mu_drive=_bounded(surf["mu_drive"], "surface.mu_drive"),
+                mu_transverse=_bounded(surf["mu_transverse"], "surface.mu_transverse"),
+                mu_gap=_bounded(surf["mu_gap"], "surface.mu_gap"),
+                k=_bounded(surf.get("k", DEFAULT_K), "surface.k"),
             )
-            com = _vec2(data.get("com", [0.0, 0.0]))
+            com = _vec2(data.get("com", [0.0, 0.0]), "com")
             robot = RobotSpec(
                 name=str(data["name"]),
                 wheels=tuple(parsed),
-                wheel_radius=_number(data["wheel_radius"], "wheel_radius"),
-                mass=_number(data["mass"], "mass"),
-                inertia=_number(data["inertia"], "inertia"),
+                wheel_radius=_bounded(data["wheel_radius"], "wheel_radius"),
+                mass=_bounded(data["mass"], "mass"),
+                inertia=_bounded(data["inertia"], "inertia"),
                 com=com,
-                rollers=int(_number(data["rollers"], "rollers")),
-                roller_fraction=_number(data["roller_fraction"], "roller_fraction"),
-                body_radius=_number(data.get("body_radius", _default_body_radius(parsed)), "body_radius"),
+                rollers=int(_bounded(data["rollers"], "rollers")),
+                roller_fraction=_bounded(data["roller_fraction"], "roller_fraction"),
+                body_radius=_bounded(data.get("body_radius", _default_body_radius(parsed)), "body_radius"),
             )
             effects = data.get("effects", {}) or {}
             if not isinstance(effects, dict):
                 raise ValueError("'effects' must be an object")
             return cls(robot=robot, surface=surface, friction=str(data["friction"]),
-                       gravity=_number(data.get("gravity", GRAVITY), "gravity"), effects=effects)
+                       gravity=_bounded(data.get("gravity", GRAVITY), "gravity"), effects=effects)
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
 
 
 def _number(value, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    """``value`` as a float if it is a finite JSON number (not a bool); ValueError naming ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise ValueError(f"{name} must be a number, got {value!r}")
-    if not math.isfinite(value):
+    try:
+        x = float(value)
+    except OverflowError:  # a JSON integer beyond float range
+        raise ValueError(f"{name} must be finite, got an integer of {len(str(abs(value)))} digits") from None
+    if not math.isfinite(x):
         raise ValueError(f"{name} must be finite, got {value!r}")
-    return float(value)
+    return x
 
 
-def _vec2(value) -> tuple[float, float]:
+def _bounded(value, key: str, name: str | None = None) -> float:
+    """A finite number inside ``bounds.MODEL[key]``; ValueError naming ``name`` (default ``key``)."""
+    name = name or key
+    return MODEL_BOUNDS[key].check(_number(value, name), name)
+
+
+def _vec2(value, name: str, key: str | None = None) -> tuple[float, float]:
+    """``[x, y]`` as two numbers, each inside ``bounds.MODEL[key]`` (default ``name``) [m]."""
     if not isinstance(value, (list, tuple)) or len(value) != 2:
-        raise ValueError(f"expected [x, y], got {value!r}")
-    return (_number(value[0], "x"), _number(value[1], "y"))
+        raise ValueError(f"{name} must be [x, y], got {value!r}")
+    return (_bounded(value[0], key or name, f"{name}[0]"), _bounded(value[1], key or name, f"{name}[1]"))
+
+
+def _wheel(w, i: int, where: str) -> Wheel:
+    """Wheel ``i`` from ``{"position": [x, y], "drive": [dx, dy]}`` (drive normalised)."""
+    name = f"wheels[{i}]"
+    if not isinstance(w, dict) or "position" not in w or "drive" not in w:
+        raise ValueError(f"{where}: {name} needs 'position' and 'drive' as [x, y] numbers")
+    try:
+        pos = _vec2(w["position"], f"{name}.position", "wheels[i].position")
+        if not isinstance(w["drive"], (list, tuple)) or len(w["drive"]) != 2:
+            raise ValueError(f"{name}.drive must be [x, y], got {w['drive']!r}")
+        drive = (_number(w["drive"][0], f"{name}.drive[0]"), _number(w["drive"][1], f"{name}.drive[1]"))
+        norm = math.hypot(*drive)
+        if norm == 0:
+            raise ValueError(f"{name}.drive must be a non-zero vector")
+        MODEL_BOUNDS["wheels[i].drive (length)"].check(norm, f"{name}.drive length")
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
+    return Wheel(position=pos, drive=(drive[0] / norm, drive[1] / norm))
 
 
 def _default_body_radius(wheels: list[Wheel]) -> float:
@@ -241,7 +267,10 @@ def _default_body_radius(wheels: list[Wheel]) -> float:
 
 
 def validate_effect(name: str, params: dict, n_wheels: int) -> None:
-    """Raise ValueError naming the effect and key if ``params`` do not fit the effect library."""
+    """Raise ValueError naming the effect and key if ``params`` do not fit the effect library.
+
+    Every parameter must lie inside its bound ``bounds.MODEL["effects.EFFECT.KEY"]``.
+    """
     if name not in EFFECT_PARAMS:
         raise ValueError(f"unknown effect {name!r}; choose one of {sorted(EFFECT_PARAMS)}")
     if not isinstance(params, dict):
@@ -253,35 +282,25 @@ def validate_effect(name: str, params: dict, n_wheels: int) -> None:
     for key in allowed:
         if key not in params:
             raise ValueError(f"effect {name!r}: missing parameter {key!r}")
-    per_wheel = {"phase", "scale"}
+    lengths = {"phase": n_wheels, "scale": n_wheels, "com": 2}
     for key, value in params.items():
-        if key in per_wheel:
-            arr = np.asarray(value, dtype=float)
-            if arr.shape != (n_wheels,) or not np.all(np.isfinite(arr)):
-                raise ValueError(f"effect {name!r}: {key} must be {n_wheels} finite numbers (one per wheel)")
-        elif key == "com":
-            arr = np.asarray(value, dtype=float)
-            if arr.shape != (2,) or not np.all(np.isfinite(arr)):
-                raise ValueError(f"effect {name!r}: com must be [x, y] finite numbers")
+        bound_key = f"effects.{name}.{key}"
+        label = f"effect {name!r}: {key}"
+        if key in lengths:
+            what = "one per wheel" if key != "com" else "[x, y]"
+            if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != lengths[key]:
+                raise ValueError(f"{label} must be {lengths[key]} numbers ({what}), got {value!r}")
+            for j, v in enumerate(value):
+                _bounded(v, bound_key, f"{label}[{j}]")
         else:
-            _number(value, f"effect {name!r} {key}")
-            if value < 0:
-                raise ValueError(f"effect {name!r}: {key} must be >= 0, got {value}")
+            _bounded(value, bound_key, label)
 
 
 def load_model(name_or_path: str, surface: str | None = None, friction: str | None = None) -> SimModel:
     """A preset robot name or a model JSON file, with optional surface/friction overrides."""
-    import json
-    from pathlib import Path
-
     path = Path(name_or_path)
     if name_or_path.endswith(".json") or path.is_file():
-        try:
-            data = json.loads(path.read_text())
-        except FileNotFoundError:
-            raise ValueError(f"{name_or_path}: file not found") from None
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{name_or_path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+        data = read_json(path)
         model = SimModel.from_json(data, where=name_or_path)
         if surface is not None:
             model = replace(model, surface=surface_preset(surface))
@@ -290,3 +309,14 @@ def load_model(name_or_path: str, surface: str | None = None, friction: str | No
         return model
     return SimModel(robot=robot_preset(name_or_path), surface=surface_preset(surface or "carpet"),
                     friction=check_friction_model(friction or "roller_gap"))
+
+
+def read_json(path: str | Path):
+    """A JSON file's content (UTF-8, optional byte-order mark); ValueError naming the file."""
+    text = read_text(path)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    except RecursionError:
+        raise InputError(f"{path}: not valid JSON (nested too deeply)") from None

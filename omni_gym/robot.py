@@ -157,12 +157,13 @@ def williams2002() -> RobotSpec:
         roller_fraction=0.9,
         body_radius=L + 0.01,
         assumptions={
-            "mass": "2.0 kg: not given in the paper; a small RoboCup F180-class base, the value used for "
-            "the project's integration study (shared/notes/integration.md).",
+            "mass": "2.0 kg: not given in the paper; a small RoboCup F180-class base, the value of the "
+            "project's time-step study (semi-implicit Euler against scipy Radau: 0.5 ms substeps meet "
+            "1 mm / 2 mrad; docs/model.md, 'Integration step: measured facts').",
             "inertia": "0.5·m·L² = 0.0081 kg·m²: uniform disc of radius L, no number in the paper.",
             "wheel_centre_radius L": "0.09 m: RoboCup F180 size limit (18 cm diameter), as in the "
-            "integration study.",
-            "wheel_radius": "0.03 m: small commercial omni wheel (Kornylak-type), as in the integration study.",
+            "time-step study.",
+            "wheel_radius": "0.03 m: small commercial omni wheel (Kornylak-type), as in the time-step study.",
             "front-wheel angle δ": "14° from the body x axis: lost from our copy of the paper, which says only "
             "that δ differs from the symmetric 30° because of RoboCup size limits. Fitted by "
             "benchmarks/tune_williams.py so the paper's maneuver reproduces the paper's own simulation "

@@ -74,6 +74,11 @@ MALFORMED = {
     "empty_command": (GOOD_HEAD + "0,1,1,1,0,0,0\n0.02,1,,1,0,0,0\n", "r1.csv: row 3: column w2: empty cell"),
     "partial_pose": (GOOD_HEAD + "0,1,1,1,0,0,0\n0.02,1,1,1,0.1,,0\n", "r1.csv: row 3: x, y and theta must be all"),
     "short_row": (GOOD_HEAD + "0,1,1,1,0,0,0\n0.02,1,1,1\n", "r1.csv: row 3: expected 7 values, got 4"),
+    "pose_1e308": (GOOD_HEAD + "0,1,1,1,0,0,0\n0.02,1,1,1,1e308,0,0\n",
+                   "r1.csv: row 3: column x: must be a number in .-10000, 10000. m"),  # regex: . for [ ]
+    "time_1e308": (GOOD_HEAD + "0,1,1,1,0,0,0\n1e308,1,1,1,0,0,0\n",
+                   "r1.csv: row 3: column t: must be a number in .0, 3600. s"),
+    "underscore": (GOOD_HEAD + "0,1,1,1,0,0,0\n0.02,1_0,1,1,0,0,0\n", "r1.csv: row 3: column w1: not a number: '1_0'"),
 }
 
 
@@ -100,6 +105,41 @@ def test_missing_dataset_json_and_bad_model_are_named(tmp_path):
     (folder / "dataset.json").write_text(json.dumps(data))
     with pytest.raises(ValueError, match="dataset.json: model: missing key 'mass'"):
         load_dataset(folder)
+
+
+def test_dataset_saved_by_a_spreadsheet_loads_like_the_plain_one(tmp_path):
+    """UTF-8 byte-order mark and CRLF line ends in dataset.json and the run CSVs change nothing."""
+    text = GOOD_HEAD + "0,1,1,1,0,0,0\n0.02,1,1,1,0.001,0.002,0.01\n0.04,0,0,0,,,\n"
+    plain = load_dataset(_write_run(tmp_path / "plain", text))
+    folder = _write_run(tmp_path / "excel", text)
+    for f in (folder / "dataset.json", folder / "runs" / "r1.csv"):
+        f.write_bytes(b"\xef\xbb\xbf" + f.read_bytes().replace(b"\n", b"\r\n"))
+    excel = load_dataset(folder)
+    assert excel.model_json == plain.model_json
+    np.testing.assert_array_equal(excel.runs[0].t, plain.runs[0].t)
+    np.testing.assert_array_equal(excel.runs[0].cmd, plain.runs[0].cmd)
+    np.testing.assert_array_equal(excel.runs[0].pose, plain.runs[0].pose)  # NaN where empty, in both
+
+
+def _error_lines(capsys):
+    """The error lines of stderr (gap also prints one progress line per stage there)."""
+    return [line for line in capsys.readouterr().err.splitlines() if line.startswith("omni-gym: error: ")]
+
+
+def test_out_of_bound_model_and_binary_dataset_json_are_named(tmp_path, capsys):
+    folder = _write_run(tmp_path, GOOD_HEAD + "0,1,1,1,0,0,0\n0.02,1,1,1,0,0,0\n")
+    meta = folder / "dataset.json"
+    data = json.loads(meta.read_text())
+    data["model"]["mass"] = 1e308  # used to give "none" with a 0.00 mm gap
+    meta.write_text(json.dumps(data))
+    assert main(["gap", str(folder), "--out", str(tmp_path / "rep")]) == 2
+    err = _error_lines(capsys)
+    assert len(err) == 1 and f"{meta}: model: mass must be a number in [0.001, 10000] kg" in err[0]
+    meta.write_bytes(b"\x00\xff" * 50)
+    assert main(["gap", str(folder), "--out", str(tmp_path / "rep")]) == 2
+    err = _error_lines(capsys)
+    assert len(err) == 1 and f"{meta}: not a UTF-8 text file" in err[0] and "codec" not in err[0]
+    assert not (tmp_path / "rep").exists()
 
 
 # --- synth --------------------------------------------------------------------------------------

@@ -12,22 +12,20 @@ nothing was observed; gyro [rad/s] (optional). Every run starts at rest; an empt
 the origin (0, 0, 0).
 
 Every error is a one-line :class:`~omni_gym.io.InputError` naming the file and the row (row 1 is
-the header).
+the header). Files may start with a UTF-8 byte-order mark and use CRLF line ends; every value must
+lie inside its bound (``omni_gym.bounds.FILES``, ``docs/bounds.md``).
 """
 
 from __future__ import annotations
 
-import csv
-import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from omni_gym import outputs
-from omni_gym.io import InputError
-from omni_gym.model import SimModel
+from omni_gym.io import InputError, check_times, parse_cell, read_csv_rows
+from omni_gym.model import SimModel, read_json
 
 
 @dataclass
@@ -88,12 +86,7 @@ def load_dataset(folder: str | Path) -> Dataset:
         raise InputError(f"{folder}: a temporary folder of an unfinished or killed omni-gym write, not a dataset")
     if not folder.is_dir():
         raise InputError(f"{folder}: not a dataset folder (expected dataset.json and runs/*.csv)")
-    try:
-        meta = json.loads(meta_path.read_text())
-    except FileNotFoundError:
-        raise InputError(f"{meta_path}: file not found") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{meta_path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    meta = read_json(meta_path)
     if not isinstance(meta, dict) or "model" not in meta:
         raise InputError(f"{meta_path}: expected an object with key 'model'")
     model = SimModel.from_json(meta["model"], where=f"{meta_path}: model")
@@ -110,13 +103,7 @@ def load_dataset(folder: str | Path) -> Dataset:
 
 def read_run(path: Path, n_wheels: int) -> Run:
     """Read one run CSV (format in the module docstring)."""
-    try:
-        with path.open(newline="") as fh:
-            rows = [row for row in csv.reader(fh) if row and any(cell.strip() for cell in row)]
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"{path}: cannot read ({exc})") from None
-    if not rows:
-        raise InputError(f"{path}: row 1: empty file (expected a header)")
+    rows = read_csv_rows(path)
     header = [h.strip() for h in rows[0]]
     encoders = any(h.startswith("enc") for h in header)
     gyro = bool(header) and header[-1] == "gyro"
@@ -142,20 +129,9 @@ def read_run(path: Path, n_wheels: int) -> Run:
                 if col in may_be_empty:
                     continue
                 raise InputError(f"{path}: row {r}: column {col}: empty cell")
-            try:
-                value = float(cell)
-            except ValueError:
-                raise InputError(f"{path}: row {r}: column {col}: not a number: {cell.strip()!r}") from None
-            if not math.isfinite(value):
-                raise InputError(f"{path}: row {r}: column {col}: value must be finite, got {cell.strip()}")
-            data[r - 2, c] = value
+            data[r - 2, c] = parse_cell(cell, path, r, col)
     t = data[:, 0]
-    if t[0] != 0.0:
-        raise InputError(f"{path}: row 2: the first time must be 0, got {t[0]:g}")
-    bad = np.nonzero(np.diff(t) <= 0)[0]
-    if bad.size:
-        raise InputError(f"{path}: row {int(bad[0]) + 3}: times must be strictly increasing "
-                         f"({t[bad[0] + 1]:g} after {t[bad[0]]:g})")
+    check_times(path, t)
     pose = data[:, [expected.index("x"), expected.index("y"), expected.index("theta")]]
     partial = np.nonzero(np.any(np.isfinite(pose), axis=1) & ~np.all(np.isfinite(pose), axis=1))[0]
     if partial.size:

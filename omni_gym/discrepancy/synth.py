@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from omni_gym.bounds import CLI
 from omni_gym.discrepancy.dataset import Run, write_dataset
 from omni_gym.discrepancy.simulate import Job, simulate_jobs
 from omni_gym.model import EFFECT_PARAMS, SimModel
@@ -81,10 +82,22 @@ def parse_hidden(spec: str, model: SimModel, rng: np.random.Generator) -> tuple[
                 raise ValueError(f"--hidden {name}: unknown parameter {key!r}; allowed {list(allowed)}")
         params.update(given)
     if name in EFFECT_PARAMS:
-        model.with_effect(name, params)  # validates
-    elif name == "viscous_drag" and not (isinstance(params["c"], (int, float)) and params["c"] >= 0):
-        raise ValueError("--hidden viscous_drag: c must be a number >= 0 [N·s/m]")
+        try:
+            model.with_effect(name, params)  # validates, bounds included
+        except ValueError as exc:
+            raise ValueError(f"--hidden {name}: {exc}") from None
+    elif name == "viscous_drag":
+        _check_drag(params["c"], model.robot.mass)
     return name, params
+
+
+def _check_drag(c, mass: float) -> None:
+    """Refuse a drag coefficient c [N·s/m] outside ``bounds.CLI`` (as c / mass [1/s])."""
+    if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c):
+        raise ValueError(f"--hidden viscous_drag: c must be a finite number [N·s/m], got {c!r}")
+    bound = CLI["--hidden viscous_drag c / mass"]
+    if not bound.contains(c / mass):
+        raise ValueError(f"--hidden viscous_drag: c / mass {bound.describe()} (mass {mass:g} kg), got c = {c!r}")
 
 
 def maneuver(model: SimModel, rng: np.random.Generator, duration: float, rate: float = RATE) -> tuple:
@@ -129,13 +142,13 @@ def maneuver(model: SimModel, rng: np.random.Generator, duration: float, rate: f
 
 def synthesize(model: SimModel, hidden: str, runs: int, noise: float, seed: int, duration: float = 5.0,
                observe: str = "all") -> tuple[list[Run], dict]:
-    """Simulate ``runs`` maneuvers with the hidden effect; returns (runs with noisy measurements, truth)."""
-    if runs < 1:
-        raise ValueError(f"--runs must be >= 1, got {runs}")
-    if not (math.isfinite(noise) and noise >= 0):
-        raise ValueError(f"--noise must be a number >= 0 [m], got {noise}")
-    if not (math.isfinite(duration) and duration >= 0.2):
-        raise ValueError(f"duration must be >= 0.2 s, got {duration}")
+    """Simulate ``runs`` maneuvers with the hidden effect; returns (runs with noisy measurements, truth).
+
+    ``runs``, ``noise`` [m], ``duration`` [s] and ``seed`` must lie inside ``bounds.CLI`` (their options).
+    """
+    for option, value in (("--runs", runs), ("--noise", noise), ("--duration", duration), ("--seed", seed)):
+        CLI[option].check(value)
+    CLI["--runs × --duration"].check(runs * duration)
     if observe not in ("all", "end"):
         raise ValueError(f"--observe must be 'all' or 'end', got {observe!r}")
     rng = np.random.default_rng(seed)
@@ -152,6 +165,8 @@ def synthesize(model: SimModel, hidden: str, runs: int, noise: float, seed: int,
     out = []
     quantum = 2 * math.pi / COUNTS_PER_REV
     for run, (pose, ang) in zip(shells, sims, strict=True):
+        if not (np.all(np.isfinite(pose)) and np.all(np.isfinite(ang))):  # NaN would be written as "not observed"
+            raise ValueError(f"synth: the simulation of {run.name} became non-finite; nothing written")
         meas = pose + r_noise.normal(0.0, 1.0, pose.shape) * np.array([noise, noise, noise / lever])
         meas[0] = 0.0  # each run starts at rest at the origin, known exactly
         if observe == "end":
