@@ -5,7 +5,7 @@ STAMP := .venv/.installed
 export SDL_VIDEODRIVER := dummy
 export MPLBACKEND := Agg
 
-.PHONY: venv test test-slow demo lint bench bench-agents bench-discrepancy clean
+.PHONY: venv test test-slow demo lint bench bench-agents bench-discrepancy clean install-check
 
 venv: $(STAMP)
 
@@ -40,6 +40,11 @@ bench-agents: $(STAMP)
 
 bench-discrepancy: $(STAMP)
 	$(PY) benchmarks/discrepancy_recovery.py --seeds 2 --runs 6 --duration 3 --jobs 2 --out benchmarks/results
+
+# Build the wheel, install it (non-editable, [agents] extra) into a fresh venv and train from outside
+# the tree (CI runs it after `make test`; about 5 min).
+install-check:
+	.ci/install_check.sh
 
 lint: $(STAMP)
 	$(PY) -m ruff check .

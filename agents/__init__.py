@@ -1,0 +1,23 @@
+"""Scripted baselines (EKF + PID) and Stable-Baselines3 agents for the omni-gym environments.
+
+The SB3 parts (training, loading a trained model) need the ``agents`` extra
+(``pip install 'omni-gym[agents]'``: torch, stable-baselines3, pyyaml); the scripted baselines do not.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+
+# import name -> distribution name, for the message
+AGENTS_EXTRA = {"torch": "torch", "stable_baselines3": "stable-baselines3", "yaml": "pyyaml"}
+
+
+def require_agents_extra(purpose: str) -> None:
+    """Raise ``ModuleNotFoundError`` naming the extra when a package of the ``agents`` extra is missing.
+
+    ``purpose`` says what needed it (e.g. ``"omni-gym train"``); the message is one line.
+    """
+    missing = [dist for mod, dist in AGENTS_EXTRA.items() if importlib.util.find_spec(mod) is None]
+    if missing:
+        raise ModuleNotFoundError(f"{purpose} needs the agents extra (missing: {', '.join(missing)}): "
+                                  "pip install 'omni-gym[agents]'", name=missing[0])

@@ -10,8 +10,11 @@ Episode i runs with ``env.reset(seed=seed + i)``. Per-episode metrics come from 
 * ``final_heading_error`` [rad]: |info["heading_error"]| at the last step.
 * ``success``: info["is_success"] at the last step and the episode was not terminated early.
 
-Aggregates: mean with a two-sided 95 % Student-t interval (mean ± t₀.₉₇₅,ₙ₋₁·s/√n; None for n = 1)
-and the success rate with a 95 % Wilson score interval.
+Aggregates: the mean of each metric with a 95 % bootstrap percentile interval (:func:`bootstrap_ci`;
+None for n = 1) and the success rate with a 95 % Wilson score interval. The metrics are errors, never
+negative, and their distributions are skewed (a few lost episodes dominate): a Student-t interval
+(mean ± t·s/√n) then reaches below zero, a bound no error can have. The percentile interval lies
+inside [min, max] of the data, so it is never negative.
 
 Scripted policies (:data:`agents.policies.POLICY_NAMES`) run with ``obs_mode="sensors"`` and
 ``action_mode="twist"``; asking for other modes in ``env_kwargs`` is an error.
@@ -112,6 +115,34 @@ def mean_ci(values: np.ndarray, level: float = 0.95) -> dict:
     return {"mean": mean, "std": sd, "ci95": [mean - half, mean + half]}
 
 
+BOOTSTRAP_RESAMPLES = 10_000
+BOOTSTRAP_SEED = 0  # fixed: the same episodes always give the same interval
+
+
+def bootstrap_ci(values: np.ndarray, level: float = 0.95, resamples: int = BOOTSTRAP_RESAMPLES) -> dict:
+    """Mean, sample std and a bootstrap percentile confidence interval of the mean (None if n < 2).
+
+    The interval is the (1 − level)/2 and (1 + level)/2 quantiles of the means of ``resamples`` resamples
+    (with replacement, from a generator with a fixed seed, so the result is a function of the data). For
+    non-negative data (errors) it is never negative, unlike the Student-t interval, and it follows the
+    skew of the data. With few values (n ≲ 10) it is somewhat narrower than its nominal level, as any
+    percentile bootstrap.
+    """
+    x = np.asarray(values, dtype=float)
+    n = len(x)
+    mean = float(np.mean(x))
+    if n < 2:
+        return {"mean": mean, "std": None, "ci95": None}
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    means = np.empty(resamples)
+    chunk = max(1, 2_000_000 // n)  # bounded memory for long evaluations
+    for start in range(0, resamples, chunk):
+        stop = min(resamples, start + chunk)
+        means[start:stop] = x[rng.integers(0, n, size=(stop - start, n))].mean(axis=1)
+    lo, hi = np.quantile(means, [(1.0 - level) / 2.0, (1.0 + level) / 2.0])
+    return {"mean": mean, "std": float(np.std(x, ddof=1)), "ci95": [float(lo), float(hi)]}
+
+
 def wilson_ci(successes: int, n: int, z: float = Z95) -> list[float]:
     """Wilson score interval for a binomial proportion (95 % with the default z)."""
     if n < 1:
@@ -124,8 +155,8 @@ def wilson_ci(successes: int, n: int, z: float = Z95) -> list[float]:
 
 
 def summarize(episodes: list[Episode]) -> dict:
-    """Aggregate metrics (mean and 95 % CI) and the per-episode values."""
-    out = {m: mean_ci(np.array([getattr(e, m) for e in episodes])) for m in METRICS}
+    """Aggregate metrics (mean and 95 % bootstrap percentile CI) and the per-episode values."""
+    out = {m: bootstrap_ci(np.array([getattr(e, m) for e in episodes])) for m in METRICS}
     wins = sum(e.success for e in episodes)
     out["success_rate"] = {"mean": wins / len(episodes), "successes": wins, "ci95": wilson_ci(wins, len(episodes))}
     out["terminated_rate"] = sum(e.terminated for e in episodes) / len(episodes)
@@ -174,41 +205,46 @@ def make_env(env_id: str, env_kwargs: dict | None = None, obs_mode: str = "senso
 
 
 def evaluate(policy: str, env_id: str, episodes: int, seed: int, env_kwargs: dict | None = None,
-             progress: bool | None = None) -> dict:
+             progress: bool | None = None, model_options=None) -> dict:
     """Run ``episodes`` episodes of ``policy`` on seeds seed, seed+1, …; return the summary dict.
 
     Args:
-        policy: one of :data:`~agents.policies.POLICY_NAMES`, or a trained model directory (``meta.json``
-            + model zip, see :mod:`agents.sb3_policy`; it builds the environment and wrapper it needs).
+        policy: one of :data:`~agents.policies.POLICY_NAMES`, or a trained model: our model directory
+            (``meta.json`` + model zip), an RL Zoo output folder or a plain SB3 ``.zip`` (see
+            :mod:`agents.sb3_policy`; it builds the environment and wrapper the model needs).
         env_id: a registered omni-gym id.
         episodes: number of episodes (≥ 1).
         seed: first seed.
         env_kwargs: extra ``gym.make`` keywords.
         progress: tqdm bar on stderr (None: only when stderr is a terminal).
+        model_options: :class:`agents.sb3_policy.ModelOptions` (algorithm, wrapper, ... of a plain SB3 zip).
 
     Returns a JSON-serialisable dict: ``policy``, ``env_id``, ``env_kwargs``, ``episodes``, ``seeds``
     ([first, last]), per metric {mean, std, ci95}, ``success_rate`` {mean, successes, ci95},
     ``terminated_rate`` and ``per_episode`` lists.
     """
-    if policy not in POLICY_NAMES and not os.path.isdir(policy):
-        if policy.endswith(".zip") or os.path.exists(policy):
-            raise ValueError(f"policy {policy!r}: a trained model is evaluated from its directory (meta.json + "
-                             "model zip, e.g. agents/models/<name>), not from a file")
+    scripted = policy in POLICY_NAMES
+    if not scripted and not os.path.isdir(policy) and not policy.endswith(".zip"):
+        if os.path.exists(policy):
+            raise ValueError(f"policy {policy!r}: not a model (a model directory, an RL Zoo folder or an SB3 .zip)")
         raise ValueError(f"unknown policy {policy!r}; choose one of {', '.join(POLICY_NAMES)} or a saved model path")
+    if scripted and model_options is not None and model_options.given():
+        raise ValueError(f"{model_options.given()[0]} applies to a trained model, not to the scripted policy "
+                         f"{policy!r}")
     if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     from tqdm import tqdm
 
-    if policy in POLICY_NAMES:
+    if scripted:
         env = make_env(env_id, env_kwargs)
-    else:  # a trained model directory: it knows its observation mode and wrapper
+    else:  # a trained model: it knows (or the options say) its observation mode and wrapper
         from agents.sb3_policy import build
 
-        env, pol = build(policy, env_id, env_kwargs)
+        env, pol = build(policy, env_id, env_kwargs, model_options)
     try:
-        if policy in POLICY_NAMES:
+        if scripted:
             pol = make_policy(policy, env)
         eps = [run_episode(env, pol, int(seed) + i)
                for i in tqdm(range(episodes), desc=f"{policy} on {env_id}", file=sys.stderr, disable=progress is False
@@ -224,7 +260,7 @@ def format_table(result: dict) -> str:
     kw = f", {result['env_kwargs']}" if result["env_kwargs"] else ""
     lines = [f"{result['policy']} on {result['env_id']}, {result['episodes']} episodes, seeds "
              f"{result['seeds'][0]}–{result['seeds'][1]}{kw}",
-             f"{'metric':<26}{'mean':>10}   95% CI"]
+             f"{'metric':<26}{'mean':>10}   95% CI (bootstrap percentile: errors are never negative)"]
     units = {"tracking_rmse": "m", "final_position_error": "m", "final_heading_error": "rad"}
     for m in METRICS:
         r = result[m]

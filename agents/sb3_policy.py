@@ -1,8 +1,17 @@
-"""Load a trained SB3 model directory (``agents/models/<name>/``) and run it like a scripted policy.
+"""Load a trained SB3 model and run it like a scripted policy.
 
-A model directory holds ``meta.json`` (written by :mod:`agents.train`: algorithm, observation mode,
-wrapper, residual bound), the model zip named by ``meta["model"]`` and, if the model was trained with
-observation normalisation, the ``VecNormalize`` statistics named by ``meta["vecnormalize"]``.
+Three kinds of model are accepted (:func:`resolve`):
+
+* our model directory (``agents/models/<name>/``, written by :mod:`agents.train`): ``meta.json``
+  (algorithm, observation mode, wrapper, residual bound; docs/formats.md), the model zip named by
+  ``meta["model"]`` and, if the model was trained with observation normalisation, the ``VecNormalize``
+  statistics named by ``meta["vecnormalize"]``;
+* an RL Zoo output folder (``logs/ppo/ENV_1/``: ``ENV.zip`` and ``ENV/`` with ``args.yml``,
+  ``config.yml`` and, when normalising, ``vecnormalize.pkl``): the algorithm comes from ``args.yml``,
+  the wrapper and observation mode from ``config.yml`` (``env_wrapper``, ``env_kwargs``);
+* a plain SB3 ``model.zip``: nothing can be read but the weights, so the algorithm (``--algo``), the
+  wrapper (``--wrapper``, default none), the observation mode (``obs_mode`` in ``--env-kwargs``, default
+  sensors) and the normalisation statistics (``--vecnormalize``) come from :class:`ModelOptions`.
 
     env, policy = build("agents/models/ppo-residual", "OmniPathFollow-Phunopas-v0", {"lift_rate": 0.5})
     episode = agents.evaluate.run_episode(env, policy, seed=10_000)
@@ -16,11 +25,52 @@ from __future__ import annotations
 
 import json
 import pickle
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 META = "meta.json"
+ZOO_ALGO_FILE = "args.yml"
+ZOO_CONFIG = "config.yml"
+
+
+@dataclass(frozen=True)
+class ModelOptions:
+    """What the command line says about a model (None: not given). A plain SB3 zip needs ``algo``; for
+    our model directories and RL Zoo folders the values are read from the files, and an option that
+    contradicts them is refused.
+
+    ``wrapper``: one of :data:`agents.wrappers.WRAPPERS`; ``residual_scale``: its residual bound
+    (fraction of the action range); ``vecnormalize``: a ``VecNormalize`` pickle.
+    """
+
+    algo: str | None = None
+    wrapper: str | None = None
+    residual_scale: float | None = None
+    vecnormalize: str | None = None
+
+    def given(self) -> list[str]:
+        """The options that were given, as command-line names."""
+        names = {"algo": "--algo", "wrapper": "--wrapper", "residual_scale": "--residual-scale",
+                 "vecnormalize": "--vecnormalize"}
+        return [flag for key, flag in names.items() if getattr(self, key) is not None]
+
+
+@dataclass(frozen=True)
+class ModelSource:
+    """Where a model's files are and how its environment is built (see the module doc).
+
+    ``kind``: "meta" (our directory), "zoo" (RL Zoo folder) or "zip" (plain SB3); ``meta``: our
+    ``meta.json`` or the equivalent keys read from the Zoo's files or the options (``algo``, ``wrapper``,
+    ``residual_scale``, ``obs_mode`` or None, ``env_id`` or None, ``model``, ``vecnormalize``).
+    """
+
+    kind: str
+    meta: dict
+    zip_path: Path
+    vecnormalize: Path | None
+    where: str  # the file the meta keys came from, for error messages
 
 
 class SB3Policy:
@@ -77,51 +127,173 @@ def read_meta(path: str | Path) -> dict:
     return meta
 
 
-def load(path: str | Path):
-    """(meta, model, vecnormalize or None) of a model directory."""
+def is_model_path(path: str | Path) -> bool:
+    """True if ``path`` looks like a model :func:`resolve` may accept (a directory or a ``.zip`` file)."""
+    p = Path(path)
+    return p.is_dir() or p.suffix == ".zip"
+
+
+def _check_algo(algo, where: str) -> str:
+    from agents.train import ALGOS
+
+    if algo not in ALGOS:
+        raise ValueError(f"{where}: unknown algorithm {algo!r}; one of {', '.join(ALGOS)}")
+    return algo
+
+
+def _check_options(options: ModelOptions, values: dict, where: str) -> None:
+    """Refuse a command-line option that contradicts what the model's files say."""
+    for key, flag in (("algo", "--algo"), ("wrapper", "--wrapper"), ("residual_scale", "--residual-scale")):
+        given = getattr(options, key)
+        if given is not None and given != values.get(key):
+            raise ValueError(f"{flag} {given!r} contradicts {where}, which says {values.get(key)!r}")
+
+
+def _zoo_yaml(path: Path) -> dict:
+    """An RL Zoo ``args.yml``/``config.yml`` (an OrderedDict in PyYAML's python tag) as a dict, safely."""
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        pass
+
+    def ordered(loader, node):  # [[key, value], ...] -> dict; no other python object is built
+        return dict(loader.construct_sequence(node.value[0], deep=True)) if node.value else {}
+
+    Loader.add_constructor("tag:yaml.org,2002:python/object/apply:collections.OrderedDict", ordered)
+    try:
+        data = yaml.load(path.read_text(), Loader=Loader)  # noqa: S506  (SafeLoader + one constructor)
+    except FileNotFoundError:
+        raise ValueError(f"{path}: missing (an RL Zoo folder has ENV.zip and ENV/{path.name})") from None
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: not an RL Zoo YAML file ({' '.join(str(exc).split())})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: not an RL Zoo YAML file (expected a mapping)")
+    return data
+
+
+def _resolve_zoo(d: Path, options: ModelOptions) -> ModelSource:
+    from agents.train import wrapper_spec
+
+    zips = sorted(z for z in d.glob("*.zip") if (d / z.stem).is_dir() and (d / z.stem / ZOO_ALGO_FILE).is_file())
+    if not zips:
+        raise ValueError(f"{d}: neither our model directory ({META}) nor an RL Zoo folder (ENV.zip beside "
+                         f"ENV/{ZOO_ALGO_FILE})")
+    zip_path = zips[0]
+    params = zip_path.with_suffix("")
+    args = _zoo_yaml(params / ZOO_ALGO_FILE)
+    config = _zoo_yaml(params / ZOO_CONFIG)
+    algo = _check_algo(args.get("algo"), f"{params / ZOO_ALGO_FILE}: key 'algo'")
+    spec = wrapper_spec(config, str(params / ZOO_CONFIG))
+    env_kwargs = config.get("env_kwargs") or {}
+    meta = {"algo": algo, "env_id": args.get("env"), "wrapper": spec.name, "residual_scale": spec.residual_scale,
+            "obs_mode": env_kwargs.get("obs_mode", "state"),  # gym.make's default: the Zoo passes env_kwargs as is
+            "model": zip_path.name, "vecnormalize": None}
+    _check_options(options, meta, str(params / ZOO_CONFIG))
+    vn = params / "vecnormalize.pkl"
+    if config.get("normalize") not in (None, False):
+        if not vn.is_file():
+            raise ValueError(f"{params / ZOO_CONFIG}: 'normalize' is set but {vn} is missing")
+        meta["vecnormalize"] = str(vn)
+    if options.vecnormalize is not None:
+        raise ValueError(f"--vecnormalize: the RL Zoo folder {d} names its own statistics ({vn})")
+    return ModelSource("zoo", meta, zip_path, vn if meta["vecnormalize"] else None, str(params / ZOO_CONFIG))
+
+
+def resolve(path: str | Path, options: ModelOptions | None = None) -> ModelSource:
+    """Where the files of the model at ``path`` are and how to build its environment (see the module doc)."""
+    from agents.wrappers import WRAPPERS
+
+    options = options or ModelOptions()
+    p = Path(path)
+    if p.is_dir() and (p / META).is_file():
+        meta = read_meta(p)
+        _check_options(options, {**meta, "residual_scale": meta.get("residual_scale", 0.3)}, str(p / META))
+        if options.vecnormalize is not None:
+            raise ValueError(f"--vecnormalize: the model directory {p} names its own statistics in {META}")
+        vn = p / meta["vecnormalize"] if meta.get("vecnormalize") else None
+        return ModelSource("meta", meta, p / meta["model"], vn, str(p / META))
+    if p.is_dir():
+        return _resolve_zoo(p, options)
+    if p.suffix != ".zip":
+        raise ValueError(f"{path}: not a model (a model directory with {META}, an RL Zoo folder or an SB3 .zip)")
+    if not p.is_file():
+        raise ValueError(f"{path}: no such model file")
+    if options.algo is None:
+        raise ValueError(f"{path}: a plain SB3 model records no algorithm: give --algo (ppo, sac or td3)")
+    wrapper = options.wrapper or "none"
+    if wrapper not in WRAPPERS:
+        raise ValueError(f"--wrapper {wrapper!r}: choose one of {', '.join(WRAPPERS)}")
+    meta = {"algo": _check_algo(options.algo, "--algo"), "env_id": None, "wrapper": wrapper,
+            "residual_scale": 0.3 if options.residual_scale is None else options.residual_scale,
+            "obs_mode": None, "model": p.name, "vecnormalize": options.vecnormalize}
+    vn = Path(options.vecnormalize) if options.vecnormalize else None
+    return ModelSource("zip", meta, p, vn, "the command line")
+
+
+def load(path: str | Path, options: ModelOptions | None = None):
+    """(meta, model, vecnormalize or None) of a model (see :func:`resolve`)."""
+    from agents import require_agents_extra
+
+    require_agents_extra("loading an SB3 model")
     import torch
     from stable_baselines3 import PPO, SAC, TD3
 
-    d = Path(path)
-    meta = read_meta(d)
+    src = resolve(path, options)
+    meta = src.meta
     cls = {"ppo": PPO, "sac": SAC, "td3": TD3}[meta["algo"]]
-    zip_path = d / meta["model"]
-    if not zip_path.is_file():
-        raise ValueError(f"{d / META}: key 'model': file {zip_path} not found")
+    if not src.zip_path.is_file():
+        raise ValueError(f"{src.where}: key 'model': file {src.zip_path} not found")
     torch.set_num_threads(1)  # small MLPs: one thread is fastest and leaves the cores to the simulation
     try:
-        model = cls.load(zip_path, device="cpu")
-    except Exception as exc:  # SB3 raises many kinds for a damaged zip  # noqa: BLE001
-        raise ValueError(f"{zip_path}: cannot load the {meta['algo']} model ({type(exc).__name__}: {exc})") from None
+        model = cls.load(src.zip_path, device="cpu")
+    except Exception as exc:  # SB3 raises many kinds for a damaged zip or another algorithm  # noqa: BLE001
+        message = " ".join(f"{type(exc).__name__}: {exc}".split())[:200]
+        raise ValueError(f"{src.zip_path}: cannot load it as a {meta['algo']} model ({message})") from None
     vn = None
-    if meta.get("vecnormalize"):
-        vn_path = d / meta["vecnormalize"]
-        try:
-            with open(vn_path, "rb") as fh:
-                vn = pickle.load(fh)  # noqa: S301  (our own file, as VecNormalize.load does)
-        except FileNotFoundError:
-            raise ValueError(f"{d / META}: key 'vecnormalize': file {vn_path} not found") from None
-        except (pickle.UnpicklingError, EOFError, AttributeError) as exc:
-            raise ValueError(f"{vn_path}: not a VecNormalize pickle ({exc})") from None
-        vn.training = False
+    if src.vecnormalize is not None:
+        vn = _load_vecnormalize(src.vecnormalize, src.where)
     return meta, model, vn
 
 
-def build(path: str | Path, env_id: str | None = None, env_kwargs: dict | None = None):
+def _load_vecnormalize(path: Path, where: str):
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    try:
+        with open(path, "rb") as fh:
+            vn = pickle.load(fh)  # noqa: S301  (a trusted model's file, as VecNormalize.load does)
+    except FileNotFoundError:
+        raise ValueError(f"{where}: key 'vecnormalize': file {path} not found") from None
+    except (pickle.UnpicklingError, EOFError, AttributeError, ValueError, ImportError) as exc:
+        raise ValueError(f"{path}: not a VecNormalize pickle ({exc})") from None
+    if not isinstance(vn, VecNormalize):
+        raise ValueError(f"{path}: not a VecNormalize pickle (holds a {type(vn).__name__})")
+    vn.training = False
+    return vn
+
+
+def build(path: str | Path, env_id: str | None = None, env_kwargs: dict | None = None,
+          options: ModelOptions | None = None):
     """(wrapped env, :class:`SB3Policy`) for evaluating the model in ``path`` on ``env_id`` with ``env_kwargs``."""
     from agents.evaluate import make_env
     from agents.wrappers import wrap_env
 
-    meta, model, vn = load(path)
+    meta, model, vn = load(path, options)
     env_id = env_id or meta.get("env_id")
+    if env_id is None:
+        raise ValueError(f"{path}: the model does not record its environment: give the environment id")
     kw = dict(env_kwargs or {})
     obs_mode = meta.get("obs_mode", "sensors")
+    if obs_mode is None:  # a plain zip: the user's obs_mode, else what the scripted policies use
+        obs_mode = kw.get("obs_mode", "sensors")
     if kw.get("obs_mode", obs_mode) != obs_mode:
         raise ValueError(f"model {path} was trained with obs_mode={obs_mode!r}; got obs_mode={kw['obs_mode']!r}")
     kw.pop("obs_mode", None)
     env = wrap_env(make_env(env_id, kw, obs_mode=obs_mode), meta["wrapper"], float(meta.get("residual_scale", 0.3)))
     if env.observation_space.shape != model.observation_space.shape:
         env.close()
+        hint = (" (give the wrapper it was trained with, --wrapper, or its obs_mode in --env-kwargs)"
+                if meta.get("env_id") is None else "")
         raise ValueError(f"model {path} expects observations of shape {model.observation_space.shape}, the "
-                         f"environment {env_id} gives {env.observation_space.shape}")
+                         f"environment {env_id} with wrapper {meta['wrapper']!r} gives {env.observation_space.shape}"
+                         f"{hint}")
     return env, SB3Policy(model, vn, env)

@@ -5,19 +5,26 @@
                    [--vec-env dummy|subproc] [--eval-freq STEPS] [--eval-episodes K] [--checkpoint-freq STEPS]
                    [--tensorboard DIR] [--progress | --no-progress] [--max-minutes M]
 
-Hyperparameters come from ``agents/hyperparams/<algo>.yml`` in the RL Zoo layout: a top-level key per
+Hyperparameters come from ``agents/hyperparams/<algo>.yml`` in the RL Zoo's format, which
+``python -m rl_zoo3.train --gym-packages omni_gym -conf FILE`` accepts as is: a top-level key per
 environment id, with ``n_timesteps``, ``policy``, ``n_envs``, ``normalize`` (bool, or a string such as
 ``"{'norm_obs': True, 'norm_reward': False}"``), ``policy_kwargs`` (a Python expression string that may
 use ``nn``), ``learning_rate`` (a number or ``lin_<x>`` for a linear schedule), ``noise_type`` /
-``noise_std`` (TD3, SAC) and any other constructor argument of the algorithm. Our own keys:
+``noise_std`` (TD3, SAC) and any other constructor argument of the algorithm, and:
 
 * ``env_kwargs`` (dict): ``gym.make`` keywords for training (domain randomisation lives here);
   ``--env-kwargs`` is merged over them.
-* ``env_wrapper``: one of :data:`agents.wrappers.WRAPPERS`; ``residual_scale``: its residual bound;
-  ``reward``: ``env`` or ``tracking`` (see :class:`agents.wrappers.EKFFeatures`).
-* ``sensor_noise_range``: ``[lo, hi]``, sensor noise scaled by U(lo, hi) per episode.
-* ``residual_init``: the actor's last layer is scaled by this factor (and its bias zeroed) at the start,
-  so a residual policy starts as its baseline; ``init_log_std`` sets SAC's initial log std.
+* ``env_wrapper``: a list of wrapper classes, innermost first, each a class path or
+  ``{class path: {keyword: value}}``; this module knows ``agents.wrappers.SensorNoiseRandomizer``
+  (``scale_range``: sensor noise scaled by U(lo, hi) per episode) and ``agents.wrappers.EKFFeatures``
+  (``residual_scale`` > 0: ``residual-ekf-pid``, 0: ``ekf-features``; ``reward``), in that order.
+* ``callback``: ``agents.callbacks.ResidualInit`` (``factor``: the actor's last layer is scaled by it
+  and its bias zeroed at the start, so a residual policy starts as its baseline; ``log_std``: SAC's
+  initial log std).
+
+Files in the earlier layout (``env_wrapper`` a name of :data:`agents.wrappers.WRAPPERS` with the keys
+``residual_scale``, ``reward``, ``sensor_noise_range``, ``residual_init``, ``init_log_std``) are still
+read, and train the same agent; the RL Zoo refuses them.
 
 The output directory receives ``model.zip`` (the checkpoint after step 0 with the lowest validation
 tracking RMSE; the final one if there is no evaluation), ``final_model.zip``, ``vecnormalize.pkl`` (for ``model.zip``,
@@ -43,6 +50,7 @@ import shlex
 import subprocess
 import sys
 import time
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -52,11 +60,109 @@ ALGOS = ("ppo", "sac", "td3")
 VALIDATION_SEED = 5000  # validation episodes; training envs use small seeds, benchmarks 10 000+
 OWN_KEYS = ("n_timesteps", "policy", "n_envs", "normalize", "env_kwargs", "env_wrapper", "residual_scale", "reward",
             "sensor_noise_range", "residual_init", "init_log_std", "noise_type", "noise_std", "policy_kwargs",
-            "learning_rate")
+            "learning_rate", "callback")
+LEGACY_KEYS = ("residual_scale", "reward", "sensor_noise_range", "residual_init", "init_log_std")
+NOISE_WRAPPER = "agents.wrappers.SensorNoiseRandomizer"
+EKF_WRAPPER = "agents.wrappers.EKFFeatures"
+RESIDUAL_INIT = "agents.callbacks.ResidualInit"
+
+
+@dataclass(frozen=True)
+class WrapperSpec:
+    """The wrapper stack of a hyperparameter entry (see :func:`agents.wrappers.wrap_env`).
+
+    ``name``: one of :data:`agents.wrappers.WRAPPERS`; ``residual_scale``: the residual bound (fraction of
+    the action range); ``reward``: one of :data:`agents.wrappers.REWARDS`; ``sensor_noise_range``:
+    ``[lo, hi]`` sensor-noise scale per episode, or None.
+    """
+
+    name: str = "none"
+    residual_scale: float = 0.3
+    reward: str = "env"
+    sensor_noise_range: list[float] | None = None
+
+
+def _zoo_entries(value, key: str, where: str) -> list[tuple[str, dict]]:
+    """The RL Zoo's list syntax (``- path`` or ``- path: {kw: v}``, or a single entry) as (path, kwargs)."""
+    if value is None:
+        return []
+    out = []
+    for item in value if isinstance(value, list) else [value]:
+        if isinstance(item, str):
+            out.append((item, {}))
+        elif (isinstance(item, dict) and len(item) == 1 and isinstance(next(iter(item)), str)
+              and isinstance(next(iter(item.values())), (dict, type(None)))):
+            path, kw = next(iter(item.items()))
+            out.append((path, dict(kw or {})))
+        else:
+            raise ValueError(f"{where}: {key}: each entry must be a class path or {{class path: {{keyword: value}}}}, "
+                             f"got {item!r}")
+    return out
+
+
+def _known_keywords(path: str, kw: dict, allowed: tuple[str, ...], key: str, where: str) -> None:
+    unknown = sorted(set(kw) - set(allowed))
+    if unknown:
+        raise ValueError(f"{where}: {key}: {path}: unknown keyword {unknown[0]!r} (known: {', '.join(allowed)})")
+
+
+def wrapper_spec(hp: dict, where: str) -> WrapperSpec:
+    """Read ``env_wrapper`` (RL Zoo list of classes, or the earlier name + keys) of one hyperparameter entry."""
+    from agents.wrappers import WRAPPERS
+
+    value = hp.get("env_wrapper")
+    if value is None or (isinstance(value, str) and "." not in value):  # the earlier layout
+        name = str(hp.get("env_wrapper", "none"))
+        if name not in WRAPPERS:
+            raise ValueError(f"{where}: env_wrapper {name!r}: use a wrapper class path such as {EKF_WRAPPER} "
+                             f"(or one of the names {', '.join(WRAPPERS)})")
+        noise = hp.get("sensor_noise_range")
+        return WrapperSpec(name, float(hp.get("residual_scale", 0.3)), str(hp.get("reward", "env")),
+                           None if noise is None else [float(v) for v in noise])
+    stray = [k for k in LEGACY_KEYS if k in hp]
+    if stray:
+        raise ValueError(f"{where}: key {stray[0]!r} belongs to the earlier layout; with env_wrapper as a list "
+                         f"of classes give it as a keyword of the wrapper or of {RESIDUAL_INIT}")
+    spec = WrapperSpec()
+    seen: list[str] = []
+    for path, kw in _zoo_entries(value, "env_wrapper", where):
+        if path == NOISE_WRAPPER and not seen:
+            _known_keywords(path, kw, ("scale_range",), "env_wrapper", where)
+            if "scale_range" not in kw:
+                raise ValueError(f"{where}: env_wrapper: {path} needs the keyword 'scale_range' ([low, high])")
+            spec = replace(spec, sensor_noise_range=[float(v) for v in kw["scale_range"]])
+        elif path == EKF_WRAPPER and EKF_WRAPPER not in seen:
+            _known_keywords(path, kw, ("residual_scale", "reward"), "env_wrapper", where)
+            scale = float(kw.get("residual_scale", 0.3))  # EKFFeatures' default
+            spec = replace(spec, name="residual-ekf-pid" if scale > 0 else "ekf-features", residual_scale=scale,
+                           reward=str(kw.get("reward", "env")))
+        else:
+            raise ValueError(f"{where}: env_wrapper: {path!r}: this trainer builds {NOISE_WRAPPER} then {EKF_WRAPPER} "
+                             "(each at most once, in this order)")
+        seen.append(path)
+    return spec
+
+
+def residual_init(hp: dict, where: str) -> tuple[float | None, float | None]:
+    """(factor, SAC log std) of the ``ResidualInit`` callback (or the earlier ``residual_init`` keys)."""
+    if "callback" not in hp:
+        factor, log_std = hp.get("residual_init"), hp.get("init_log_std")
+        return (None if factor is None else float(factor)), (None if log_std is None else float(log_std))
+    factor = log_std = None
+    for path, kw in _zoo_entries(hp["callback"], "callback", where):
+        if path != RESIDUAL_INIT:
+            raise ValueError(f"{where}: callback: {path!r}: this trainer knows only {RESIDUAL_INIT}")
+        _known_keywords(path, kw, ("factor", "log_std"), "callback", where)
+        factor = float(kw.get("factor", 0.01))
+        log_std = None if kw.get("log_std") is None else float(kw["log_std"])
+    return factor, log_std
 
 
 def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict:
     """The YAML entry for ``env_id`` in ``path`` (default ``agents/hyperparams/<algo>.yml``)."""
+    from agents import require_agents_extra
+
+    require_agents_extra("reading hyperparameter files")
     import yaml
 
     if algo not in ALGOS:
@@ -163,27 +269,6 @@ def git_commit() -> str | None:
         return None
 
 
-def _init_residual(model, algo: str, factor: float, init_log_std: float | None) -> None:
-    """Scale the actor's output layer by ``factor`` and zero its bias: the initial action is ≈ 0."""
-    import torch
-
-    with torch.no_grad():
-        if algo == "ppo":
-            layers = [model.policy.action_net]
-        elif algo == "sac":
-            layers = [model.actor.mu]
-        else:
-            layers = [model.actor.mu[-2]]
-        for layer in layers:
-            layer.weight.mul_(factor)
-            layer.bias.zero_()
-        if algo == "sac" and init_log_std is not None:
-            model.actor.log_std.weight.mul_(factor)
-            model.actor.log_std.bias.fill_(init_log_std)
-        if algo == "td3":
-            model.actor_target.load_state_dict(model.actor.state_dict())
-
-
 def train(*args, force: bool = False, **kwargs) -> dict:
     """Train into the model directory ``out`` (arguments of :func:`train_into`); returns the meta dict.
 
@@ -213,15 +298,18 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
     """Train and save into ``out`` directly (no transaction: :func:`train` gives one); returns the meta
     dict written to ``out/meta.json``.
 
-
     Args: see the module docstring; ``eval_freq`` and ``checkpoint_freq`` count environment steps over
     all environments (0 disables); ``max_minutes`` stops training early (the meta says so).
     """
+    from agents import require_agents_extra
+
+    require_agents_extra("training")
     import torch
     from stable_baselines3 import PPO, SAC, TD3
     from stable_baselines3.common.noise import NormalActionNoise
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
+    from agents.callbacks import init_residual
     from agents.evaluate import make_env
 
     if algo not in ALGOS:
@@ -242,17 +330,20 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
         raise ValueError(f"n_envs must be >= 1, got {n}")
     kw = dict(hp.get("env_kwargs") or {})
     kw.update(env_kwargs or {})
-    wrapper = str(hp.get("env_wrapper", "none"))
-    residual_scale = float(hp.get("residual_scale", 0.3))
-    noise = hp.get("sensor_noise_range")
-    noise = None if noise is None else [float(v) for v in noise]
+    spec = wrapper_spec(hp, where)
+    wrapper, residual_scale, noise = spec.name, spec.residual_scale, spec.sensor_noise_range
+    init_factor, init_log_std = residual_init(hp, where)
     norm = _normalize(hp.get("normalize"), where)
     extra = {k: v for k, v in hp.items() if k not in OWN_KEYS}
-    torch.set_num_threads(max(1, int(threads)))
+    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+        raise ValueError(f"threads must be an integer >= 1, got {threads!r}")
+    if max_minutes is not None and not (isinstance(max_minutes, (int, float)) and max_minutes > 0):
+        raise ValueError(f"max_minutes must be a number > 0 (or None), got {max_minutes!r}")
+    torch.set_num_threads(threads)
 
     # Build one env in this process first: bad kwargs or wrapper fail here with a clear ValueError
     # (before anything is written).
-    reward = str(hp.get("reward", "env"))
+    reward = spec.reward
     probe = make_train_env(env_id, kw, wrapper, residual_scale, noise, reward)
     probe.close()
     out = Path(out)
@@ -278,8 +369,8 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
                     tensorboard_log=tensorboard, **args)
     except TypeError as exc:
         raise ValueError(f"{where}: bad hyperparameter for {algo}: {exc}") from None
-    if hp.get("residual_init") is not None:
-        _init_residual(model, algo, float(hp["residual_init"]), hp.get("init_log_std"))
+    if init_factor is not None:
+        init_residual(model, init_factor, init_log_std)
 
     meta = {
         "algo": algo, "env_id": env_id, "train_env_kwargs": kw, "wrapper": wrapper, "residual_scale": residual_scale,
@@ -462,8 +553,9 @@ def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.
     p = parser or argparse.ArgumentParser(prog="python -m agents.train", description=__doc__.splitlines()[0])
     p.add_argument("--algo", required=True, choices=ALGOS, help="SB3 algorithm")
     p.add_argument("--env", required=True, help="environment id, e.g. OmniPathFollow-Phunopas-v0")
-    p.add_argument("--timesteps", type=float, default=None, help="environment steps (default: n_timesteps in YAML)")
-    p.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    p.add_argument("--timesteps", type=float, default=None,
+                   help="environment steps, 1 to 1e9 (default: n_timesteps in YAML)")
+    p.add_argument("--seed", type=int, default=0, help="training seed, 0 to 2^31 - 1 (default 0)")
     p.add_argument("--out", required=True, help="output directory (model.zip, meta.json, curve.csv, ...)")
     p.add_argument("--env-kwargs", default=None, help="gym.make keywords as a JSON object (merged over the YAML's)")
     p.add_argument("--hyperparams", default=None, help="YAML file (default agents/hyperparams/<algo>.yml)")
@@ -473,8 +565,9 @@ def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.
     p.add_argument("--eval-episodes", type=int, default=5, help="validation episodes (default 5)")
     p.add_argument("--checkpoint-freq", type=int, default=0, help="checkpoint every N steps (0: none)")
     p.add_argument("--tensorboard", default=None, help="TensorBoard log directory (needs tensorboard)")
-    p.add_argument("--max-minutes", type=float, default=None, help="stop training after this wall time")
-    p.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    p.add_argument("--max-minutes", type=float, default=None,
+                   help="stop training after this wall time [min], > 0 (default: no limit)")
+    p.add_argument("--threads", type=int, default=1, help="torch threads, >= 1 (default 1)")
     p.add_argument("--force", action="store_true",
                    help="replace an existing model directory (default: refuse; the directory appears complete "
                         "or not at all, see docs/formats.md)")
@@ -501,7 +594,12 @@ def command_line(prog: str, args: argparse.Namespace) -> str:
 
 
 def run_from_args(args: argparse.Namespace, command: str | None = None) -> dict:
-    """Validate parsed arguments and call :func:`train`."""
+    """Validate parsed arguments (:mod:`agents.options`) and call :func:`train`."""
+    from agents import require_agents_extra
+    from agents.options import check_train_args
+
+    check_train_args(args)  # before anything is locked, read or written
+    require_agents_extra("omni-gym train")
     kwargs = None
     if args.env_kwargs is not None:
         try:
@@ -510,10 +608,6 @@ def run_from_args(args: argparse.Namespace, command: str | None = None) -> dict:
             raise ValueError(f"--env-kwargs is not valid JSON: {exc}") from None
         if not isinstance(kwargs, dict):
             raise ValueError(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
-    if args.timesteps is not None and (not math.isfinite(args.timesteps) or args.timesteps < 1):
-        raise ValueError(f"--timesteps must be >= 1, got {args.timesteps}")
-    if args.eval_freq < 0 or args.eval_episodes < 1 or args.checkpoint_freq < 0:
-        raise ValueError("--eval-freq and --checkpoint-freq must be >= 0 and --eval-episodes >= 1")
     if args.tensorboard is not None:
         try:
             import tensorboard  # noqa: F401
@@ -532,7 +626,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_arg_parser().parse_args(argv)
     try:
         meta = run_from_args(args)
-    except (ValueError, OSError) as exc:
+    except (ValueError, OSError, ImportError) as exc:  # ImportError: a missing extra, named in one line
         print(f"agents.train: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
     best = meta.get("best") or {}

@@ -8,7 +8,18 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from omni_gym.envs import ENV_IDS, register_envs  # noqa: E402
 
-__version__ = "0.1.0"
+
+def _version() -> str:
+    """The installed distribution's version (one source of truth: ``version`` in pyproject.toml)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("omni-gym")
+    except PackageNotFoundError:  # a source tree on sys.path that was never installed
+        return "0+unknown"
+
+
+__version__ = _version()
 __all__ = ["ENV_IDS", "register_envs", "__version__"]
 
 register_envs()

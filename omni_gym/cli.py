@@ -12,6 +12,7 @@ import sys
 
 import numpy as np
 
+from omni_gym import __version__
 from omni_gym.bounds import CLI as CLI_BOUNDS
 from omni_gym.friction import FRICTION_MODELS, SURFACES
 
@@ -25,6 +26,7 @@ def _add_model_options(p: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="omni-gym", description="Omnidirectional robots that slip: tools.")
+    parser.add_argument("--version", action="version", version=f"omni-gym {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     model = sub.add_parser("model", help="inspect robot models")
@@ -46,12 +48,20 @@ def build_parser() -> argparse.ArgumentParser:
     _add_force_option(sim, "an existing --out file")
 
     ev = sub.add_parser("evaluate", help="evaluate a policy on held-out seeds (mean and 95%% CI per metric)")
-    ev.add_argument("--policy", required=True, help="open-loop, odometry-pid, ekf-pid or a saved SB3 model path")
+    ev.add_argument("--policy", required=True,
+                    help="open-loop, odometry-pid, ekf-pid, or a trained model: our model directory (meta.json), "
+                         "an RL Zoo output folder (logs/ALGO/ENV_1) or a plain SB3 .zip")
     ev.add_argument("--env", required=True, help="environment id, e.g. OmniPathFollow-Phunopas-v0")
-    ev.add_argument("--episodes", type=int, required=True, help="number of episodes (>= 1)")
-    ev.add_argument("--seed", type=int, required=True, help="first seed; episode i uses seed + i")
+    ev.add_argument("--episodes", type=int, required=True, help="number of episodes, 1 to 100000")
+    ev.add_argument("--seed", type=int, required=True, help="first seed (>= 0); episode i uses seed + i")
     ev.add_argument("--env-kwargs", default=None, help="gym.make keywords as a JSON object")
     ev.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+    ev.add_argument("--algo", default=None, help="plain SB3 .zip: its algorithm (ppo, sac, td3)")
+    ev.add_argument("--wrapper", default=None,
+                    help="plain SB3 .zip: the wrapper it was trained with (none, residual-ekf-pid, ekf-features)")
+    ev.add_argument("--residual-scale", type=float, default=None,
+                    help="plain SB3 .zip with residual-ekf-pid: the residual bound, 0 to 1 (default 0.3)")
+    ev.add_argument("--vecnormalize", default=None, help="plain SB3 .zip: its VecNormalize statistics (.pkl)")
 
     show.set_defaults(handler=_cmd_model_show)
     sim.set_defaults(handler=_cmd_simulate)
@@ -95,12 +105,6 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
     build_arg_parser(p)
 
 
-def _add_train_options(p: argparse.ArgumentParser) -> None:
-    from agents.train import build_arg_parser  # argparse only; the heavy imports happen in the handler
-
-    build_arg_parser(p)
-
-
 def check_option(option: str, value) -> None:
     """Refuse a command-line value outside its bound in ``bounds.CLI`` (one line naming the option)."""
     bound = CLI_BOUNDS[option]
@@ -109,9 +113,14 @@ def check_option(option: str, value) -> None:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
+    from agents.options import check_train_args
     from agents.train import command_line, run_from_args
 
-    meta = run_from_args(args, command_line("omni-gym train", args))
+    check_train_args(args)  # before the command line is spelled out (it rounds --timesteps)
+    try:
+        meta = run_from_args(args, command_line("omni-gym train", args))
+    except ImportError as exc:  # a missing extra: one line naming it (agents.require_agents_extra)
+        raise ValueError(str(exc)) from None
     best = meta.get("best") or {}
     rmse = best.get("val_tracking_rmse")
     note = f"; best validation tracking RMSE {rmse:.4f} m at {best['timesteps']} steps" if rmse is not None else ""
@@ -195,7 +204,11 @@ def _simulate_into(args: argparse.Namespace, out) -> int:
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from agents.evaluate import evaluate, format_table
+    from agents.options import check_evaluate_args
+    from agents.sb3_policy import ModelOptions
 
+    check_evaluate_args(args)
+    options = ModelOptions(args.algo, args.wrapper, args.residual_scale, args.vecnormalize)
     kwargs = {}
     if args.env_kwargs is not None:
         try:
@@ -204,7 +217,10 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
             raise ValueError(f"--env-kwargs is not valid JSON: {exc}") from None
         if not isinstance(kwargs, dict):
             raise ValueError(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
-    result = evaluate(args.policy, args.env, args.episodes, args.seed, kwargs)
+    try:
+        result = evaluate(args.policy, args.env, args.episodes, args.seed, kwargs, model_options=options)
+    except ImportError as exc:  # a missing extra: one line naming it (agents.require_agents_extra)
+        raise ValueError(str(exc)) from None
     print(json.dumps(result) if args.json else format_table(result))
     return 0
 

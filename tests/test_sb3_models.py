@@ -10,9 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+import yaml
 
 from agents.evaluate import evaluate
-from agents.sb3_policy import build, read_meta
+from agents.sb3_policy import ModelOptions, build, read_meta
+from agents.train import load_hyperparams, train
+from omni_gym.cli import main
 
 torch.set_num_threads(1)
 
@@ -70,3 +73,64 @@ def test_model_with_other_obs_mode_is_refused():
     other = "state" if meta.get("obs_mode", "sensors") == "sensors" else "sensors"
     with pytest.raises(ValueError, match="obs_mode"):
         build(model, ENV, {"obs_mode": other})
+
+
+# --- models from elsewhere: a plain SB3 zip ------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def tiny_model(tmp_path_factory):
+    """A PPO residual agent trained for one small update (64 steps) with the committed ppo.yml."""
+    tmp = tmp_path_factory.mktemp("tiny")
+    hp = load_hyperparams("ppo", ENV)
+    hp.update(n_envs=1, n_steps=64, batch_size=32, n_epochs=1)
+    f = tmp / "hp.yml"
+    f.write_text(yaml.safe_dump({ENV: hp}))
+    train("ppo", ENV, 64, 0, tmp / "model", SHORT, f, eval_freq=0, progress=False)
+    return tmp / "model"
+
+
+def test_plain_sb3_zip_evaluates_as_its_model_directory(tiny_model):
+    """The zip alone, with what meta.json would say given as options, gives the same episodes."""
+    ref = evaluate(str(tiny_model), ENV, 2, 40, SHORT, progress=False)
+    opts = ModelOptions("ppo", "residual-ekf-pid", 0.3, str(tiny_model / "vecnormalize.pkl"))
+    plain = evaluate(str(tiny_model / "model.zip"), ENV, 2, 40, SHORT, progress=False, model_options=opts)
+    assert plain["per_episode"] == ref["per_episode"]
+    # Without its normalisation statistics the same weights act differently: the equality is not vacuous.
+    bare = evaluate(str(tiny_model / "model.zip"), ENV, 2, 40, SHORT, progress=False,
+                    model_options=ModelOptions("ppo", "residual-ekf-pid"))
+    assert bare["per_episode"]["tracking_rmse"] != ref["per_episode"]["tracking_rmse"]
+
+
+def _cli_error(capsys, *args: str) -> str:
+    assert main(["evaluate", "--env", ENV, "--episodes", "1", "--seed", "0", "--env-kwargs", json.dumps(SHORT),
+                 *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("omni-gym: error: "), err
+    return err[0]
+
+
+def test_plain_zip_errors_name_what_is_missing(tiny_model, capsys):
+    z = str(tiny_model / "model.zip")
+    assert "give --algo" in _cli_error(capsys, "--policy", z)
+    assert "--wrapper" in _cli_error(capsys, "--policy", z, "--algo", "ppo")  # wrong observation shape
+    assert "cannot load it as a td3 model" in _cli_error(capsys, "--policy", z, "--algo", "td3",
+                                                         "--wrapper", "residual-ekf-pid")
+    assert "--wrapper 'residual'" in _cli_error(capsys, "--policy", z, "--algo", "ppo", "--wrapper", "residual")
+    assert "nope.pkl not found" in _cli_error(capsys, "--policy", z, "--algo", "ppo", "--wrapper",
+                                              "residual-ekf-pid", "--vecnormalize", str(tiny_model / "nope.pkl"))
+    assert "--residual-scale must be a number in [0, 1]" in _cli_error(capsys, "--policy", z, "--algo", "ppo",
+                                                                        "--residual-scale", "2")
+    assert "--algo 'sac' contradicts" in _cli_error(capsys, "--policy", str(tiny_model), "--algo", "sac")
+    assert "--algo applies to a trained model" in _cli_error(capsys, "--policy", "ekf-pid", "--algo", "ppo")
+    assert "--episodes must be an integer in [1, 100000], got 0" in _cli_error(
+        capsys, "--policy", "ekf-pid", "--episodes", "0")
+
+
+def test_committed_model_evaluates_through_the_cli(capsys):
+    """`omni-gym evaluate --policy agents/models/ppo-residual` still needs no options."""
+    assert main(["evaluate", "--policy", str(MODELS[0]), "--env", ENV, "--episodes", "1", "--seed", "321",
+                 "--env-kwargs", json.dumps(SHORT), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    api = evaluate(str(MODELS[0]), ENV, 1, 321, SHORT, progress=False)
+    assert out["per_episode"] == api["per_episode"]

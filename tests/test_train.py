@@ -5,19 +5,32 @@ Seeds: the tests use seeds below 10 000 (benchmarks report from 10 000).
 
 import json
 import math
+import os
+from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 import yaml
+from stable_baselines3 import PPO
 
 from agents.evaluate import evaluate, make_env, run_episode
 from agents.policies import make_policy
-from agents.train import ALGOS, HYPERPARAM_DIR, load_hyperparams, train
+from agents.train import (
+    ALGOS,
+    HYPERPARAM_DIR,
+    LEGACY_KEYS,
+    load_hyperparams,
+    residual_init,
+    train,
+    train_into,
+    wrapper_spec,
+)
 from agents.wrappers import EKFFeatures, SensorNoiseRandomizer, wrap_env
 from omni_gym.cli import main
 
 ENV = "OmniPathFollow-Phunopas-v0"
+ROOT = Path(__file__).resolve().parents[1]
 SHORT = {"episode_seconds": 1.0}
 
 torch.set_num_threads(1)
@@ -109,9 +122,66 @@ def test_committed_hyperparams_have_the_zoo_keys(algo):
     hp = load_hyperparams(algo, ENV)
     for key in ("n_timesteps", "policy", "n_envs", "env_wrapper"):
         assert key in hp
-    assert hp["env_wrapper"] == "residual-ekf-pid"
+    # The RL Zoo's syntax: importable wrapper classes with their keywords, no keys of our own.
+    assert hp["env_wrapper"][-1] == {"agents.wrappers.EKFFeatures": {"residual_scale": 0.3, "reward": "squared"}}
+    assert not set(LEGACY_KEYS) & set(hp)
+    spec = wrapper_spec(hp, "test")
+    assert spec.name == "residual-ekf-pid" and spec.sensor_noise_range == [0.5, 1.5]
     # Domain randomisation is on for every committed configuration.
     assert {"randomize_friction", "randomize_mass", "randomize_lift_rate"} <= set(hp["env_kwargs"])
+
+
+def _shrink(hp: dict) -> dict:
+    """One environment, one small PPO update: enough to compare two trainings weight by weight."""
+    return {**hp, "n_envs": 1, "n_steps": 64, "batch_size": 32, "n_epochs": 1}
+
+
+def test_zoo_layout_trains_the_same_agent_as_the_earlier_layout(tmp_path):
+    """The committed model's meta.json records the ppo.yml entry it was trained with, in the earlier layout
+    (env_wrapper: residual-ekf-pid, residual_scale, reward, sensor_noise_range, residual_init). The RL Zoo
+    layout of today's ppo.yml must give the same training: bit-identical weights after an update."""
+    legacy = json.loads((ROOT / "agents/models/ppo-residual/meta.json").read_text())["hyperparams"]
+    assert legacy["env_wrapper"] == "residual-ekf-pid" and "residual_init" in legacy
+    weights, metas = [], []
+    for name, hp in (("legacy", legacy), ("zoo", load_hyperparams("ppo", ENV))):
+        f = tmp_path / f"{name}.yml"
+        f.write_text(yaml.safe_dump({ENV: _shrink(hp)}))
+        meta = train("ppo", ENV, 64, 3, tmp_path / name, SHORT, f, eval_freq=0, progress=False)
+        metas.append(meta)
+        model = PPO.load(tmp_path / name / "model.zip", device="cpu")
+        weights.append({k: v.clone() for k, v in model.policy.state_dict().items()})
+    for key in ("wrapper", "residual_scale", "sensor_noise_range", "reward", "obs_mode"):
+        assert metas[0][key] == metas[1][key], key
+    assert weights[0].keys() == weights[1].keys()
+    for key in weights[0]:
+        assert torch.equal(weights[0][key], weights[1][key]), key
+    # The residual initialisation took place: PPO's action layer (orthogonal rows of norm 0.01) scaled by
+    # 0.01 gives rows of norm 1e-4; two Adam steps of lr 1e-4 move each of the 64 weights of a row by at
+    # most 2e-4, the row by at most 1.6e-3. Unscaled rows would have norm 0.01 ± 1.6e-3.
+    assert torch.linalg.norm(weights[1]["action_net.weight"], dim=1).max() < 4e-3
+
+
+@pytest.mark.parametrize("entry, match", [
+    ({"env_wrapper": ["agents.wrappers.Nope"]}, r"env_wrapper: 'agents.wrappers.Nope'"),
+    ({"env_wrapper": [{"agents.wrappers.EKFFeatures": {"scale": 0.3}}]}, r"unknown keyword 'scale'"),
+    ({"env_wrapper": ["agents.wrappers.EKFFeatures", {"agents.wrappers.SensorNoiseRandomizer": {}}]},
+     "in this order"),
+    ({"env_wrapper": ["agents.wrappers.EKFFeatures"], "residual_scale": 0.3}, r"key 'residual_scale' belongs"),
+    ({"env_wrapper": "residual_ekf_pid"}, "env_wrapper 'residual_ekf_pid'"),
+    ({"env_wrapper": [["a"]]}, "each entry must be a class path"),
+])
+def test_wrapper_entries_are_checked_with_file_and_key(entry, match):
+    with pytest.raises(ValueError, match=match):
+        wrapper_spec(entry, "hp.yml")
+    assert "hp.yml" in str(pytest.raises(ValueError, wrapper_spec, entry, "hp.yml").value)
+
+
+def test_callback_entries_are_checked():
+    assert residual_init({"callback": [{"agents.callbacks.ResidualInit": {"factor": 0.5, "log_std": -2}}]},
+                         "w") == (0.5, -2.0)
+    assert residual_init({"residual_init": 0.01}, "w") == (0.01, None)  # the earlier layout
+    with pytest.raises(ValueError, match="callback: 'x.Y': this trainer knows only"):
+        residual_init({"callback": ["x.Y"]}, "w")
 
 
 def test_hyperparams_errors_name_file_and_key(tmp_path):
@@ -171,8 +241,8 @@ def test_train_smoke_and_evaluate_end_to_end(algo, tmp_path, capsys):
 def test_train_rejects_bad_input_in_one_line(tmp_path, capsys):
     for args, expected in (
         (["--env-kwargs", "{x"], "--env-kwargs is not valid JSON"),
-        (["--env-kwargs", '{"surface": "ice"}'], "invalid surface='ice'"),
-        (["--timesteps", "0"], "--timesteps must be >= 1"),
+        (["--env-kwargs", '{"surface": "ice"}'], "surface"),
+        (["--timesteps", "0"], "--timesteps must be an integer in [1, 1000000000]"),
     ):
         assert main(["train", "--algo", "ppo", "--env", ENV, "--seed", "0", "--out", str(tmp_path / "m"),
                      "--no-progress", *args]) == 2
@@ -180,10 +250,34 @@ def test_train_rejects_bad_input_in_one_line(tmp_path, capsys):
         assert len(err) == 1 and err[0].startswith("omni-gym: error: ") and expected in err[0], err
 
 
-def test_evaluate_rejects_a_model_file_or_missing_meta(tmp_path):
-    with pytest.raises(ValueError, match="evaluated from its directory"):
+@pytest.mark.parametrize("option, value", [
+    ("--max-minutes", "-1"), ("--max-minutes", "0"), ("--max-minutes", "nan"), ("--threads", "0"),
+    ("--threads", "-2"), ("--seed", "-1"), ("--seed", str(2**31)), ("--timesteps", "-5"), ("--timesteps", "inf"),
+    ("--timesteps", "100.5"), ("--eval-freq", "-1"), ("--eval-episodes", "0"), ("--checkpoint-freq", "-1"),
+    ("--n-envs", "0"),
+])
+def test_train_options_out_of_bounds_are_refused_before_anything_is_touched(option, value, tmp_path, capsys):
+    """Issue 13 items 5 and 14: e.g. --max-minutes -1 used to be accepted and overwrite the model directory."""
+    out = tmp_path / "model"
+    out.mkdir()
+    (out / "meta.json").write_text("{}")  # an existing model directory: it must survive, byte for byte
+    assert main(["train", "--algo", "ppo", "--env", ENV, "--out", str(out), "--no-progress", "--force",
+                 option, value]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"omni-gym: error: {option} must be "), err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["model"] and os.listdir(out) == ["meta.json"]
+    assert (out / "meta.json").read_text() == "{}"
+
+
+def test_train_library_refuses_zero_threads(tmp_path):
+    with pytest.raises(ValueError, match="threads must be an integer >= 1"):
+        train_into("ppo", ENV, 10, 0, tmp_path / "m", SHORT, threads=0)
+
+
+def test_evaluate_rejects_a_missing_model_or_meta(tmp_path):
+    with pytest.raises(ValueError, match="model.zip: no such model file"):
         evaluate(str(tmp_path / "model.zip"), ENV, 1, 0)
-    with pytest.raises(ValueError, match="meta.json: missing"):
+    with pytest.raises(ValueError, match=r"neither our model directory \(meta.json\) nor an RL Zoo folder"):
         evaluate(str(tmp_path), ENV, 1, 0)
     (tmp_path / "meta.json").write_text("{not json")
     with pytest.raises(ValueError, match="meta.json: not valid JSON"):
@@ -193,19 +287,22 @@ def test_evaluate_rejects_a_model_file_or_missing_meta(tmp_path):
         evaluate(str(tmp_path), ENV, 1, 0)
 
 
-@pytest.mark.parametrize("lost", [0.5, 1e-6])
+@pytest.mark.parametrize("lost", [0.5, 0.001])
 def test_squared_reward_is_the_squared_tracking_error_with_a_lost_penalty(lost):
     """reward="squared": −(e/0.1 m)² − 0.01·mean(a²) per step, minus 50 steps at the lost distance when lost."""
     env = wrap_env(make_env(ENV, {**SHORT, "lost_distance": lost}), "residual-ekf-pid", reward="squared")
     env.reset(seed=6)
-    a = np.array([0.5, -0.5, 0.0], dtype=np.float32)
-    _, r, terminated, _, info = env.step(a)
-    expected = -((info["tracking_error"] / 0.1) ** 2) - 0.01 * np.mean(a.astype(float) ** 2)
-    # With lost_distance = 1 µm the first step ends the episode (the robot moves more than that).
-    assert terminated == (lost < 1e-3)
-    if terminated:
-        expected -= 50 * (lost / 0.1) ** 2
-    assert r == pytest.approx(expected, rel=1e-12, abs=1e-15)
+    a = np.array([1.0, -1.0, 0.0], dtype=np.float32)  # the full residual pushes the robot off the path
+    for _ in range(env.unwrapped.cfg.episode_steps):
+        _, r, terminated, truncated, info = env.step(a)
+        expected = -((info["tracking_error"] / 0.1) ** 2) - 0.01 * np.mean(a.astype(float) ** 2)
+        if terminated:
+            expected -= 50 * (lost / 0.1) ** 2
+        assert r == pytest.approx(expected, rel=1e-12, abs=1e-15)
+        if terminated or truncated:
+            break
+    # 1 mm (the smallest lost_distance allowed) is left within the 1 s episode; 0.5 m is not.
+    assert terminated == (lost < 0.01)
 
 
 def test_tracking_reward_is_bounded_and_positive():
@@ -216,3 +313,12 @@ def test_tracking_reward_is_bounded_and_positive():
         assert -0.02 <= r <= 1.0  # 0.5 + 0.5 at e = 0; the action term costs at most 0.02
     with pytest.raises(ValueError, match="needs an EKF wrapper"):
         wrap_env(make_env(ENV, SHORT), "none", reward="squared")
+
+
+def test_option_bounds_are_the_tables_in_docs_bounds_md():
+    from agents.options import EVALUATE, TRAIN
+    from omni_gym.bounds import markdown_table
+
+    text = (ROOT / "docs" / "bounds.md").read_text()
+    for name, table in (("train", TRAIN), ("evaluate", EVALUATE)):
+        assert markdown_table(table) in text, f"docs/bounds.md: the {name} options differ from agents/options.py"

@@ -1,0 +1,60 @@
+"""Training callbacks named in the hyperparameter files (``callback:`` in the RL Zoo's format).
+
+:class:`ResidualInit` makes a freshly built residual agent start as its baseline: it scales the actor's
+output layer by ``factor`` and zeroes its bias, so the initial action (the residual added to the PID's
+twist, see :class:`agents.wrappers.EKFFeatures`) is ≈ 0. ``agents/train.py`` applies the same
+initialisation right after building the model; ``python -m rl_zoo3.train`` applies it through this
+callback when training starts. The scaling draws no random numbers, so the two give the same weights.
+"""
+
+from __future__ import annotations
+
+from stable_baselines3.common.callbacks import BaseCallback
+
+
+def init_residual(model, factor: float, log_std: float | None = None) -> None:
+    """Scale the actor's output layer of ``model`` (PPO, SAC or TD3) by ``factor`` and zero its bias.
+
+    ``log_std`` (SAC only): the log-std layer is scaled by ``factor`` and its bias set to ``log_std``
+    (the initial log standard deviation of the action, in units of the [-1, 1] action range).
+    """
+    import torch
+    from stable_baselines3 import PPO, SAC, TD3
+
+    if not isinstance(model, (PPO, SAC, TD3)):
+        raise ValueError(f"ResidualInit supports PPO, SAC and TD3, got {type(model).__name__}")
+    with torch.no_grad():
+        if isinstance(model, PPO):
+            layer = model.policy.action_net
+        elif isinstance(model, SAC):
+            layer = model.actor.mu
+        else:
+            layer = model.actor.mu[-2]  # the Linear before TD3's final Tanh
+        layer.weight.mul_(factor)
+        layer.bias.zero_()
+        if isinstance(model, SAC) and log_std is not None:
+            model.actor.log_std.weight.mul_(factor)
+            model.actor.log_std.bias.fill_(log_std)
+        if isinstance(model, TD3):
+            model.actor_target.load_state_dict(model.actor.state_dict())
+
+
+class ResidualInit(BaseCallback):
+    """At the start of training from scratch, :func:`init_residual` (see the module doc).
+
+    Args:
+        factor: scale of the actor's output layer (e.g. 0.01: the policy starts at 1 % of its output).
+        log_std: SAC's initial log std (None: SB3's default).
+    """
+
+    def __init__(self, factor: float = 0.01, log_std: float | None = None, verbose: int = 0) -> None:
+        super().__init__(verbose)
+        self.factor = float(factor)
+        self.log_std = None if log_std is None else float(log_std)
+
+    def _on_training_start(self) -> None:
+        if self.model.num_timesteps == 0:  # not when training continues from a saved agent
+            init_residual(self.model, self.factor, self.log_std)
+
+    def _on_step(self) -> bool:
+        return True

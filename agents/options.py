@@ -1,0 +1,61 @@
+"""Bounds of the numeric command-line options of ``omni-gym train`` and ``omni-gym evaluate``.
+
+``docs/bounds.md`` (section "Command-line options", ``train`` and ``evaluate``) shows these tables as
+rendered by :func:`omni_gym.bounds.markdown_table` (a test compares them). Every option is checked
+before any work starts, so a bad value never reaches training or an output directory.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from omni_gym.bounds import Bound
+
+SEED_MAX = 2**31 - 1  # SB3 seeds numpy's legacy generator (< 2^32) with seed + i for environment i
+
+TRAIN: dict[str, Bound] = {b.name: b for b in (
+    Bound("--timesteps", 1, 1e9, "steps", "at least one step; the committed agent trained at 450 steps/s "
+          "(1.5·10⁶ steps in 55 min), so 10⁹ steps is almost a month: a larger number is a typo", integer=True),
+    Bound("--seed", 0, SEED_MAX, "", "SB3 seeds numpy's legacy generator, which takes < 2³², with "
+          "seed + i for environment i; 2³¹ − 1 leaves room for any --n-envs", integer=True),
+    Bound("--n-envs", 1, 256, "", "parallel environments, each a simulation (a process with "
+          "--vec-env subproc); more than 256 exceeds any machine this runs on", integer=True),
+    Bound("--eval-freq", 0, 1e9, "steps", "0 disables validation; at most --timesteps' bound", integer=True),
+    Bound("--eval-episodes", 1, 1000, "", "validation episodes per evaluation; each costs an episode "
+          "of simulation, 1000 would dwarf the training", integer=True),
+    Bound("--checkpoint-freq", 0, 1e9, "steps", "0 disables checkpoints; at most --timesteps' bound",
+          integer=True),
+    Bound("--max-minutes", 0.0, 43200.0, "min", "wall-time limit: must be > 0 (a limit of 0 or less "
+          "would train nothing yet write a model); 30 days is longer than any run", lo_open=True),
+    Bound("--threads", 1, 1024, "", "torch threads: at least one (torch refuses 0, which was silently "
+          "replaced by 1); 1024 exceeds any machine's cores", integer=True),
+)}
+
+EVALUATE: dict[str, Bound] = {b.name: b for b in (
+    Bound("--episodes", 1, 100_000, "", "at least one episode; 10⁵ episodes of 20 s is days of "
+          "simulation, so a larger number is a typo", integer=True),
+    Bound("--seed", 0, 2**53, "", "episode i uses seed + i; seeds are written to JSON, whose readers "
+          "keep integers exact up to 2^53", integer=True),
+    Bound("--residual-scale", 0.0, 1.0, "", "fraction of the action range a residual agent may add to "
+          "the PID's twist (agents.wrappers.EKFFeatures)"),
+)}
+
+
+def _check(table: dict[str, Bound], args: argparse.Namespace) -> None:
+    for name, bound in table.items():
+        value = getattr(args, name.lstrip("-").replace("-", "_"), None)
+        if value is not None:
+            bound.check(value, name)
+
+
+def check_train_args(args: argparse.Namespace) -> None:
+    """Refuse a ``train`` option outside :data:`TRAIN` (ValueError naming the option)."""
+    _check(TRAIN, args)
+
+
+def check_evaluate_args(args: argparse.Namespace) -> None:
+    """Refuse an ``evaluate`` option outside :data:`EVALUATE`, and seeds past the last bound."""
+    _check(EVALUATE, args)
+    last = args.seed + args.episodes - 1
+    if last > EVALUATE["--seed"].hi:
+        raise ValueError(f"--seed {args.seed} with --episodes {args.episodes}: the last seed {last} exceeds 2^53")
