@@ -105,7 +105,7 @@ def test_gap_cli_flags_a_3m_outlier_keeps_the_effect_and_reports_stages(lag_data
     assert proc.returncode == 0, proc.stderr
     # One flushed line per stage on a pipe (no tqdm bar there), in order.
     stages = [line for line in proc.stderr.splitlines() if line.startswith("gap: ")]
-    expected = ["gap: loading dataset", "gap: checking 3 runs for tracker outliers", "gap: 1 outlier row(s)",
+    expected = ["gap: loaded dataset", "gap: checking 3 runs for tracker outliers", "gap: 1 outlier row(s)",
                 "gap: simulating the nominal model", "gap: localising"] + \
         [f"gap: fitting candidate {i}/6" for i in range(1, 7)] + ["gap: deciding", "gap: writing report"]
     assert len(stages) == len(expected) and all(s.startswith(e) for s, e in zip(stages, expected, strict=True))

@@ -59,11 +59,12 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
 
     show = sys.stderr.isatty() if progress is None else progress
     say = _stage_printer(progress is None and not show)  # redirected stderr: one line per stage
-    say(f"loading dataset {dataset}")
     ds = load_dataset(dataset)
     R = len(ds.runs)
     if R < 2:
         raise ValueError(f"{dataset}: needs at least 2 runs (held-out scoring splits by run), got {R}")
+    # Said after the checks: a dataset that is refused gives exactly one line (the error).
+    say(f"loaded dataset {dataset} ({R} runs)")
     nominal = ds.model
     lever = pose_lever(nominal)
     say(f"checking {R} runs for tracker outliers")
