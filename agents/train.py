@@ -55,6 +55,8 @@ from pathlib import Path
 
 import numpy as np
 
+from omni_gym.envs.config import parse_model
+
 HYPERPARAM_DIR = Path(__file__).resolve().parent / "hyperparams"
 ALGOS = ("ppo", "sac", "td3")
 VALIDATION_SEED = 5000  # validation episodes; training envs use small seeds, benchmarks 10 000+
@@ -330,6 +332,10 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
         raise ValueError(f"n_envs must be >= 1, got {n}")
     kw = dict(hp.get("env_kwargs") or {})
     kw.update(env_kwargs or {})
+    if isinstance(kw.get("model"), (str, os.PathLike)):
+        # The model file's content, not its path, goes into the run and meta.json: a trained agent
+        # must evaluate the same from any folder, and after the report it came from is replaced.
+        kw["model"] = parse_model(kw["model"]).to_json()
     spec = wrapper_spec(hp, where)
     wrapper, residual_scale, noise = spec.name, spec.residual_scale, spec.sensor_noise_range
     init_factor, init_log_std = residual_init(hp, where)

@@ -228,8 +228,8 @@ def bad_models(tmp_path: Path) -> list[tuple[object, str]]:
         (str(tmp_path), "directory"),
         ({k: v for k, v in good.items() if k != "surface"}, "'surface'"),
         (fast_lift, "lift_rate"),
-        ({**good, "effects": {"wheel_liftoff": {"lift_rate": 1e-30, "recover_rate": 5.0}}}, "lift_rate"),
-        ({**good, "effects": {"wheel_liftoff": {"lift_rate": 1.0, "recover_rate": 1e-30}}}, "recover_rate"),
+        ({**good, "effects": {"wheel_liftoff": {"lift_rate": 5000.0, "recover_rate": 5.0}}}, "lift_rate"),
+        ({**good, "effects": {"wheel_liftoff": {"lift_rate": 1.0, "recover_rate": 5000.0}}}, "recover_rate"),
         (5, "model=5"),
         ("williams2002", "file not found"),
     ]

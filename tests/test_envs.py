@@ -298,7 +298,7 @@ BAD_KWARGS = [
     ({"physics_dt": 0.005}, "physics_dt=0.005", ["[1e-05, 0.002] s"]),
     ({"control_hz": 0}, "control_hz=0", ["[1, 10000] Hz"]),
     ({"episode_seconds": float("nan")}, "episode_seconds=nan", ["(0, 3600] s"]),
-    ({"lift_rate": -1}, "lift_rate=-1", ["0 or in [1e-06, 1000] 1/s"]),
+    ({"lift_rate": -1}, "lift_rate=-1", ["in [0, 1000] 1/s"]),
     ({"sensor_noise": -0.5}, "sensor_noise=-0.5", ["[0, 100]"]),
     ({"walls": "yes"}, "walls='yes'", ["True", "False"]),
     ({"obstacles": ((1.0, 0.0, -1.0),)}, "obstacles[0]", ["radius >= 0.001 m"]),
@@ -323,8 +323,9 @@ BAD_KWARGS = [
     ({"obstacles": (1, 2, 3)}, "obstacles[0]=1", ["(x, y, radius)"]),
     ({"obstacles": "abc"}, "obstacles='abc'", ["(x, y, radius)"]),
     ({"obstacles": [("a", 1.0, 0.1)]}, "obstacles[0]=('a', 1.0, 0.1)", ["numbers"]),
-    ({"lift_rate": 1e-30}, "lift_rate=1e-30", ["0 or in [1e-06, 1000] 1/s"]),
-    ({"recover_rate": 1e-30}, "recover_rate=1e-30", ["0 or in [1e-06, 1000] 1/s"]),
+    # Tiny rates are valid (issue 13 item 7: tests/test_liftoff_fuzz.py); above 1000 /s they are not.
+    ({"lift_rate": 2000.0}, "lift_rate=2000.0", ["in [0, 1000] 1/s"]),
+    ({"recover_rate": 1e308}, "recover_rate=1e+308", ["in [0, 1000] 1/s"]),
     ({"sensor_noise": 1e308}, "sensor_noise=1e+308", ["[0, 100]"]),
     ({"success_heading": 4.0}, "success_heading=4.0", ["(0, 3.14159] rad"]),
     # issue 13, item 14: no silent conversion of strings, complex numbers or booleans into numbers.

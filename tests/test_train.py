@@ -322,3 +322,34 @@ def test_option_bounds_are_the_tables_in_docs_bounds_md():
     text = (ROOT / "docs" / "bounds.md").read_text()
     for name, table in (("train", TRAIN), ("evaluate", EVALUATE)):
         assert markdown_table(table) in text, f"docs/bounds.md: the {name} options differ from agents/options.py"
+
+
+def test_training_on_a_model_file_keeps_the_model_itself(tmp_path, capsys):
+    """A calibrated model file enters training, and meta.json holds its content, not its path.
+
+    The report a model.json came from may be replaced (``gap --force``) or the agent evaluated from
+    another folder: the run must stay reproducible from meta.json alone.
+    """
+    import gymnasium as gym
+
+    from omni_gym.model import load_model
+
+    model = load_model("phunopas2018", "carpet", "roller_gap").with_effect(
+        "wheel_radius", {"scale": [1.02, 0.98, 1.0, 1.01]})
+    path = tmp_path / "calibrated.json"
+    path.write_text(json.dumps(model.to_json()))
+    hp = tmp_path / "hp.yml"
+    _small_yaml("ppo", hp)
+    out = tmp_path / "model"
+    kwargs = {**SHORT, "model": str(path)}
+    assert main(["train", "--algo", "ppo", "--env", ENV, "--timesteps", "256", "--seed", "1", "--out", str(out),
+                 "--hyperparams", str(hp), "--env-kwargs", json.dumps(kwargs), "--eval-freq", "0",
+                 "--no-progress"]) == 0
+    capsys.readouterr()
+    meta = json.loads((out / "meta.json").read_text())
+    saved = meta["train_env_kwargs"]["model"]
+    assert saved == model.to_json()  # the effect travelled with the model
+    path.unlink()
+    env = gym.make(ENV, **meta["train_env_kwargs"])  # no file needed any more
+    assert env.unwrapped.cfg.base_model().effects["wheel_radius"]["scale"] == [1.02, 0.98, 1.0, 1.01]
+    env.close()

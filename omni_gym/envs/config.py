@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from omni_gym.friction import FRICTION_MODELS, SURFACES, Surface
+from omni_gym.liftoff import RATE_MAX
 from omni_gym.model import ACTUATIONS, SimModel
 from omni_gym.robot import PRESETS, robot_preset
 from omni_gym.sensors import SensorConfig
@@ -40,8 +41,7 @@ RESET_OPTIONS: tuple[str, ...] = ()  # reset(options=...) keys the environments 
 
 MAX_EPISODE_STEPS = 1_000_000  # reference tables: 48 bytes per step and robot (48 MB at the bound)
 MAX_OBSTACLES = 1000  # each is a pymunk shape in every robot's arena
-MIN_RATE = 1e-6  # 1/s: a mean holding time of 11.6 days, > 250 of the longest episodes (1 h)
-MAX_RATE = 1000.0  # 1/s: a mean holding time of 1 ms, two default physics substeps
+MAX_RATE = RATE_MAX  # 1/s: a mean holding time of 1 ms, two default physics substeps (omni_gym.liftoff)
 WHEEL_COUNT = (3, 16)  # a planar omni robot needs 3 wheels; more than 16 is not a wheel layout of this kind
 MIN_OBSTACLE_RADIUS = 0.001  # m
 WALL_RADIUS = 0.01  # m, thickness of the wall segments (omni_gym.world)
@@ -73,8 +73,8 @@ BOUNDS: dict[str, Bound] = {
     "control_hz": Bound(1.0, 10000.0, "Hz"),
     "physics_dt": Bound(1e-5, 0.002, "s"),
     "episode_seconds": Bound(0.0, 3600.0, "s", lo_open=True),
-    "lift_rate": Bound(MIN_RATE, MAX_RATE, "1/s", zero=True),
-    "recover_rate": Bound(MIN_RATE, MAX_RATE, "1/s", zero=True),  # 0: a lifted wheel stays up until reset
+    "lift_rate": Bound(0.0, MAX_RATE, "1/s"),  # 0: never lifts; any tiny rate schedules safely (liftoff.py)
+    "recover_rate": Bound(0.0, MAX_RATE, "1/s"),  # 0: a lifted wheel stays up until reset
     "sensor_noise": Bound(0.0, 100.0, ""),
     "arena_half_size": Bound(0.1, 1000.0, "m"),
     "ref_speed": Bound(0.001, 10.0, "m/s"),
@@ -292,7 +292,7 @@ def _model_from_json(data, label: str) -> SimModel:
         raise ValueError(f"invalid {label}: {exc}") from None
 
 
-def _model(value) -> SimModel | None:
+def parse_model(value) -> SimModel | None:
     """``model=``: None, a model JSON path (str or os.PathLike), its dict form, or a SimModel."""
     if value is None:
         return None
@@ -335,7 +335,7 @@ def make_config(**kwargs) -> EnvConfig:
         "robot": _robot(get("robot", d.robot)),
         "surface": _choice("surface", get("surface", d.surface), tuple(SURFACES)),
         "friction": _choice("friction", get("friction", d.friction), FRICTION_MODELS),
-        "model": _model(get("model")),
+        "model": parse_model(get("model")),
         "task": _choice("task", get("task", d.task), TASKS),
         "trajectory": _choice("trajectory", get("trajectory", d.trajectory), TRAJECTORIES),
         "ref_heading": _choice("ref_heading", get("ref_heading", d.ref_heading), REF_HEADINGS),
@@ -430,6 +430,4 @@ def randomized_model(cfg: EnvConfig, base: SimModel, rng: np.random.Generator) -
     lift = cfg.contact_rates()[0]
     if cfg.randomize_lift_rate is not None:
         lift = float(rng.uniform(*cfg.randomize_lift_rate))
-        if lift < MIN_RATE:  # a holding time beyond any episode: no lift-off (and no huge switch times)
-            lift = 0.0
     return model, lift
