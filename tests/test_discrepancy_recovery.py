@@ -4,11 +4,14 @@ Two tiers, the same assertions:
 
 * the **full sweep** (marked ``slow``; ``make test-slow``): two sizes x two noise levels x three
   seeds = 12 cases per effect on 4 runs of 2.5 s (12.6 min on 2 cores, about 25 CPU-minutes);
-* the **quick sweep** run by ``make test``: the same 2 x 2 grid with one seed per cell, the seeds
-  rotating 1, 2, 3, 1 (fixed before looking at outcomes), so every size, noise level and seed
-  appears: 4 cases per effect.
+* the **quick sweep** run by ``make test``: two cases per effect, one test each so the two
+  workers share them: small effect at the low noise level and large effect at the high noise
+  level (seed 1), so both sizes and both noise levels appear. These are two of the four cases
+  of the earlier quick sweep (the 2 x 2 grid, seeds 1, 2, 3, 1), kept when the suite outgrew its
+  10-minute budget on this 2-core machine (the six 4-case sweeps took 15 of its 27 CPU-minutes);
+  the other two still run in the full sweep.
 
-Thresholds are the issue's: the right name in >= 90 % of cases (quick sweep: all 4), parameters
+Thresholds are the issue's: the right name in >= 90 % of cases (quick sweep: each case), parameters
 within the documented tolerances (omni_gym.discrepancy.recovery.TOLERANCES, docs/discrepancy.md),
 the held-out gap beyond tracker noise reduced by >= 70 %. The committed benchmark
 (benchmarks/discrepancy_recovery.py) runs the study on larger datasets and reports wall times.
@@ -21,7 +24,7 @@ from omni_gym.discrepancy.recovery import NOISES, SIZES, TOLERANCES, run_case
 RUNS, DURATION = 4, 2.5
 GRID = [(size, noise) for size in ("small", "large") for noise in NOISES]
 FULL = [(size, noise, seed) for size, noise in GRID for seed in (1, 2, 3)]
-QUICK = [(size, noise, seed) for (size, noise), seed in zip(GRID, (1, 2, 3, 1), strict=True)]
+QUICK = [("small", NOISES[0], 1), ("large", NOISES[-1], 1)]
 
 
 def _check(effect: str, cells: list[tuple]) -> None:
@@ -44,11 +47,12 @@ def _check(effect: str, cells: list[tuple]) -> None:
     assert min(reductions) >= 0.7, reductions
 
 
+@pytest.mark.parametrize("case", QUICK, ids=lambda c: f"{c[0]}-{c[1] * 1e3:g}mm-seed{c[2]}")
 @pytest.mark.parametrize("effect", SIZES)
-def test_hidden_effect_quick_sweep(effect):
+def test_hidden_effect_quick_sweep(effect, case):
     """wheel_liftoff is fitted by MAP lift-event inference (docs/discrepancy.md); its rates are
     within a factor e although only 2-8 lift events occur per dataset."""
-    _check(effect, QUICK)
+    _check(effect, [case])
 
 
 @pytest.mark.slow
