@@ -15,7 +15,6 @@ the contact process in place of ``lift_rate``/``recover_rate``. Domain randomisa
 
 from __future__ import annotations
 
-import json
 import math
 import numbers
 import os
@@ -27,7 +26,7 @@ import numpy as np
 
 from omni_gym.friction import FRICTION_MODELS, SURFACES, Surface
 from omni_gym.liftoff import RATE_MAX
-from omni_gym.model import ACTUATIONS, SimModel
+from omni_gym.model import ACTUATIONS, SimModel, read_json
 from omni_gym.robot import PRESETS, robot_preset
 from omni_gym.sensors import SensorConfig
 
@@ -261,25 +260,13 @@ def _obstacles(value, half_size: float) -> tuple[tuple[float, float, float], ...
 
 
 def _read_model_file(value) -> SimModel:
-    """A model JSON file (UTF-8, a byte-order mark allowed) → SimModel; errors name the file."""
+    """A model JSON file (UTF-8, a byte-order mark allowed) → SimModel; errors name ``model=`` and the file."""
     path = Path(os.fsdecode(value))
     label = f"model={str(path)!r}"  # the whole path (repr of a str is one line)
     try:
-        text = path.read_bytes().decode("utf-8-sig")
-    except FileNotFoundError:
-        raise ValueError(f"invalid {label}: file not found") from None
-    except IsADirectoryError:
-        raise ValueError(f"invalid {label}: is a directory, not a model JSON file") from None
-    except OSError as exc:
-        raise ValueError(f"invalid {label}: cannot read the file ({exc.strerror})") from None
-    except UnicodeDecodeError:
-        raise ValueError(f"invalid {label}: not a UTF-8 text file (a model JSON file is expected)") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"invalid {label}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-    except RecursionError:
-        raise ValueError(f"invalid {label}: JSON nested too deeply") from None
+        data = read_json(path)  # the one JSON file reader (omni_gym.model)
+    except ValueError as exc:
+        raise ValueError(f"invalid {label}: {str(exc).removeprefix(f'{path}: ')}") from None
     return _model_from_json(data, label)
 
 
