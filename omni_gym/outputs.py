@@ -76,8 +76,8 @@ def write_text_atomic(path: str | Path, text: str) -> None:
 
 
 def write_json_atomic(path: str | Path, data) -> None:
-    """JSON (indent 2, trailing newline) through :func:`write_bytes_atomic`."""
-    write_text_atomic(path, json.dumps(data, indent=2) + "\n")
+    """Standard JSON (indent 2, trailing newline) through :func:`write_bytes_atomic`; NaN/inf raise ValueError."""
+    write_text_atomic(path, json.dumps(data, indent=2, allow_nan=False) + "\n")  # standard JSON only
 
 
 def csv_text(header: list[str], rows: np.ndarray, empty_nan: bool = False) -> str:

@@ -148,11 +148,6 @@ def read_run(path: Path, n_wheels: int) -> Run:
     )
 
 
-def write_json_atomic(path: str | Path, data: dict) -> None:
-    """Write JSON through a temporary file and rename (never a partial file; ``omni_gym.outputs``)."""
-    outputs.write_json_atomic(path, data)
-
-
 def write_dataset(folder: str | Path, model_json: dict, description: str, runs: list[Run]) -> None:
     """Write a dataset folder (runs first, dataset.json last). For a complete-or-absent dataset write
     into the temporary folder of an :class:`omni_gym.outputs.Output` (as ``omni-gym synth`` does)."""
@@ -169,4 +164,4 @@ def write_dataset(folder: str | Path, model_json: dict, description: str, runs: 
         outputs.write_csv_atomic(folder / "runs" / f"{run.name}.csv",
                                  run_header(n, run.enc is not None, run.gyro is not None), np.column_stack(cols),
                                  empty_nan=True)
-    write_json_atomic(folder / "dataset.json", {"model": model_json, "description": description})
+    outputs.write_json_atomic(folder / "dataset.json", {"model": model_json, "description": description})
