@@ -154,9 +154,17 @@ def wilson_ci(successes: int, n: int, z: float = Z95) -> list[float]:
     return [max(0.0, centre - half), min(1.0, centre + half)]
 
 
-def summarize(episodes: list[Episode]) -> dict:
-    """Aggregate metrics (mean and 95 % bootstrap percentile CI) and the per-episode values."""
-    out = {m: bootstrap_ci(np.array([getattr(e, m) for e in episodes])) for m in METRICS}
+def summarize(episodes: list[Episode], interval: str = "bootstrap") -> dict:
+    """Aggregate metrics (mean and 95 % CI) and the per-episode values.
+
+    ``interval``: "bootstrap" (percentile interval, never outside the observed values, so never
+    negative for errors; what ``omni-gym evaluate`` prints) or "t" (Student-t, what the committed
+    benchmark tables were made with, kept so that their commands reproduce them).
+    """
+    if interval not in ("bootstrap", "t"):
+        raise ValueError(f"interval must be 'bootstrap' or 't', got {interval!r}")
+    ci = bootstrap_ci if interval == "bootstrap" else mean_ci
+    out = {m: ci(np.array([getattr(e, m) for e in episodes])) for m in METRICS}
     wins = sum(e.success for e in episodes)
     out["success_rate"] = {"mean": wins / len(episodes), "successes": wins, "ci95": wilson_ci(wins, len(episodes))}
     out["terminated_rate"] = sum(e.terminated for e in episodes) / len(episodes)

@@ -287,7 +287,7 @@ def main(argv: list[str] | None = None) -> int:
     eps = {(e, p, c): v for (e, p, c, tag), v in runs.items() if tag == ""}
     confirm = ([runs[(GOAL_ENV, p, LIFT, CONFIRM)] for p in ("open-loop", "odometry-pid")]
                if args.confirm_episodes > 1 and GOAL_ENV in env_ids else [])
-    summaries = {k: summarize(v) for k, v in eps.items()}
+    summaries = {k: summarize(v, interval="t") for k, v in eps.items()}  # Student-t, as the header says
     goals = write_markdown(out / "baselines.md", command.strip(), env_ids, summaries, eps, confirm, args.episodes,
                            args.seed, time.time() - t0)
     plot(out / "baselines.png", env_ids, summaries)

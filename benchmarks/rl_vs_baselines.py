@@ -299,7 +299,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.models:
         print(f"baseline episodes stored in {cache}" if cache else "no --models: nothing to compare")
         return 0
-    summaries = {k: summarize(v) for k, v in eps.items()}
+    summaries = {k: summarize(v, interval="t") for k, v in eps.items()}  # Student-t, as the header says
     verdicts = write_markdown(out / "rl_vs_baselines.md", command.strip(), policies, args.models, metas, eps,
                               summaries, args.episodes, args.seed, time.time() - t0)
     plot(out / "rl_vs_baselines.png", policies, summaries)

@@ -248,6 +248,10 @@ def test_error_intervals_never_negative():
                    terminated=False, steps=1) for i, v in enumerate(x)]
     for m in ("tracking_rmse", "final_position_error", "final_heading_error"):
         assert summarize(eps)[m]["ci95"][0] >= 0
+        # The benchmark tables keep their Student-t intervals (their headers say so; their commands reproduce them).
+        assert summarize(eps, interval="t")[m] == mean_ci(x)
+    with pytest.raises(ValueError, match="interval"):
+        summarize(eps, interval="normal")
 
 
 def test_bootstrap_interval_coverage():
