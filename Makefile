@@ -18,7 +18,7 @@ test: $(STAMP)
 	$(PY) -m ruff check .
 	$(PY) -m pytest -q -n 2 --dist worksteal -m "not slow" --durations=15
 
-# The long sweeps (the discrepancy workflow's full 12-case recovery per effect: ~10 min on 2 cores).
+# The long tests: the discrepancy workflow's full 12-case recovery per effect, the paper story, a second drag seed.
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -n 2 --dist worksteal -m slow
 

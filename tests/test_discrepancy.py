@@ -246,7 +246,7 @@ def test_localisation_points_at_acceleration_for_motor_lag(small_dataset):
 # --- outcomes other than a library name -----------------------------------------------------------
 
 
-NULL_SEEDS = range(10)  # 10 seeds (about 90 CPU-s); the 95 % bar then needs all ten
+NULL_SEEDS = range(8)  # 8 seeds (about 80 CPU-s; 20 until make test outgrew 10 min): the 95 % bar needs all 8
 
 
 @pytest.fixture(scope="module")
@@ -260,11 +260,15 @@ def test_null_case_gives_none(null_results):
     assert sum(n == "none" for n in named) >= 0.95 * len(named), named
 
 
-def test_effect_outside_the_library_is_unexplained():
-    outcomes = [run_case("viscous_drag", {"c": 4.0}, 0.001, s, RUNS, DURATION)["named"] for s in (1, 2)]
-    assert outcomes == ["unexplained", "unexplained"], outcomes
+@pytest.mark.parametrize("seed", [1, pytest.param(2, marks=pytest.mark.slow)])  # seed 2: make test-slow
+def test_effect_outside_the_library_is_unexplained(seed):
+    outcome = run_case("viscous_drag", {"c": 4.0}, 0.001, seed, RUNS, DURATION)["named"]
+    assert outcome == "unexplained", outcome
 
 
+# In make test-slow since make test outgrew its 10-minute budget (91 CPU-s); the carpet roller_gap
+# recovery of tests/test_discrepancy_recovery.py stays in make test.
+@pytest.mark.slow
 def test_paper_story_roller_gap_from_the_initial_model(tmp_path):
     """Williams et al.'s robot on their paper surface, analysed from the initial friction model."""
     model = load_model("williams2002", surface="paper", friction="initial")
