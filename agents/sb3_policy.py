@@ -14,7 +14,7 @@ Three kinds of model are accepted (:func:`resolve`):
   sensors) and the normalisation statistics (``--vecnormalize``) come from :class:`ModelOptions`.
 
     env, policy = build("agents/models/ppo-residual", "OmniPathFollow-Phunopas-v0", {"lift_rate": 0.5})
-    episode = agents.evaluate.run_episode(env, policy, seed=10_000)
+    episode = agents.rollout.run_episode(env, policy, seed=10_000)
 
 The environment is built with the evaluation's ``env_kwargs`` (not the training ones: no domain
 randomisation) plus the observation mode the model needs, and wrapped with the model's wrapper. The
@@ -29,6 +29,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from agents import require_agents_extra
+from agents.algorithms import ALGOS, algorithm_class
+from agents.rollout import make_env
+from agents.wrappers import WRAPPERS, wrap_env
+from agents.zoo_config import wrapper_spec
 
 META = "meta.json"
 ZOO_ALGO_FILE = "args.yml"
@@ -88,14 +94,13 @@ class SB3Policy:
         self.model = model
         self.vecnormalize = vecnormalize
         self.env = env
-        self.twist = np.zeros(3)
 
     @property
     def estimate(self) -> np.ndarray | None:
         return getattr(self.env, "estimate", None)
 
     def reset(self, obs: np.ndarray) -> None:
-        self.twist = np.zeros(3)
+        """Nothing to reset: the model acts on each observation alone (a wrapper keeps any filter state)."""
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         o = np.asarray(obs, dtype=np.float32)
@@ -120,8 +125,6 @@ def read_meta(path: str | Path) -> dict:
     for key in ("algo", "model", "wrapper"):
         if key not in meta:
             raise ValueError(f"{f}: missing key {key!r}")
-    from agents.train import ALGOS
-
     if meta["algo"] not in ALGOS:
         raise ValueError(f"{f}: key 'algo': unknown algorithm {meta['algo']!r}; one of {', '.join(ALGOS)}")
     return meta
@@ -134,8 +137,6 @@ def is_model_path(path: str | Path) -> bool:
 
 
 def _check_algo(algo, where: str) -> str:
-    from agents.train import ALGOS
-
     if algo not in ALGOS:
         raise ValueError(f"{where}: unknown algorithm {algo!r}; one of {', '.join(ALGOS)}")
     return algo
@@ -172,8 +173,6 @@ def _zoo_yaml(path: Path) -> dict:
 
 
 def _resolve_zoo(d: Path, options: ModelOptions) -> ModelSource:
-    from agents.train import wrapper_spec
-
     zips = sorted(z for z in d.glob("*.zip") if (d / z.stem).is_dir() and (d / z.stem / ZOO_ALGO_FILE).is_file())
     if not zips:
         raise ValueError(f"{d}: neither our model directory ({META}) nor an RL Zoo folder (ENV.zip beside "
@@ -201,8 +200,6 @@ def _resolve_zoo(d: Path, options: ModelOptions) -> ModelSource:
 
 def resolve(path: str | Path, options: ModelOptions | None = None) -> ModelSource:
     """Where the files of the model at ``path`` are and how to build its environment (see the module doc)."""
-    from agents.wrappers import WRAPPERS
-
     options = options or ModelOptions()
     p = Path(path)
     if p.is_dir() and (p / META).is_file():
@@ -232,15 +229,12 @@ def resolve(path: str | Path, options: ModelOptions | None = None) -> ModelSourc
 
 def load(path: str | Path, options: ModelOptions | None = None):
     """(meta, model, vecnormalize or None) of a model (see :func:`resolve`)."""
-    from agents import require_agents_extra
-
     require_agents_extra("loading an SB3 model")
     import torch
-    from stable_baselines3 import PPO, SAC, TD3
 
     src = resolve(path, options)
     meta = src.meta
-    cls = {"ppo": PPO, "sac": SAC, "td3": TD3}[meta["algo"]]
+    cls = algorithm_class(meta["algo"])
     if not src.zip_path.is_file():
         raise ValueError(f"{src.where}: key 'model': file {src.zip_path} not found")
     torch.set_num_threads(1)  # small MLPs: one thread is fastest and leaves the cores to the simulation
@@ -274,9 +268,6 @@ def _load_vecnormalize(path: Path, where: str):
 def build(path: str | Path, env_id: str | None = None, env_kwargs: dict | None = None,
           options: ModelOptions | None = None):
     """(wrapped env, :class:`SB3Policy`) for evaluating the model in ``path`` on ``env_id`` with ``env_kwargs``."""
-    from agents.evaluate import make_env
-    from agents.wrappers import wrap_env
-
     meta, model, vn = load(path, options)
     env_id = env_id or meta.get("env_id")
     if env_id is None:

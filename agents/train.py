@@ -17,7 +17,8 @@ use ``nn``), ``learning_rate`` (a number or ``lin_<x>`` for a linear schedule), 
 * ``env_wrapper``: a list of wrapper classes, innermost first, each a class path or
   ``{class path: {keyword: value}}``; this module knows ``agents.wrappers.SensorNoiseRandomizer``
   (``scale_range``: sensor noise scaled by U(lo, hi) per episode) and ``agents.wrappers.EKFFeatures``
-  (``residual_scale`` > 0: ``residual-ekf-pid``, 0: ``ekf-features``; ``reward``), in that order.
+  (``residual_scale`` > 0: ``residual-ekf-pid``, 0: ``ekf-features``; ``reward``: ``env``, ``tracking`` or
+  ``squared``, :data:`agents.wrappers.REWARDS`), in that order.
 * ``callback``: ``agents.callbacks.ResidualInit`` (``factor``: the actor's last layer is scaled by it
   and its bias zeroed at the start, so a residual policy starts as its baseline; ``log_std``: SAC's
   initial log std).
@@ -50,120 +51,28 @@ import shlex
 import subprocess
 import sys
 import time
-from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from agents import require_agents_extra
+from agents.algorithms import ALGOS, algorithm_class
+from agents.options import check_train_args
+from agents.rollout import make_env, run_episode
+from agents.sb3_policy import SB3Policy
+from agents.wrappers import wrap_env
+from agents.zoo_config import residual_init, wrapper_spec
 from omni_gym.envs.config import parse_model
 
 HYPERPARAM_DIR = Path(__file__).resolve().parent / "hyperparams"
-ALGOS = ("ppo", "sac", "td3")
 VALIDATION_SEED = 5000  # validation episodes; training envs use small seeds, benchmarks 10 000+
 OWN_KEYS = ("n_timesteps", "policy", "n_envs", "normalize", "env_kwargs", "env_wrapper", "residual_scale", "reward",
             "sensor_noise_range", "residual_init", "init_log_std", "noise_type", "noise_std", "policy_kwargs",
             "learning_rate", "callback")
-LEGACY_KEYS = ("residual_scale", "reward", "sensor_noise_range", "residual_init", "init_log_std")
-NOISE_WRAPPER = "agents.wrappers.SensorNoiseRandomizer"
-EKF_WRAPPER = "agents.wrappers.EKFFeatures"
-RESIDUAL_INIT = "agents.callbacks.ResidualInit"
-
-
-@dataclass(frozen=True)
-class WrapperSpec:
-    """The wrapper stack of a hyperparameter entry (see :func:`agents.wrappers.wrap_env`).
-
-    ``name``: one of :data:`agents.wrappers.WRAPPERS`; ``residual_scale``: the residual bound (fraction of
-    the action range); ``reward``: one of :data:`agents.wrappers.REWARDS`; ``sensor_noise_range``:
-    ``[lo, hi]`` sensor-noise scale per episode, or None.
-    """
-
-    name: str = "none"
-    residual_scale: float = 0.3
-    reward: str = "env"
-    sensor_noise_range: list[float] | None = None
-
-
-def _zoo_entries(value, key: str, where: str) -> list[tuple[str, dict]]:
-    """The RL Zoo's list syntax (``- path`` or ``- path: {kw: v}``, or a single entry) as (path, kwargs)."""
-    if value is None:
-        return []
-    out = []
-    for item in value if isinstance(value, list) else [value]:
-        if isinstance(item, str):
-            out.append((item, {}))
-        elif (isinstance(item, dict) and len(item) == 1 and isinstance(next(iter(item)), str)
-              and isinstance(next(iter(item.values())), (dict, type(None)))):
-            path, kw = next(iter(item.items()))
-            out.append((path, dict(kw or {})))
-        else:
-            raise ValueError(f"{where}: {key}: each entry must be a class path or {{class path: {{keyword: value}}}}, "
-                             f"got {item!r}")
-    return out
-
-
-def _known_keywords(path: str, kw: dict, allowed: tuple[str, ...], key: str, where: str) -> None:
-    unknown = sorted(set(kw) - set(allowed))
-    if unknown:
-        raise ValueError(f"{where}: {key}: {path}: unknown keyword {unknown[0]!r} (known: {', '.join(allowed)})")
-
-
-def wrapper_spec(hp: dict, where: str) -> WrapperSpec:
-    """Read ``env_wrapper`` (RL Zoo list of classes, or the earlier name + keys) of one hyperparameter entry."""
-    from agents.wrappers import WRAPPERS
-
-    value = hp.get("env_wrapper")
-    if value is None or (isinstance(value, str) and "." not in value):  # the earlier layout
-        name = str(hp.get("env_wrapper", "none"))
-        if name not in WRAPPERS:
-            raise ValueError(f"{where}: env_wrapper {name!r}: use a wrapper class path such as {EKF_WRAPPER} "
-                             f"(or one of the names {', '.join(WRAPPERS)})")
-        noise = hp.get("sensor_noise_range")
-        return WrapperSpec(name, float(hp.get("residual_scale", 0.3)), str(hp.get("reward", "env")),
-                           None if noise is None else [float(v) for v in noise])
-    stray = [k for k in LEGACY_KEYS if k in hp]
-    if stray:
-        raise ValueError(f"{where}: key {stray[0]!r} belongs to the earlier layout; with env_wrapper as a list "
-                         f"of classes give it as a keyword of the wrapper or of {RESIDUAL_INIT}")
-    spec = WrapperSpec()
-    seen: list[str] = []
-    for path, kw in _zoo_entries(value, "env_wrapper", where):
-        if path == NOISE_WRAPPER and not seen:
-            _known_keywords(path, kw, ("scale_range",), "env_wrapper", where)
-            if "scale_range" not in kw:
-                raise ValueError(f"{where}: env_wrapper: {path} needs the keyword 'scale_range' ([low, high])")
-            spec = replace(spec, sensor_noise_range=[float(v) for v in kw["scale_range"]])
-        elif path == EKF_WRAPPER and EKF_WRAPPER not in seen:
-            _known_keywords(path, kw, ("residual_scale", "reward"), "env_wrapper", where)
-            scale = float(kw.get("residual_scale", 0.3))  # EKFFeatures' default
-            spec = replace(spec, name="residual-ekf-pid" if scale > 0 else "ekf-features", residual_scale=scale,
-                           reward=str(kw.get("reward", "env")))
-        else:
-            raise ValueError(f"{where}: env_wrapper: {path!r}: this trainer builds {NOISE_WRAPPER} then {EKF_WRAPPER} "
-                             "(each at most once, in this order)")
-        seen.append(path)
-    return spec
-
-
-def residual_init(hp: dict, where: str) -> tuple[float | None, float | None]:
-    """(factor, SAC log std) of the ``ResidualInit`` callback (or the earlier ``residual_init`` keys)."""
-    if "callback" not in hp:
-        factor, log_std = hp.get("residual_init"), hp.get("init_log_std")
-        return (None if factor is None else float(factor)), (None if log_std is None else float(log_std))
-    factor = log_std = None
-    for path, kw in _zoo_entries(hp["callback"], "callback", where):
-        if path != RESIDUAL_INIT:
-            raise ValueError(f"{where}: callback: {path!r}: this trainer knows only {RESIDUAL_INIT}")
-        _known_keywords(path, kw, ("factor", "log_std"), "callback", where)
-        factor = float(kw.get("factor", 0.01))
-        log_std = None if kw.get("log_std") is None else float(kw["log_std"])
-    return factor, log_std
 
 
 def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict:
     """The YAML entry for ``env_id`` in ``path`` (default ``agents/hyperparams/<algo>.yml``)."""
-    from agents import require_agents_extra
-
     require_agents_extra("reading hyperparameter files")
     import yaml
 
@@ -237,10 +146,8 @@ def _normalize(value, where: str) -> dict | None:
 
 def make_train_env(env_id: str, env_kwargs: dict, wrapper: str, residual_scale: float,
                    sensor_noise_range=None, reward: str = "env"):
-    """One training/evaluation environment: :func:`agents.evaluate.make_env` (with the obs mode the wrapper
+    """One training/evaluation environment: :func:`agents.rollout.make_env` (with the obs mode the wrapper
     needs) and the wrapper."""
-    from agents.evaluate import make_env
-    from agents.wrappers import wrap_env
 
     kw = dict(env_kwargs)
     obs_mode = kw.pop("obs_mode", "sensors")  # "state": a privileged upper bound (no wrapper)
@@ -303,16 +210,12 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
     Args: see the module docstring; ``eval_freq`` and ``checkpoint_freq`` count environment steps over
     all environments (0 disables); ``max_minutes`` stops training early (the meta says so).
     """
-    from agents import require_agents_extra
-
     require_agents_extra("training")
     import torch
-    from stable_baselines3 import PPO, SAC, TD3
     from stable_baselines3.common.noise import NormalActionNoise
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
     from agents.callbacks import init_residual
-    from agents.evaluate import make_env
 
     if algo not in ALGOS:
         raise ValueError(f"unknown algo {algo!r}; choose one of {', '.join(ALGOS)}")
@@ -360,7 +263,7 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
     if norm is not None:
         venv = VecNormalize(venv, gamma=float(hp.get("gamma", 0.99)), **norm)
 
-    cls = {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
+    cls = algorithm_class(algo)
     args = dict(extra)
     args["policy_kwargs"] = _policy_kwargs(hp.get("policy_kwargs"), where)
     if "learning_rate" in hp:
@@ -477,9 +380,6 @@ class _TrainingMixin:
         return True
 
     def _validate(self) -> None:
-        from agents.evaluate import run_episode
-        from agents.sb3_policy import SB3Policy
-        from agents.wrappers import wrap_env
 
         if self._eval_env is None:
             self._eval_env = wrap_env(self._base_env(), self.meta["wrapper"], self.meta["residual_scale"])
@@ -601,8 +501,6 @@ def command_line(prog: str, args: argparse.Namespace) -> str:
 
 def run_from_args(args: argparse.Namespace, command: str | None = None) -> dict:
     """Validate parsed arguments (:mod:`agents.options`) and call :func:`train`."""
-    from agents import require_agents_extra
-    from agents.options import check_train_args
 
     check_train_args(args)  # before anything is locked, read or written
     require_agents_extra("omni-gym train")

@@ -48,8 +48,9 @@ import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from agents.evaluate import METRICS, Episode, make_env, run_episode, summarize  # noqa: E402
+from agents.evaluate import METRICS, summarize  # noqa: E402
 from agents.policies import POLICY_NAMES, make_policy  # noqa: E402
+from agents.rollout import Episode, make_env, run_episode  # noqa: E402
 
 GOAL_ENV = "OmniPathFollow-Phunopas-v0"  # the goal and the confirmation run are defined on this id
 ENV_IDS = (GOAL_ENV, "OmniPathFollow-Williams-v0")

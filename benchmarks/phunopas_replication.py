@@ -50,8 +50,9 @@ from tqdm import tqdm  # noqa: E402
 
 import omni_gym.envs.core as core_module  # noqa: E402
 from agents.ekf import EKFConfig, OmniEKF  # noqa: E402
-from agents.evaluate import METRICS, make_env, mean_ci, run_episode  # noqa: E402
+from agents.evaluate import METRICS, mean_ci  # noqa: E402
 from agents.policies import OpenLoopPolicy, make_policy  # noqa: E402
+from agents.rollout import make_env, run_episode  # noqa: E402
 from omni_gym.trajectories import Quintic  # noqa: E402
 
 ENV_ID = "OmniGoToPose-v0"

@@ -45,8 +45,9 @@ from baselines import CONDITIONS, ENV_ID, paired_bootstrap_ratio  # noqa: E402
 from scipy import stats  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from agents.evaluate import METRICS, Episode, make_env, run_episode, summarize  # noqa: E402
+from agents.evaluate import METRICS, summarize  # noqa: E402
 from agents.policies import POLICY_NAMES, make_policy  # noqa: E402
+from agents.rollout import Episode, make_env, run_episode  # noqa: E402
 
 SETS = ("held-out seeds", "unseen families")
 UNSEEN = ("circle", "figure_eight", "line")

@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from agents.evaluate import Episode, bootstrap_ci, evaluate, make_env, mean_ci, run_episode, summarize, wilson_ci
+from agents.evaluate import bootstrap_ci, evaluate, mean_ci, summarize, wilson_ci
 from agents.pid import PathPID, PIDGains
 from agents.policies import POLICY_NAMES, make_policy
+from agents.rollout import Episode, make_env, run_episode
 from omni_gym.cli import main
 
 ENV = "OmniPathFollow-Phunopas-v0"

@@ -14,19 +14,13 @@ import torch
 import yaml
 from stable_baselines3 import PPO
 
-from agents.evaluate import evaluate, make_env, run_episode
+from agents.algorithms import ALGOS
+from agents.evaluate import evaluate
 from agents.policies import make_policy
-from agents.train import (
-    ALGOS,
-    HYPERPARAM_DIR,
-    LEGACY_KEYS,
-    load_hyperparams,
-    residual_init,
-    train,
-    train_into,
-    wrapper_spec,
-)
+from agents.rollout import make_env, run_episode
+from agents.train import HYPERPARAM_DIR, load_hyperparams, train, train_into
 from agents.wrappers import EKFFeatures, SensorNoiseRandomizer, wrap_env
+from agents.zoo_config import LEGACY_KEYS, residual_init, wrapper_spec
 from omni_gym.cli import main
 
 ENV = "OmniPathFollow-Phunopas-v0"
