@@ -2,6 +2,11 @@
 
 The SB3 parts (training, loading a trained model) need the ``agents`` extra
 (``pip install 'omni-gym[agents]'``: torch, stable-baselines3, pyyaml); the scripted baselines do not.
+
+Modules import only downward (``tests/test_architecture.py``): :mod:`.algorithms` (the SB3 algorithm
+table) and :mod:`.rollout` (``make_env``, ``run_episode``, the ``Policy`` protocol) at the bottom;
+:mod:`.zoo_config` (RL Zoo wrapper/callback keys) on :mod:`.wrappers`; :mod:`.sb3_policy` (loading
+trained models) and :mod:`.evaluate` (statistics over episodes) above them; :mod:`.train` on top.
 """
 
 from __future__ import annotations
