@@ -56,18 +56,18 @@ class ScriptedPolicy:
     def __init__(self, env) -> None:
         u = env.unwrapped
         cfg = getattr(u, "cfg", None)
-        if cfg is None or not hasattr(u, "core"):
+        if cfg is None or not hasattr(u, "observation_layout"):
             raise ValueError(f"policy {self.name!r} needs an omni-gym environment, got {type(u).__name__}")
         if cfg.obs_mode != "sensors":
             raise ValueError(f"policy {self.name!r} needs obs_mode='sensors', got {cfg.obs_mode!r}")
         self.cfg = cfg
-        self.robot = u.core.robot
+        self.robot = u.robot
         self.decode = SensorObsDecoder.for_env(env)
         self.dt = cfg.control_dt
         self.twist_mode = cfg.action_mode == "twist"
         self.W = self.robot.wheel_matrix()
         self.twist_scale = np.array([cfg.max_speed, cfg.max_speed, cfg.max_yaw_rate])
-        self.wheel_scale = float(u.core.wheel_scale)
+        self.wheel_scale = float(u.wheel_scale)
         self.action_shape = env.action_space.shape
         self.estimate: np.ndarray | None = None
         self.twist = np.zeros(3)

@@ -107,7 +107,7 @@ class EKFFeatures(gym.Wrapper):
         cfg = env.unwrapped.cfg
         self.n = self.base.robot.n_wheels
         self.twist_scale = np.array([cfg.max_speed, cfg.max_speed, cfg.max_yaw_rate])
-        self.wheel_scale = float(env.unwrapped.core.wheel_scale)
+        self.wheel_scale = float(env.unwrapped.wheel_scale)
         self.dim = 30 + 3 * self.n
         self.observation_space = spaces.Box(-CLIP, CLIP, shape=(self.dim,), dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
@@ -199,8 +199,7 @@ class SensorNoiseRandomizer(gym.Wrapper):
         if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 <= lo <= hi <= 10.0):
             raise ValueError(f"sensor-noise range must satisfy 0 <= low <= high <= 10, got {scale_range!r}")
         self.range = (lo, hi)
-        core = env.unwrapped.core
-        self._nominal = core.sensor_config
+        self._nominal = env.unwrapped.sensor_config
         self._rng = np.random.default_rng(NOISE_SALT)
         self.scale = 1.0
 
@@ -210,8 +209,8 @@ class SensorNoiseRandomizer(gym.Wrapper):
         self.scale = float(self._rng.uniform(*self.range))
         nominal = self._nominal
         scaled = {f.name: getattr(nominal, f.name) * self.scale for f in fields(nominal) if f.name.endswith("_std")}
-        # The core hands this config to the SensorSuite it builds at every reset (omni_gym.envs.core).
-        self.env.unwrapped.core.sensor_config = replace(nominal, **scaled)
+        # The environment builds its sensors from this config at every reset (its public sensor_config).
+        self.env.unwrapped.sensor_config = replace(nominal, **scaled)
         return self.env.reset(seed=seed, options=options)
 
 

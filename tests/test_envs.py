@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 import omni_gym
-from omni_gym.envs.core import LOOK_SCALE, POS_SCALE
+from omni_gym.envs.observations import LOOK_SCALE, POS_SCALE
 from omni_gym.friction import SURFACES
 from omni_gym.liftoff import contact_cases
 from omni_gym.model import SP_MASS, WP_MUW
@@ -82,10 +82,12 @@ def tracking_action(env: gym.Env, obs: np.ndarray, gain: float = 3.0) -> np.ndar
     """Feed-forward reference twist plus proportional feedback, from a 'state' observation (twist mode)."""
     cfg = env.unwrapped.cfg
     assert cfg.obs_mode == "state" and cfg.action_mode == "twist"
-    err_body = obs[0:2] * POS_SCALE  # m
-    err_heading = obs[2] * math.pi  # rad
-    v = obs[6:8] * cfg.max_speed + gain * err_body
-    w = obs[8] * cfg.max_yaw_rate + gain * err_heading
+    layout = env.unwrapped.observation_layout
+    err_body = obs[layout["tracking_error_body"]] * POS_SCALE  # m
+    err_heading = obs[layout["heading_error"]][0] * math.pi  # rad
+    ref_vel = obs[layout["reference_velocity"]]  # body vx, vy / max_speed; yaw rate / max_yaw_rate
+    v = ref_vel[0:2] * cfg.max_speed + gain * err_body
+    w = ref_vel[2] * cfg.max_yaw_rate + gain * err_heading
     return np.clip(np.array([v[0] / cfg.max_speed, v[1] / cfg.max_speed, w / cfg.max_yaw_rate]), -1, 1).astype(
         np.float32)
 
@@ -573,7 +575,7 @@ def test_terminates_when_lost(env_id, lost_distance):
     obs, info = env.reset(seed=8)
     # Full speed sideways (body y: the Williams robot crawls along body x on carpet), on the side away from where
     # the reference is heading (its 1 s look-ahead point; body = world frame at t = 0).
-    ahead = obs[15:17] * LOOK_SCALE
+    ahead = obs[env.unwrapped.observation_layout["lookahead[2]"]][0:2] * LOOK_SCALE
     assert abs(ahead[1]) > 1e-3
     action = np.array([0.0, -np.sign(ahead[1]), 0.0], dtype=np.float32)
     for k in range(1, 301):

@@ -6,12 +6,8 @@ environment is a core with B = 1, so the vectorised environment reproduces N sin
 exactly: every per-robot quantity is computed by the same code on the same numbers, every random
 draw of robot j comes from robot j's own generator, and each robot keeps its own clock.
 
-Observation layouts (float32; see ``docs/environments.md``):
-
-* ``state`` (privileged): tracking error in the body frame, body velocity, reference velocity in the
-  body frame, three look-ahead reference points (0.25, 0.5, 1.0 s) in the body frame, last action.
-* ``sensors``: encoder rates, gyro, compass, accelerometer, last camera fix and its age, the reference
-  (world frame) now and at the look-ahead times, last action.
+Observation layouts (``state``, ``sensors``): owned by :mod:`omni_gym.envs.observations`, which the
+numba kernel below takes its offsets from and :meth:`TaskCore._observe_sensors` encodes through.
 """
 
 from __future__ import annotations
@@ -22,6 +18,17 @@ import numba
 import numpy as np
 
 from omni_gym.envs.config import EnvConfig, randomized_model
+from omni_gym.envs.observations import (  # noqa: F401  (LOOKAHEAD_SECONDS, ACC_SCALE: re-exported)
+    ACC_SCALE,
+    LOOK_SCALE,
+    LOOKAHEAD_SECONDS,
+    OBS_CLIP,
+    POS_SCALE,
+    ObsScales,
+    build_layout,
+    encode_sensors,
+    state_offsets,
+)
 from omni_gym.envs.references import draw_reference
 from omni_gym.kernel import WH_CMD
 from omni_gym.liftoff import ContactProcess
@@ -29,11 +36,6 @@ from omni_gym.model import SP_CX, SP_CY, Actuation
 from omni_gym.sensors import SensorSuite
 from omni_gym.world import Arena, World
 
-LOOKAHEAD_SECONDS = (0.25, 0.5, 1.0)
-POS_SCALE = 0.25  # m, tracking-error scale in observations
-LOOK_SCALE = 0.5  # m, look-ahead offset scale
-ACC_SCALE = 5.0  # m/s², accelerometer scale
-OBS_CLIP = 10.0
 # Reward weights (docs/environments.md): r = W_POS·exp(−e/E_POS) + W_HEAD·exp(−|eθ|/E_HEAD) − W_EFFORT·mean(a²)
 W_POS, E_POS, W_HEAD, E_HEAD, W_EFFORT = 0.7, 0.1, 0.3, 0.3, 0.05
 
@@ -71,11 +73,12 @@ def apply_actions(raw, twist_mode, scale, W, wheels, out_clipped):
 
 
 @numba.njit(cache=True)
-def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action, scales, out_obs, out_err,
-                  out_true, out_reward):
+def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action, scales, offsets, out_obs,
+                  out_err, out_true, out_reward):
     """State observations, tracking errors, true poses/velocities and rewards for all robots.
 
     state (B, 6): pymunk body x, y (world), θ, COM velocity V_x, V_y, ω. scales: max_speed, max_yaw_rate.
+    offsets: where each field starts (``omni_gym.envs.observations.state_offsets``).
     out_err (B, 2): position error [m], heading error [rad]. out_true (B, 6): local pose and the
     geometric centre's world velocity. out_reward (B,): reward of the last action (``prev_action``).
     """
@@ -83,6 +86,7 @@ def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action
     n_act = prev_action.shape[1]
     vmax = scales[0]
     wmax = scales[1]
+    err, vel, rvel, look0, stride, act = offsets[0], offsets[1], offsets[2], offsets[3], offsets[4], offsets[5]
     for b in range(n_robots):
         x = state[b, 0] - origins[b, 0]
         y = state[b, 1] - origins[b, 1]
@@ -108,28 +112,28 @@ def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action
         out_err[b, 0] = math.sqrt(dx * dx + dy * dy)
         out_err[b, 1] = dth
         o = out_obs[b]
-        o[0] = (c * dx + s * dy) / POS_SCALE
-        o[1] = (-s * dx + c * dy) / POS_SCALE
-        o[2] = dth / math.pi
-        o[3] = (c * vx + s * vy) / vmax
-        o[4] = (-s * vx + c * vy) / vmax
-        o[5] = om / wmax
+        o[err] = (c * dx + s * dy) / POS_SCALE  # tracking_error_body, then heading_error
+        o[err + 1] = (-s * dx + c * dy) / POS_SCALE
+        o[err + 2] = dth / math.pi
+        o[vel] = (c * vx + s * vy) / vmax
+        o[vel + 1] = (-s * vx + c * vy) / vmax
+        o[vel + 2] = om / wmax
         rvx = ref_vel[b, k, 0]
         rvy = ref_vel[b, k, 1]
-        o[6] = (c * rvx + s * rvy) / vmax
-        o[7] = (-s * rvx + c * rvy) / vmax
-        o[8] = ref_vel[b, k, 2] / wmax
+        o[rvel] = (c * rvx + s * rvy) / vmax
+        o[rvel + 1] = (-s * rvx + c * rvy) / vmax
+        o[rvel + 2] = ref_vel[b, k, 2] / wmax
         for j in range(look.shape[0]):
             kk = k + look[j]
             lx = ref_pose[b, kk, 0] - x
             ly = ref_pose[b, kk, 1] - y
-            o[9 + 3 * j] = (c * lx + s * ly) / LOOK_SCALE
-            o[10 + 3 * j] = (-s * lx + c * ly) / LOOK_SCALE
-            o[11 + 3 * j] = _wrap(ref_pose[b, kk, 2] - th) / math.pi
-        base = 9 + 3 * look.shape[0]
+            q = look0 + stride * j
+            o[q] = (c * lx + s * ly) / LOOK_SCALE
+            o[q + 1] = (-s * lx + c * ly) / LOOK_SCALE
+            o[q + 2] = _wrap(ref_pose[b, kk, 2] - th) / math.pi
         effort = 0.0
         for j in range(n_act):
-            o[base + j] = prev_action[b, j]
+            o[act + j] = prev_action[b, j]
             effort += prev_action[b, j] * prev_action[b, j]
         out_reward[b] = (W_POS * math.exp(-out_err[b, 0] / E_POS) + W_HEAD * math.exp(-abs(dth) / E_HEAD)
                          - W_EFFORT * effort / n_act)
@@ -199,9 +203,12 @@ class TaskCore:
         self.prev_encoders = np.zeros((n_robots, self.n_wheels))
         self.last_fix = np.zeros((n_robots, 3))
         self.fix_age = np.ones(n_robots)
-        self.state_dim = 9 + 3 * len(self.look) + self.action_dim
-        self.sensor_dim = self.n_wheels + 5 + 5 + 7 + 4 * len(self.look) + self.action_dim
-        self.obs_dim = self.state_dim if cfg.obs_mode == "state" else self.sensor_dim
+        state = build_layout("state", self.n_wheels, self.action_dim)  # computed in both modes (errors, reward)
+        self.state_dim = state.size
+        self._state_offsets = state_offsets(state)
+        self.layout = build_layout(cfg.obs_mode, self.n_wheels, self.action_dim)
+        self.obs_scales = ObsScales(self.wheel_scale, cfg.max_speed, cfg.max_yaw_rate, cfg.arena_half_size)
+        self.obs_dim = self.layout.size
         self.obs = np.zeros((n_robots, self.obs_dim))
         self._state_obs = np.zeros((n_robots, self.state_dim))
         self.models = [self.base_model] * n_robots
@@ -261,7 +268,8 @@ class TaskCore:
         world = self.world
         world._read_state()
         observe_state(world._state_view, world.origins, world.sp, self.ref_pose, self.ref_vel, self.step_count,
-                      self.look, self.prev_action, self.scales, self._state_obs, self.err, self.true, self.reward)
+                      self.look, self.prev_action, self.scales, self._state_offsets, self._state_obs, self.err,
+                      self.true, self.reward)
         if self.cfg.obs_mode == "state":
             self.obs[:] = self._state_obs
         else:
@@ -291,24 +299,12 @@ class TaskCore:
             self.fix_age[j] = 0.0
         elif self.step_count[j] > 0:
             self.fix_age[j] = min(self.fix_age[j] + dt, 1.0)
-        h = cfg.arena_half_size
         k = self.step_count[j]
         ref = self.ref_pose[j]
-        parts = [
-            enc_rate / self.wheel_scale,
-            [r.gyro / cfg.max_yaw_rate, math.sin(r.compass), math.cos(r.compass)],
-            r.accel / ACC_SCALE,
-            [self.last_fix[j, 0] / h, self.last_fix[j, 1] / h, math.sin(self.last_fix[j, 2]),
-             math.cos(self.last_fix[j, 2]), self.fix_age[j]],
-            [ref[k, 0] / h, ref[k, 1] / h, math.sin(ref[k, 2]), math.cos(ref[k, 2]),
-             self.ref_vel[j, k, 0] / cfg.max_speed, self.ref_vel[j, k, 1] / cfg.max_speed,
-             self.ref_vel[j, k, 2] / cfg.max_yaw_rate],
-        ]
-        for look in self.look:
-            p = ref[k + look]
-            parts.append([p[0] / h, p[1] / h, math.sin(p[2]), math.cos(p[2])])
-        parts.append(self.prev_action[j])
-        self.obs[j] = np.clip(np.concatenate([np.asarray(p, dtype=float) for p in parts]), -OBS_CLIP, OBS_CLIP)
+        encode_sensors(self.layout, self.obs_scales, self.obs[j], encoder_rates=enc_rate, gyro=r.gyro,
+                       compass=r.compass, accel=r.accel, fix=self.last_fix[j], fix_age=self.fix_age[j],
+                       ref_now=ref[k], ref_velocity=self.ref_vel[j, k], ref_lookahead=ref[k + self.look],
+                       last_action=self.prev_action[j])
 
     def rewards(self) -> np.ndarray:
         """Per-robot reward for the last control period (see the module constants), after :meth:`observe`."""
@@ -339,3 +335,49 @@ class TaskCore:
     def info(self, j: int) -> dict:
         """:meth:`infos` of robot j, with plain Python scalars."""
         return {key: v.item() if np.ndim(v) == 0 else v for key, v in self.infos(j).items()}
+
+
+class RobotEnvAttributes:
+    """Public, read-only views of a :class:`TaskCore` shared by the single and the vector environment.
+
+    Agents read these (through ``env.unwrapped``) instead of reaching into ``env.unwrapped.core``.
+    """
+
+    core: TaskCore
+
+    @property
+    def robot(self):
+        """The robot (:class:`omni_gym.robot.RobotSpec`: wheel layout, radii, mass) of the base model."""
+        return self.core.robot
+
+    @property
+    def wheel_matrix(self) -> np.ndarray:
+        """(n, 3) map from body twist (vx, vy [m/s], ω [rad/s], body frame) to wheel speeds [rad/s]; a copy."""
+        return self.core.W.copy()
+
+    @property
+    def wheel_scale(self) -> float:
+        """w_max [rad/s]: the wheel speed at wheel action ±1 and the encoder-rate observation scale."""
+        return self.core.wheel_scale
+
+    @property
+    def observation_layout(self):
+        """The :class:`~omni_gym.envs.observations.ObservationLayout` of this ``obs_mode`` (named slices)."""
+        return self.core.layout
+
+    @property
+    def obs_scales(self):
+        """The :class:`~omni_gym.envs.observations.ObsScales` observations are divided by."""
+        return self.core.obs_scales
+
+    @property
+    def sensor_config(self):
+        """The :class:`omni_gym.sensors.SensorConfig` the next ``reset`` builds the sensors from.
+
+        Assigning a new config (e.g. scaled noise levels) takes effect at the next reset of each robot.
+        """
+        return self.core.sensor_config
+
+    @sensor_config.setter
+    def sensor_config(self, config) -> None:
+        self.core.sensor_config = config

@@ -9,23 +9,112 @@ import numpy as np
 from gymnasium import spaces
 
 from omni_gym.envs.config import check_reset_options, check_seed, make_config
-from omni_gym.envs.core import OBS_CLIP, TaskCore, as_actions
+from omni_gym.envs.core import OBS_CLIP, RobotEnvAttributes, TaskCore, as_actions
 
 
-class OmniPathEnv(gym.Env):
+class OmniPathEnv(RobotEnvAttributes, gym.Env):
     """An omnidirectional robot that slips (and may lose wheel contact) follows a reference.
 
-    Keyword arguments: see :class:`omni_gym.envs.config.EnvConfig` and ``docs/environments.md``; a bad
-    one raises a one-line ValueError naming it. ``model=`` takes a calibrated model (a model JSON file
+    ## Description
+
+    A robot with n omni wheels (3 for ``williams2002``, 4 for ``phunopas2018``, 3 to 16 for
+    ``regularN`` or a calibrated model) drives in a square arena, simulated with pymunk and a per-wheel
+    slip-friction model (Williams et al. 2002) and, on the Phunopas ids, random wheel lift-off
+    (Phunopas & Inoue 2018). ``task="path"`` follows a moving reference (random waypoints, circle,
+    figure eight, line); ``task="goto"`` reaches a random goal pose along a quintic. One step is one
+    control period (``1 / control_hz`` s, 10 ms by default) of physics substeps.
+
+    ## Action Space
+
+    ``Box(-1, 1, (A,), float32)``. ``action_mode="twist"`` (A = 3): body vx, vy [m/s] and ω [rad/s]
+    = action · (max_speed, max_speed, max_yaw_rate), body frame, mapped to wheel speeds by inverse
+    kinematics. ``action_mode="wheels"`` (A = n): wheel speed commands [rad/s] = action · w_max
+    (``wheel_scale``, the largest wheel speed a twist within those limits needs). Actions must have
+    exactly this shape and hold real numbers; values outside [−1, 1] are clipped; NaN or infinity
+    raises ValueError and leaves the state untouched.
+
+    ## Observation Space
+
+    ``Box(-10, 10, (D,), float32)``; every value is clipped to ±10. n is the wheel count, A the
+    action size; "index" is inclusive; "range" is after scaling and clipping. Scales: v_max =
+    ``max_speed`` [m/s], ω_max = ``max_yaw_rate`` [rad/s], w_max = ``wheel_scale`` [rad/s],
+    h = ``arena_half_size`` [m]. Names are the fields of ``env.observation_layout``
+    (:mod:`omni_gym.envs.observations`, whose decoders turn an observation back into SI units).
+
+    ``obs_mode="state"`` (privileged; D = 18 + A):
+
+    | index | name | quantity | unit | scale | range |
+    |---|---|---|---|---|---|
+    | 0…1 | `tracking_error_body` | reference − robot position, body frame | m | / 0.25 m | ±10 |
+    | 2 | `heading_error` | wrap(θ_ref − θ) | rad | / π | ±1 |
+    | 3…5 | `body_velocity` | robot vx, vy (body frame), ω | m/s, m/s, rad/s | / v_max, v_max, ω_max | ±10 |
+    | 6…8 | `reference_velocity` | reference vx, vy (body frame), ω | m/s, m/s, rad/s | / v_max, v_max, ω_max | ±10 |
+    | 9…11 | `lookahead[0]` | reference at +0.25 s: offset x, y (body frame), heading error | m, m, rad | / 0.5 m, / π | ±10 |
+    | 12…14 | `lookahead[1]` | reference at +0.5 s: offset x, y (body frame), heading error | m, m, rad | / 0.5 m, / π | ±10 |
+    | 15…17 | `lookahead[2]` | reference at +1 s: offset x, y (body frame), heading error | m, m, rad | / 0.5 m, / π | ±10 |
+    | 18…17+A | `last_action` | previous (clipped) action |  |  | ±1 |
+
+    ``obs_mode="sensors"`` (what a real robot has; D = n + 29 + A):
+
+    | index | name | quantity | unit | scale | range |
+    |---|---|---|---|---|---|
+    | 0…n−1 | `encoder_rates` | change of the quantised wheel angles over the control period | rad/s | / w_max | ±10 |
+    | n | `gyro` | yaw rate (noise, bias, bias walk) | rad/s | / ω_max | ±10 |
+    | n+1…n+2 | `compass_sin_cos` | compass heading (noise) as sin, cos |  |  | ±1 |
+    | n+3…n+4 | `accelerometer` | acceleration, body frame (noise, bias) | m/s² | / 5 m/s² | ±10 |
+    | n+5…n+8 | `camera_fix` | last camera fix (10 Hz): x, y (world frame), sin θ, cos θ | m, m, –, – | / h (x, y) | ±10 |
+    | n+9 | `fix_age` | time since that fix, capped at 1 s | s |  | [0, 1] |
+    | n+10…n+13 | `reference_now` | reference now: x, y (world frame), sin θ, cos θ | m, m, –, – | / h (x, y) | ±10 |
+    | n+14…n+16 | `reference_velocity` | reference velocity now: ẋ, ẏ (world frame), θ̇ | m/s, m/s, rad/s | / v_max, v_max, ω_max | ±10 |
+    | n+17…n+20 | `reference_lookahead[0]` | reference at +0.25 s: x, y (world frame), sin θ, cos θ | m, m, –, – | / h (x, y) | ±10 |
+    | n+21…n+24 | `reference_lookahead[1]` | reference at +0.5 s: x, y (world frame), sin θ, cos θ | m, m, –, – | / h (x, y) | ±10 |
+    | n+25…n+28 | `reference_lookahead[2]` | reference at +1 s: x, y (world frame), sin θ, cos θ | m, m, –, – | / h (x, y) | ±10 |
+    | n+29…n+28+A | `last_action` | previous (clipped) action |  |  | ±1 |
+
+    ## Rewards
+
+    ``r = 0.7·exp(−e / 0.1 m) + 0.3·exp(−|e_θ| / 0.3 rad) − 0.05·mean(a²)`` with e [m] the distance
+    from the reference position, e_θ [rad] the heading error and a the clipped action: at most 1 per
+    step and positive while tracking, so ending early never pays.
+
+    ## Starting State
+
+    The robot is at rest on the reference's first pose (the arena centre (0, 0)); the reference,
+    domain-randomised parameters, contact process and sensor noise are drawn from ``np_random``, so
+    the seed fixes the episode.
+
+    ## Episode End
+
+    * Termination: the tracking error exceeds ``lost_distance`` (0.5 m) or the robot touches a wall
+      or an obstacle.
+    * Truncation: the end of the reference (``episode_seconds · control_hz`` steps; the registered
+      ``max_episode_steps`` equals it for the default length).
+
+    ## Arguments
+
+    Every physical option is a keyword of ``gym.make`` (table with defaults in ``docs/environments.md``,
+    bounds in ``docs/bounds.md``; :class:`omni_gym.envs.config.EnvConfig`): ``obs_mode``
+    ("state" | "sensors"), ``action_mode`` ("twist" | "wheels"), ``robot``, ``surface``, ``friction``,
+    ``actuation``, ``lift_rate``, ``recover_rate``, ``sensor_noise``, ``control_hz``, ``physics_dt``,
+    ``episode_seconds``, ``task``, ``trajectory``, ``ref_heading``, ``ref_speed``,
+    ``arena_half_size``, ``walls``, ``obstacles``, ``max_speed``, ``max_yaw_rate``,
+    ``lost_distance``, ``success_distance``, ``success_heading``, ``randomize_friction``,
+    ``randomize_mass``, ``randomize_lift_rate``, ``render_mode`` ("rgb_array" | "human"). A bad one
+    raises a one-line ValueError naming it. ``model=`` takes a calibrated model (a model JSON file
     path or the dict ``omni-gym model show --json`` prints, effects included): it then defines the
     robot, surface, friction model and effects, ``robot``/``surface``/``friction`` are ignored, and a
     ``wheel_liftoff`` effect sets the contact process's rates in place of ``lift_rate``/``recover_rate``.
-    The action and observation sizes follow the model's wheel count.
-
-    Actions must have shape ``action_space.shape`` and hold real numbers; values outside [−1, 1] are
-    clipped; an action with NaN or infinity raises ValueError and leaves the state untouched.
     ``reset`` takes no options (any key is refused with ValueError).
-    """
+
+    Public attributes for controllers (read through ``env.unwrapped``): ``robot``, ``wheel_matrix``,
+    ``wheel_scale``, ``observation_layout``, ``obs_scales``, ``sensor_config`` (settable; used at the
+    next reset) and ``cfg``.
+
+    ## Version History
+
+    * v0: initial version (ids ``OmniPathFollow-Williams-v0``, ``OmniPathFollow-Phunopas-v0``,
+      ``OmniGoToPose-v0``).
+    """  # noqa: E501 (observation tables: one row per line)
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 100}
 

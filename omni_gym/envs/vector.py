@@ -22,7 +22,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from omni_gym.envs.config import check_reset_options, check_seed, is_number, make_config
-from omni_gym.envs.core import OBS_CLIP, TaskCore, as_actions
+from omni_gym.envs.core import OBS_CLIP, RobotEnvAttributes, TaskCore, as_actions
 from omni_gym.world import ARENA_ROOM
 
 
@@ -36,8 +36,88 @@ def max_robots(arena_half_size: float) -> int:
 MAX_NUM_ENVS = max_robots(0.1)  # 65535: the smallest arenas (arena_half_size <= 2 m: 8 m apart)
 
 
-class OmniPathVectorEnv(VectorEnv):
-    """``num_envs`` copies of :class:`~omni_gym.envs.omni_env.OmniPathEnv` stepped together."""
+class OmniPathVectorEnv(RobotEnvAttributes, VectorEnv):
+    """``num_envs`` copies of :class:`~omni_gym.envs.omni_env.OmniPathEnv` stepped together.
+
+    ## Description
+
+    N robots, each in its own arena, in one pymunk space; wheel forces for all of them are computed
+    in one compiled call per physics substep. Each robot has its own generator and clock, so the
+    vector reproduces N single environments exactly (see the module docstring for autoreset and
+    seeding). Reached through ``gym.make_vec(ID, num_envs=N, vectorization_mode="vector_entry_point")``.
+
+    ## Action Space
+
+    ``Box(-1, 1, (N, A), float32)``, row i for robot i; each row as the single environment's action
+    (``action_mode="twist"``: A = 3, body vx, vy [m/s], ω [rad/s] over (max_speed, max_speed,
+    max_yaw_rate); ``"wheels"``: A = n, wheel speeds [rad/s] over w_max). Values outside [−1, 1] are
+    clipped; any NaN or infinity raises ValueError before any robot moves.
+
+    ## Observation Space
+
+    ``Box(-10, 10, (N, D), float32)``: row i is robot i's observation, with the single environment's
+    layout (n wheels, A action values; "index" is inclusive; ``observation_layout`` names the slices;
+    v_max = ``max_speed``, ω_max = ``max_yaw_rate``, w_max = ``wheel_scale``, h = ``arena_half_size``).
+
+    ``obs_mode="state"`` (privileged; D = 18 + A):
+
+    | index | name | quantity | unit | scale | range |
+    |---|---|---|---|---|---|
+    | 0…1 | `tracking_error_body` | reference − robot position, body frame | m | / 0.25 m | ±10 |
+    | 2 | `heading_error` | wrap(θ_ref − θ) | rad | / π | ±1 |
+    | 3…5 | `body_velocity` | robot vx, vy (body frame), ω | m/s, m/s, rad/s | / v_max, v_max, ω_max | ±10 |
+    | 6…8 | `reference_velocity` | reference vx, vy (body frame), ω | m/s, m/s, rad/s | / v_max, v_max, ω_max | ±10 |
+    | 9…11 | `lookahead[0]` | reference at +0.25 s: offset x, y (body frame), heading error | m, m, rad | / 0.5 m, / π | ±10 |
+    | 12…14 | `lookahead[1]` | reference at +0.5 s: offset x, y (body frame), heading error | m, m, rad | / 0.5 m, / π | ±10 |
+    | 15…17 | `lookahead[2]` | reference at +1 s: offset x, y (body frame), heading error | m, m, rad | / 0.5 m, / π | ±10 |
+    | 18…17+A | `last_action` | previous (clipped) action |  |  | ±1 |
+
+    ``obs_mode="sensors"`` (D = n + 29 + A):
+
+    | index | name | quantity | unit | scale | range |
+    |---|---|---|---|---|---|
+    | 0…n−1 | `encoder_rates` | change of the quantised wheel angles over the control period | rad/s | / w_max | ±10 |
+    | n | `gyro` | yaw rate (noise, bias, bias walk) | rad/s | / ω_max | ±10 |
+    | n+1…n+2 | `compass_sin_cos` | compass heading (noise) as sin, cos |  |  | ±1 |
+    | n+3…n+4 | `accelerometer` | acceleration, body frame (noise, bias) | m/s² | / 5 m/s² | ±10 |
+    | n+5…n+8 | `camera_fix` | last camera fix (10 Hz): x, y (world frame), sin θ, cos θ | m, m, –, – | / h (x, y) | ±10 |
+    | n+9 | `fix_age` | time since that fix, capped at 1 s | s |  | [0, 1] |
+    | n+10…n+13 | `reference_now` | reference now: x, y (world frame), sin θ, cos θ | m, m, –, – | / h (x, y) | ±10 |
+    | n+14…n+16 | `reference_velocity` | reference velocity now: ẋ, ẏ (world frame), θ̇ | m/s, m/s, rad/s | / v_max, v_max, ω_max | ±10 |
+    | n+17…n+20 | `reference_lookahead[0]` | reference at +0.25 s: x, y (world frame), sin θ, cos θ | m, m, –, – | / h (x, y) | ±10 |
+    | n+21…n+24 | `reference_lookahead[1]` | reference at +0.5 s: x, y (world frame), sin θ, cos θ | m, m, –, – | / h (x, y) | ±10 |
+    | n+25…n+28 | `reference_lookahead[2]` | reference at +1 s: x, y (world frame), sin θ, cos θ | m, m, –, – | / h (x, y) | ±10 |
+    | n+29…n+28+A | `last_action` | previous (clipped) action |  |  | ±1 |
+
+    ## Rewards
+
+    Per robot, as the single environment: ``r = 0.7·exp(−e / 0.1 m) + 0.3·exp(−|e_θ| / 0.3 rad)
+    − 0.05·mean(a²)``; 0 on the autoreset step.
+
+    ## Starting State
+
+    Each robot at rest on its reference's first pose (its arena's centre); ``reset(seed=s)`` seeds
+    robot i with s + i (or takes a list of N seeds).
+
+    ## Episode End
+
+    Per robot: terminated when its tracking error exceeds ``lost_distance`` or it touches a wall or
+    an obstacle; truncated at ``max_episode_steps`` (default: the reference's length). The next step
+    resets that robot (``NEXT_STEP`` autoreset).
+
+    ## Arguments
+
+    ``num_envs`` (N, a positive integer, at most :data:`MAX_NUM_ENVS` and at most what
+    :func:`max_robots` allows for the arena size), ``max_episode_steps`` (a positive integer, capped
+    at the reference's length), ``render_mode`` (only None), and every keyword of the single
+    environment (``model=`` included: every robot is built from the same model). The public
+    attributes of the single environment (``robot``, ``wheel_matrix``, ``wheel_scale``,
+    ``observation_layout``, ``obs_scales``, ``sensor_config``) are available here too.
+
+    ## Version History
+
+    * v0: initial version.
+    """  # noqa: E501 (observation tables: one row per line)
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
