@@ -74,6 +74,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from agents.slip_detector import DetectorConfig, SlipDetector
+from omni_gym.checks import wrap_angle
 from omni_gym.robot import RobotSpec
 
 X, Y, TH, VX, VY, OM, BG = range(7)
@@ -92,12 +93,6 @@ BIAS_FLOOR = 1e-4  # rad/s, initial gyro-bias std
 BIAS_WALK_FLOOR = 1e-6  # rad/s/√s
 ACCEL_INFLATION = 2.0  # accel_std = ACCEL_INFLATION·√(noise² + bias²): a weak update (module docstring)
 OBS_ACCEL_LIMIT = 49.9  # m/s²: the sensors observation clips the accelerometer at ±10 × 5 m/s²
-
-
-def wrap(angle: float) -> float:
-    """Angle [rad] wrapped to (−π, π]."""
-    a = angle - TWO_PI * math.ceil((angle - math.pi) / TWO_PI)
-    return a + TWO_PI if a <= -math.pi else a
 
 
 def encoder_rate_std(counts_per_rev: int, dt: float) -> float:
@@ -124,7 +119,7 @@ def motion_model(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     out = np.array(x, dtype=float, copy=True)
     out[X] += rvx * dt * s
     out[Y] += rvy * dt * s
-    out[TH] = wrap(th + om * dt)
+    out[TH] = wrap_angle(th + om * dt)
     F = np.eye(NX)
     F[X, TH], F[Y, TH] = dvx * dt * s, dvy * dt * s
     F[X, VX], F[X, VY] = c * dt * s, -sn * dt * s
@@ -270,7 +265,7 @@ def _joseph(x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray, R: np.n
     PHt = P @ H.T
     K = PHt / S[0, 0] if S.shape == (1, 1) else PHt @ np.linalg.inv(S)
     x = x + K @ nu
-    x[TH] = wrap(x[TH])
+    x[TH] = wrap_angle(x[TH])
     A = -K @ H
     A.flat[:: len(x) + 1] += 1.0
     P = A @ P @ A.T + K @ R @ K.T
@@ -331,7 +326,7 @@ class OmniEKF:
         c = self.config
         self.x = np.zeros(NX)
         self.x[0:3] = pose
-        self.x[TH] = wrap(pose[2])
+        self.x[TH] = wrap_angle(pose[2])
         v = c.rest_speed_std**2
         self.P = np.diag([std[0] ** 2, std[1] ** 2, std[2] ** 2, v, v, v, c.gyro_bias_std**2])
         self.detector.reset()
@@ -452,7 +447,7 @@ class OmniEKF:
     def update_compass(self, z: float) -> tuple[float, bool]:
         """Compass z = θ [rad] (any branch; innovation wrapped to (−π, π]); (NIS, accepted)."""
         h, H = self.measurement_model("compass")
-        nu = np.array([wrap(float(z) - h[0])])
+        nu = np.array([wrap_angle(float(z) - h[0])])
         return self._gated_update("compass", nu, H, self._R_compass, widen=self._widen([TH]))
 
     def update_camera(self, z: np.ndarray) -> tuple[float, bool]:
@@ -461,7 +456,7 @@ class OmniEKF:
         if z.shape != (3,):
             raise ValueError(f"camera fix must have shape (3,), got {z.shape}")
         h, H = self.measurement_model("camera")
-        nu = np.array([z[0] - h[0], z[1] - h[1], wrap(z[2] - h[2])])
+        nu = np.array([z[0] - h[0], z[1] - h[1], wrap_angle(z[2] - h[2])])
         nis, accepted = self._gated_update("camera", nu, H, self._R_camera, widen=self._widen_camera)
         if accepted:
             self._since_camera = 0.0

@@ -52,10 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
-def wrap(angle: float) -> float:
-    """Angle [rad] wrapped to [−π, π)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+from omni_gym.checks import wrap_angle
 
 
 @dataclass(frozen=True)
@@ -127,13 +124,13 @@ class PathPID:
             ref_velocity: reference world velocity (ẋ, ẏ, θ̇) now (the feed-forward).
         """
         x, y, th = (float(v) for v in pose)
-        e = np.array([ref_pose[0] - x, ref_pose[1] - y, wrap(float(ref_pose[2]) - th)])
+        e = np.array([ref_pose[0] - x, ref_pose[1] - y, wrap_angle(float(ref_pose[2]) - th)])
         dt = self.dt
         if self._prev_error is None:
             rate = np.zeros(3)
         else:
             de = e - self._prev_error
-            de[2] = wrap(de[2])
+            de[2] = wrap_angle(de[2])
             rate = de / dt
         self._prev_error = e
         self.error = e

@@ -62,6 +62,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from omni_gym.checks import wrap_angle
+
 WRAPPERS = ("none", "residual-ekf-pid", "ekf-features")
 REWARDS = ("env", "tracking", "squared")
 LOST_HORIZON = 50  # steps: the squared reward's penalty for getting lost (≈ 1/(1 − γ) at γ = 0.98)
@@ -158,12 +160,12 @@ class EKFFeatures(gym.Wrapper):
             return c * dx + si * dy, -si * dx + c * dy
 
         ex, ey = body(s.ref_pose[0] - x, s.ref_pose[1] - y)
-        eth = _wrap(s.ref_pose[2] - th)
+        eth = wrap_angle(s.ref_pose[2] - th)
         rvx, rvy = body(s.ref_velocity[0], s.ref_velocity[1])
         look = []
         for lx, ly, lth in s.lookahead:
             bx, by = body(lx - x, ly - y)
-            look += [bx / LOOK_SCALE, by / LOOK_SCALE, _wrap(lth - th) / math.pi]
+            look += [bx / LOOK_SCALE, by / LOOK_SCALE, wrap_angle(lth - th) / math.pi]
         std = np.sqrt(np.maximum(np.diag(ekf.P)[0:3], 0.0))
         innov = (np.asarray(s.encoder_rates) - base.W @ ekf.body_twist) / self.wheel_scale
         ix, iy = body(pid.integral[0], pid.integral[1])
@@ -180,10 +182,6 @@ class EKFFeatures(gym.Wrapper):
             self.prev_action,
         ])
         return np.clip(f, -CLIP, CLIP).astype(np.float32)
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 class SensorNoiseRandomizer(gym.Wrapper):
@@ -218,7 +216,8 @@ def wrap_env(env: gym.Env, name: str = "none", residual_scale: float = 0.3,
              sensor_noise_range: tuple[float, float] | None = None, reward: str = "env") -> gym.Env:
     """Apply the sensor-noise randomiser (if a range is given) and the named wrapper (one of :data:`WRAPPERS`).
 
-    ``reward`` ("env" or "tracking", see :class:`EKFFeatures`) needs an EKF wrapper unless it is "env".
+    ``reward`` (one of :data:`REWARDS`: "env", "tracking" or "squared", see :class:`EKFFeatures`) needs an
+    EKF wrapper unless it is "env".
     """
     if name not in WRAPPERS:
         raise ValueError(f"unknown wrapper {name!r}; choose one of {', '.join(WRAPPERS)}")

@@ -49,6 +49,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 from PIL import Image, ImageDraw  # noqa: E402
 
 import omni_gym  # noqa: E402, F401  (registers the environments)
+from omni_gym.checks import wrap_angle  # noqa: E402
 from omni_gym.envs import ENV_IDS, render  # noqa: E402
 
 iio = render.require("imageio.v3", "writing the demo GIFs")  # clear message without the render extra
@@ -66,17 +67,12 @@ MARGIN = 0.1  # m, around the data on the path plot
 SATURATED = 0.999  # |action| at or above this counts as saturated
 
 
-def wrap(a: float) -> float:
-    """Angle wrapped to [−π, π) [rad]."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
 def control(info: dict, ref_vel: np.ndarray, cfg) -> np.ndarray:
     """Twist action of the P + feed-forward controller; ``ref_vel`` = (vx, vy, ω) world frame [m/s, rad/s]."""
     x, y, th = info["pose"]
     rx, ry, rth = info["reference_pose"]
     vx_w, vy_w = ref_vel[0] + K_POS * (rx - x), ref_vel[1] + K_POS * (ry - y)
-    om = ref_vel[2] + K_HEAD * wrap(rth - th)
+    om = ref_vel[2] + K_HEAD * wrap_angle(rth - th)
     c, s = math.cos(th), math.sin(th)
     vx_b, vy_b = c * vx_w + s * vy_w, -s * vx_w + c * vy_w
     a = np.array([vx_b / cfg.max_speed, vy_b / cfg.max_speed, om / cfg.max_yaw_rate])

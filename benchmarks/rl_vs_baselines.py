@@ -48,6 +48,7 @@ from tqdm import tqdm  # noqa: E402
 from agents.evaluate import METRICS, summarize  # noqa: E402
 from agents.policies import POLICY_NAMES, make_policy  # noqa: E402
 from agents.rollout import Episode, make_env, run_episode  # noqa: E402
+from omni_gym.outputs import write_text_atomic  # noqa: E402
 
 SETS = ("held-out seeds", "unseen families")
 UNSEEN = ("circle", "figure_eight", "line")
@@ -128,9 +129,7 @@ def run_all(policies: list[str], episodes: int, seed: int, workers: int, overrid
             bar.update()
     bar.close()
     if cache is not None:
-        tmp = cache.with_suffix(".tmp")
-        tmp.write_text(json.dumps(stored))
-        os.replace(tmp, cache)
+        write_text_atomic(cache, json.dumps(stored))
     return {k: sorted(v, key=lambda e: e.seed) for k, v in out.items()}
 
 

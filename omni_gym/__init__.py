@@ -1,12 +1,8 @@
 """omni-gym: omnidirectional wheeled robots whose wheels slip and lift off the floor."""
 
-import os
-
-# Threads of the parallel force kernel (OpenMP) sleep instead of spinning while they wait: on a
-# shared 2-core machine spinning threads made a loaded run 40x slower (passive: 2x faster than serial).
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-
-from omni_gym.envs import ENV_IDS, register_envs  # noqa: E402
+# Importing the package changes no process-wide setting of other libraries: the OpenMP wait policy
+# of the threaded force kernel is set where its threads start (omni_gym.kernel.warm_up).
+from omni_gym.envs import ENV_IDS, register_envs
 
 
 def _version() -> str:

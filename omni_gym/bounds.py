@@ -21,15 +21,19 @@ from omni_gym.liftoff import RATE_MAX
 class Bound:
     """Closed interval [lo, hi] (open at lo if ``lo_open``) of one input, with its unit and reason.
 
-    ``name`` is how the user writes the input (JSON key, CSV column or command-line option);
-    ``integer`` requires a whole number; ``or_zero`` also allows exactly 0 below ``lo``.
+    ``name`` is how the user writes the input (JSON key, CSV column, command-line option or
+    environment keyword); ``reason`` is the table's last column (empty for the environment keywords,
+    whose reasons are written in ``docs/bounds.md``); ``integer`` requires a whole number;
+    ``or_zero`` also allows exactly 0 below ``lo``. The one bound class of the package: model, file
+    and command-line bounds here, the environment keywords (:data:`omni_gym.envs.config.BOUNDS`) and
+    the train/evaluate options (:mod:`agents.options`).
     """
 
     name: str
     lo: float
     hi: float
     unit: str
-    reason: str
+    reason: str = ""
     lo_open: bool = False
     integer: bool = False
     or_zero: bool = False
@@ -53,12 +57,16 @@ class Bound:
         above = value > self.lo if self.lo_open else value >= self.lo
         return above and value <= self.hi
 
+    def within(self) -> str:
+        """``in [lo, hi] unit`` (no unit if it has none), the end of :meth:`describe`."""
+        unit = f" {self.unit}" if self.unit else ""
+        return f"in {self._range()}{unit}"
+
     def describe(self) -> str:
         """``must be [0 or] a number (an integer) in [lo, hi] unit`` for error messages."""
         kind = "an integer" if self.integer else "a number"
-        unit = f" {self.unit}" if self.unit else ""
         zero = "0 or " if self.or_zero else ""
-        return f"must be {zero}{kind} in {self._range()}{unit}"
+        return f"must be {zero}{kind} {self.within()}"
 
     def check(self, value: float, name: str | None = None) -> float:
         """``value`` if inside the bound; else ValueError ``NAME must be … in [lo, hi] unit, got V``."""

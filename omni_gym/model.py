@@ -8,8 +8,10 @@ The JSON form is a contract read by the CLI and the discrepancy workflow (``docs
      "surface": {"name", "mu_drive", "mu_transverse", "mu_gap", "k"},
      "effects": {EFFECT: {params}, ...}}
 
-Effects are extensions of the nominal model. Each one only changes the numbers the force kernel
-reads (:meth:`SimModel.kernel_params`), so a new effect never needs a change to the world.
+Effects are extensions of the nominal model. Most only change the numbers the force kernel reads
+(:meth:`SimModel.kernel_params`), so they need no change to the world; ``wheel_liftoff`` is the
+exception: it adds no kernel numbers but makes its user (``omni_gym.replay``, the environments,
+``omni_gym.discrepancy.simulate``) install a wheel contact process (:mod:`omni_gym.liftoff`) in the world.
 """
 
 from __future__ import annotations

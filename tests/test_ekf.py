@@ -16,8 +16,9 @@ import pytest
 from scipy.stats import chi2
 
 import omni_gym  # noqa: F401  (registers the environments)
-from agents.ekf import BG, OM, TH, VX, VY, EKFConfig, OmniEKF, accel_model, motion_model, process_noise, wrap
+from agents.ekf import BG, OM, TH, VX, VY, EKFConfig, OmniEKF, accel_model, motion_model, process_noise
 from agents.slip_detector import SlipDetector
+from omni_gym.checks import wrap_angle as wrap
 from omni_gym.envs.decode import SensorObs, SensorObsDecoder
 from omni_gym.robot import phunopas2018
 

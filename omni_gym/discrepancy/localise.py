@@ -25,8 +25,9 @@ import math
 
 import numpy as np
 
+from omni_gym.checks import wrap_angle
 from omni_gym.discrepancy.dataset import Dataset, Run
-from omni_gym.discrepancy.simulate import FIT_DT, Job, pose_residual, simulate_jobs, wrap
+from omni_gym.discrepancy.simulate import FIT_DT, Job, pose_residual, simulate_jobs
 from omni_gym.model import SimModel
 
 WINDOW = 0.5  # s, shooting window: long enough to show an error growing above tracker noise
@@ -60,7 +61,7 @@ def local_pose_fit(run: Run, half: int = 5) -> tuple[np.ndarray, np.ndarray]:
         A = np.column_stack([np.ones_like(tt), tt, tt * tt])
         coef = np.linalg.lstsq(A, pose[idx], rcond=None)[0]
         value[k], rate[k] = coef[0], coef[1]
-    value[:, 2] = (value[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    value[:, 2] = wrap_angle(value[:, 2])
     return value, rate
 
 
@@ -257,4 +258,4 @@ def _summary(where: dict) -> list[str]:
     return lines
 
 
-__all__ = ["localise", "WINDOW", "wrap"]
+__all__ = ["localise", "local_pose_fit", "wheel_angles", "WINDOW"]

@@ -8,10 +8,11 @@ from pathlib import Path
 import numpy as np
 
 from omni_gym import outputs
+from omni_gym.checks import wrap_angle
 from omni_gym.discrepancy.dataset import Dataset
 from omni_gym.discrepancy.finite import dumps_strict
 from omni_gym.discrepancy.plausible import UNITS
-from omni_gym.discrepancy.simulate import Job, simulate_jobs, wrap
+from omni_gym.discrepancy.simulate import Job, simulate_jobs
 from omni_gym.model import SimModel
 
 PLOTTED_RUNS = 4
@@ -318,7 +319,7 @@ def _plots(out: Path, result: dict, ds: Dataset, nominal: SimModel, model: SimMo
     for ax, run, (pn, _), (pf, _) in zip(axes[:, 0], runs, nom, fit, strict=True):
         for p, style, name in ((pn, "-", "nominal"), (pf, "--", f"with {label}")):
             r = run.pose - p
-            r[:, 2] = wrap(r[:, 2]) * lever
+            r[:, 2] = wrap_angle(r[:, 2]) * lever
             ok = np.all(np.isfinite(r), axis=1)
             ax.plot(run.t[ok], 1e3 * np.linalg.norm(r[ok], axis=1), style, label=name)
         ax.set_ylabel(f"{run.name}\n|residual| [mm]")

@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from omni_gym.bounds import Bound
+from omni_gym.checks import is_number
 from omni_gym.friction import FRICTION_MODELS, SURFACES, Surface
 from omni_gym.liftoff import RATE_MAX
 from omni_gym.model import ACTUATIONS, SimModel, read_json
@@ -46,43 +48,22 @@ MIN_OBSTACLE_RADIUS = 0.001  # m
 WALL_RADIUS = 0.01  # m, thickness of the wall segments (omni_gym.world)
 
 
-@dataclass(frozen=True)
-class Bound:
-    """Allowed interval of one numeric keyword: lo <= v <= hi (lo < v when ``lo_open``); ``zero`` also allowed."""
-
-    lo: float
-    hi: float
-    unit: str
-    lo_open: bool = False
-    zero: bool = False
-
-    def contains(self, v: float) -> bool:
-        above = v > self.lo if self.lo_open else v >= self.lo
-        return (above and v <= self.hi) or (self.zero and v == 0.0)
-
-    def describe(self) -> str:
-        left = "(" if self.lo_open else "["
-        text = f"in {left}{self.lo:g}, {self.hi:g}]"
-        text = f"0 or {text}" if self.zero else text
-        return f"{text} {self.unit}".rstrip()
-
-
-# Reasons: docs/bounds.md, "Environment keywords".
-BOUNDS: dict[str, Bound] = {
-    "control_hz": Bound(1.0, 10000.0, "Hz"),
-    "physics_dt": Bound(1e-5, 0.002, "s"),
-    "episode_seconds": Bound(0.0, 3600.0, "s", lo_open=True),
-    "lift_rate": Bound(0.0, MAX_RATE, "1/s"),  # 0: never lifts; any tiny rate schedules safely (liftoff.py)
-    "recover_rate": Bound(0.0, MAX_RATE, "1/s"),  # 0: a lifted wheel stays up until reset
-    "sensor_noise": Bound(0.0, 100.0, ""),
-    "arena_half_size": Bound(0.1, 1000.0, "m"),
-    "ref_speed": Bound(0.001, 10.0, "m/s"),
-    "max_speed": Bound(0.001, 10.0, "m/s"),
-    "max_yaw_rate": Bound(0.001, 100.0, "rad/s"),
-    "lost_distance": Bound(0.001, 10000.0, "m"),
-    "success_distance": Bound(0.0, 10000.0, "m", lo_open=True),
-    "success_heading": Bound(0.0, math.pi, "rad", lo_open=True),
-}
+# Reasons: docs/bounds.md, "Environment keywords" (the bound class is omni_gym.bounds.Bound).
+BOUNDS: dict[str, Bound] = {b.name: b for b in (
+    Bound("control_hz", 1.0, 10000.0, "Hz"),
+    Bound("physics_dt", 1e-5, 0.002, "s"),
+    Bound("episode_seconds", 0.0, 3600.0, "s", lo_open=True),
+    Bound("lift_rate", 0.0, MAX_RATE, "1/s"),  # 0: never lifts; any tiny rate schedules safely (liftoff.py)
+    Bound("recover_rate", 0.0, MAX_RATE, "1/s"),  # 0: a lifted wheel stays up until reset
+    Bound("sensor_noise", 0.0, 100.0, ""),
+    Bound("arena_half_size", 0.1, 1000.0, "m"),
+    Bound("ref_speed", 0.001, 10.0, "m/s"),
+    Bound("max_speed", 0.001, 10.0, "m/s"),
+    Bound("max_yaw_rate", 0.001, 100.0, "rad/s"),
+    Bound("lost_distance", 0.001, 10000.0, "m"),
+    Bound("success_distance", 0.0, 10000.0, "m", lo_open=True),
+    Bound("success_heading", 0.0, math.pi, "rad", lo_open=True),
+)}
 RANDOM_BOUNDS = {"randomize_friction": (0.0, 10.0), "randomize_mass": (0.05, 20.0),
                  "randomize_lift_rate": (0.0, MAX_RATE)}
 
@@ -156,11 +137,6 @@ class EnvConfig:
 # --- value checks (each returns the value as a plain Python object or raises ValueError) ---------
 
 
-def is_number(value) -> bool:
-    """A real number (Python or numpy), not a bool, a string or a complex."""
-    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
-
-
 def _show(value) -> str:
     """repr of a user value on one line, cut to 60 characters (a 400-digit integer stays readable)."""
     text = " ".join(repr(value).split())  # one line: numpy wraps long arrays
@@ -169,14 +145,14 @@ def _show(value) -> str:
 
 def _number(name: str, value, bound: Bound | None = None) -> float:
     if not is_number(value):
-        raise ValueError(f"invalid {name}={_show(value)}; must be a number" + (f" {bound.describe()}" if bound
+        raise ValueError(f"invalid {name}={_show(value)}; must be a number" + (f" {bound.within()}" if bound
                                                                                 else ""))
     try:
         v = float(value)
     except OverflowError:  # an integer beyond float range
         v = math.inf
     if not math.isfinite(v) or (bound is not None and not bound.contains(v)):
-        raise ValueError(f"invalid {name}={_show(value)}; must be a finite number" + (f" {bound.describe()}" if bound
+        raise ValueError(f"invalid {name}={_show(value)}; must be a finite number" + (f" {bound.within()}" if bound
                                                                                       else ""))
     return v
 
@@ -303,7 +279,7 @@ def parse_model(value) -> SimModel | None:
             bound = BOUNDS[key]
             if not bound.contains(float(lift[key])):
                 raise ValueError(f"invalid model: effect 'wheel_liftoff' {key}={_show(lift[key])}; the environments "
-                                 f"need it {bound.describe()}")
+                                 f"need it {bound.within()}")
     return model
 
 

@@ -17,6 +17,7 @@ import math
 import numba
 import numpy as np
 
+from omni_gym.checks import wrap_angle_nb as _wrap  # (−π, π], compiled for the njit kernels below
 from omni_gym.envs.config import EnvConfig, randomized_model
 from omni_gym.envs.observations import (  # noqa: F401  (LOOKAHEAD_SECONDS, ACC_SCALE: re-exported)
     ACC_SCALE,
@@ -38,11 +39,6 @@ from omni_gym.world import Arena, World
 
 # Reward weights (docs/environments.md): r = W_POS·exp(−e/E_POS) + W_HEAD·exp(−|eθ|/E_HEAD) − W_EFFORT·mean(a²)
 W_POS, E_POS, W_HEAD, E_HEAD, W_EFFORT = 0.7, 0.1, 0.3, 0.3, 0.05
-
-
-@numba.njit(cache=True)
-def _wrap(a):
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @numba.njit(cache=True)

@@ -22,6 +22,7 @@ import math
 import numba
 import numpy as np
 
+from omni_gym.checks import wrap_angle
 from omni_gym.envs.config import EnvConfig
 from omni_gym.trajectories import Circle, FigureEight, Quintic, StraightLine, Trajectory
 
@@ -112,7 +113,7 @@ def _waypoint_reference(cfg: EnvConfig, rng: np.random.Generator, t: np.ndarray,
             if len(pts) == 1:  # the start pose already faces the first segment
                 heading = target
                 pts[0][2] = target
-            turn = (target - heading + math.pi) % (2.0 * math.pi) - math.pi
+            turn = wrap_angle(target - heading)
         durations.append(15.0 / 8.0 * max(math.hypot(nx - x, ny - y) / peak, abs(turn) / yaw_rate))
         total += durations[-1]
         x, y, heading = nx, ny, heading + turn
