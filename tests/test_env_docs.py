@@ -74,10 +74,8 @@ def _cases():
                 yield env_id, obs_mode, action_mode
 
 
-@pytest.mark.parametrize("source", list(_sources()))
+@pytest.mark.parametrize("source", ["OmniPathEnv", "OmniPathVectorEnv"])
 def test_docstrings_have_every_gymnasium_section(source):
-    if source.startswith("docs/"):
-        pytest.skip("the Markdown page has its own structure")
     text = _sources()[source]
     for section in SECTIONS:
         assert f"## {section}" in text, f"{source}: missing section {section!r}"
