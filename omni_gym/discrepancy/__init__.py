@@ -5,10 +5,15 @@ Modules (each one job):
 * :mod:`.dataset`: the dataset folder format (a contract, ``docs/formats.md``): read, validate, write.
 * :mod:`.synth`: datasets with a hidden effect, for testing the workflow where the truth is known.
 * :mod:`.simulate`: batched simulation of runs × candidate models in one :class:`~omni_gym.world.World`.
+* :mod:`.outliers`: tracker outliers, single pose rows no motion and no tracker noise can explain.
 * :mod:`.localise`: where the nominal model's residuals concentrate (multiple shooting).
+* :mod:`.events`: lift-event inference for the stochastic ``wheel_liftoff`` candidate.
 * :mod:`.explain`: fit every candidate effect, score on held-out runs, decide.
+* :mod:`.plausible`: units and plausible ranges of the fitted parameters (flags only).
+* :mod:`.finite`: standard JSON only (non-finite numbers become ``null``).
 * :mod:`.report`: ``result.json``, ``report.md`` and plots.
 * :mod:`.workflow`: :func:`gap`, the whole ``omni-gym gap`` command.
+* :mod:`.recovery`: recovery study: hide an effect in synthetic data, run the workflow, compare with the truth.
 
 Only the physics core is used (no environments, no agents).
 """

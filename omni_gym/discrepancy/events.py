@@ -58,9 +58,9 @@ WINDOW_EVENTS = 3  # most events per 1 s window of the window search (greedy, on
 ADD_ROUNDS = 3  # rounds of the global "one more event" move...
 ADD_LEVEL = 1.2  # ...for runs whose open-loop MSE is above this multiple of sigma^2...
 ADD_TOP = 3  # ...trying each run's 3 best additions, each refined before the comparison
-CASE_ALPHA = 0.01  # reject events whose lifted cases are this unlikely under the uniform draw (step 5)
+CASE_ALPHA = 0.01  # reject events whose lifted cases are this unlikely under the uniform draw (step 4)
 OVERLAP_TOL = 1e-6  # s: events closer than this count as back to back (times are rounded to 1e-6 s)
-MAX_LIFTED_SHARE = 0.5  # most of the moving time that inferred events may keep a wheel lifted (step 5)
+MAX_LIFTED_SHARE = 0.5  # most of the moving time that inferred events may keep a wheel lifted (step 4)
 SKIP_FACTOR = 3.0  # skip the sequential/global moves when the window proposal is above 3 x the adequacy limit
 SEQ_MAX_EVENTS = 12  # most events per run of the sequential open-loop decoding
 SEQ_AHEAD = 0.1  # s: new events start up to this long after the deviation point...
@@ -228,7 +228,7 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
         windows: ``shooting_windows(ds)`` (computed if None).
         counter: optional one-element list to which the number of simulated robot-runs is added.
         adequacy: largest row-weighted geometric-mean MSE with the events, in units of σ̂², for the
-            events to be kept (step 5; None: no check).
+            events to be kept (step 4; None: no check).
     """
     from omni_gym.discrepancy.explain import _sse, geo_mse, shooting_windows
     from omni_gym.discrepancy.simulate import Job, pose_residual, simulate_poses
@@ -280,7 +280,7 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
     def free(ev: Event, taken: list[Event]) -> bool:
         return all(ev[1] <= a + OVERLAP_TOL or ev[0] >= b - OVERLAP_TOL for a, b, _ in taken)
 
-    # 1. Coarse window search; then, greedily, more events in the windows that accepted one.
+    # 1. Windows: coarse search; then, greedily, more events in the windows that accepted one.
     tws = [float(runs[ri].t[k1] - runs[ri].t[k0]) for ri, k0, k1, _ in wins]
     base: list[list[Event]] = [[] for _ in wins]
     grids = [_window_grid(tw, n_cases) for tw in tws]
@@ -294,37 +294,36 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
         for wi in open_w:
             base[wi] = sorted([*base[wi], best[wi][1]])
 
-    # 2. Local refinement of each window event's start and end (other events of the window fixed).
-    for _ in range(1):
-        ref_grids: list[list[Event]] = [[] for _ in wins]
-        for wi, evs in enumerate(base):
-            for j, (a, b, c) in enumerate(evs):
-                others = evs[:j] + evs[j + 1:]
-                for da in REFINE:
-                    for db in REFINE:
-                        na, nb = max(a + da, 0.0), min(b + db, tws[wi])
-                        if nb - na >= 0.01 and free((na, nb, c), others):
-                            ref_grids[wi].append((round(na, 6), round(nb, 6), c, j))
-        if any(ref_grids):
-            jobs, owner = [], []
-            for wi, (ri, k0, k1, st) in enumerate(wins):
-                for a, b, c, j in ref_grids[wi]:
-                    sched = tuple(sorted([*base[wi][:j], (a, b, c), *base[wi][j + 1:]]))
-                    jobs.append(Job(nominal, runs[ri], k0=k0, k1=k1, state0=st, schedule=sched))
-                    owner.append((wi, j, (a, b, c)))
-            poses = run_batch(jobs)
-            pick: dict[tuple[int, int], tuple[float, Event]] = {}
-            for (wi, j, ev), pose in zip(owner, poses, strict=True):
-                s = win_sse(wi, pose)
-                if (wi, j) not in pick or s < pick[(wi, j)][0]:
-                    pick[(wi, j)] = (s, ev)
-            # Coordinates refined independently per event, applied together (events rarely interact).
-            for (wi, j), (_, ev) in pick.items():
-                base[wi][j] = ev
-            for wi in range(len(wins)):
-                base[wi].sort()
+    # 1 (cont.). Local refinement of each window event's start and end (other events of the window fixed).
+    ref_grids: list[list[Event]] = [[] for _ in wins]
+    for wi, evs in enumerate(base):
+        for j, (a, b, c) in enumerate(evs):
+            others = evs[:j] + evs[j + 1:]
+            for da in REFINE:
+                for db in REFINE:
+                    na, nb = max(a + da, 0.0), min(b + db, tws[wi])
+                    if nb - na >= 0.01 and free((na, nb, c), others):
+                        ref_grids[wi].append((round(na, 6), round(nb, 6), c, j))
+    if any(ref_grids):
+        jobs, owner = [], []
+        for wi, (ri, k0, k1, st) in enumerate(wins):
+            for a, b, c, j in ref_grids[wi]:
+                sched = tuple(sorted([*base[wi][:j], (a, b, c), *base[wi][j + 1:]]))
+                jobs.append(Job(nominal, runs[ri], k0=k0, k1=k1, state0=st, schedule=sched))
+                owner.append((wi, j, (a, b, c)))
+        poses = run_batch(jobs)
+        pick: dict[tuple[int, int], tuple[float, Event]] = {}
+        for (wi, j, ev), pose in zip(owner, poses, strict=True):
+            s = win_sse(wi, pose)
+            if (wi, j) not in pick or s < pick[(wi, j)][0]:
+                pick[(wi, j)] = (s, ev)
+        # Coordinates refined independently per event, applied together (events rarely interact).
+        for (wi, j), (_, ev) in pick.items():
+            base[wi][j] = ev
+        for wi in range(len(wins)):
+            base[wi].sort()
 
-    # 3. Run clock, joining events cut by a window boundary.
+    # 2. Join on the run clock the events cut by a window boundary.
     per_run: list[list[Event]] = [[] for _ in range(R)]
     for wi, (ri, k0, _k1, _) in enumerate(wins):
         t0 = float(runs[ri].t[k0])
@@ -339,7 +338,7 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
             else:
                 per_run[ri].append((a, b, c))
 
-    # 4. Open loop: refine, prune, keep only sets that pay for themselves.
+    # 2 (cont.). Open loop: refine, prune, keep only sets that pay for themselves.
     n = np.maximum(n_comp, 1)
     ends = [float(r.t[-1]) for r in runs]
 
@@ -423,9 +422,9 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
 
     # The costly moves below only refine a proposal; when the window proposal leaves the data far
     # from the noise level (a continuous model error, not lift-off) they cannot pass the adequacy
-    # check of step 5, so they are skipped (compute only).
+    # check of step 4, so they are skipped (compute only).
     if sigma is not None and sigma > 0 and (adequacy is None or geo_ratio() <= SKIP_FACTOR * adequacy):
-        # Sequential (causal) decoding on the open-loop residual, as a second proposal per run: the
+        # 3. Sequential (causal) decoding on the open-loop residual, as a second proposal per run: the
         # residual is at noise level up to the first missing event, so walk forward in time and fit
         # one event where the residual first leaves the noise level, scored on the rows up to
         # SEQ_HORIZON after that point (later, still missing events would only blur the comparison).
@@ -538,7 +537,7 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
             gain[ri] = n[ri] * math.log(max(sse0[ri], 1e-30) / max(cur_sse[ri], 1e-30))
         else:  # the set does not pay its cost: the run has no inferred event
             cur[ri], cur_sse[ri] = [], float(sse0[ri])
-    # 5. Adequacy: lift-off says the nominal model is exact between events, so the MAP events must
+    # 4. Adequacy: lift-off says the nominal model is exact between events, so the MAP events must
     # explain the data to the tracker-noise level. If they leave more (row-weighted geometric-mean MSE
     # > adequacy·σ̂², the decision's metric), the events are absorbing some other, continuous model
     # error (a viscous drag is fitted by "coasting" pulses): the candidate then keeps no event.

@@ -160,10 +160,6 @@ class Evaluator:
             res.append([np.vstack(x) for x in per_run])
         return res
 
-    def sse(self, models: list[SimModel], shooting: bool = False) -> np.ndarray:
-        """(P, R) sum of squared residual components [m²] over each run's observed rows after t = 0."""
-        return np.array([[_sse(r) for r in per_run] for per_run in self.residuals(models, shooting)])
-
 
 def shooting_windows(ds: Dataset, window: float = 1.0) -> list[tuple]:
     """(run index, k0, k1, state0) windows of ``window`` s, each starting from the measured state.

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from omni_gym.checks import wrap_angle
 from omni_gym.discrepancy.dataset import Run
 from omni_gym.discrepancy.events import ScheduledContactProcess
 from omni_gym.liftoff import ContactProcess
@@ -123,13 +124,8 @@ def _set_state(world: World, b: int, job: Job) -> None:
     world.wheel_speed[b] = wspd
 
 
-def wrap(a: np.ndarray) -> np.ndarray:
-    """Angle(s) wrapped to [-π, π)."""
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
-
-
 def pose_residual(measured: np.ndarray, simulated: np.ndarray, lever: float) -> np.ndarray:
     """(K, 3) residual measured − simulated in metres: x, y and heading × ``lever`` [m] (NaN where unobserved)."""
     r = measured - simulated
-    r[:, 2] = wrap(r[:, 2]) * lever
+    r[:, 2] = wrap_angle(r[:, 2]) * lever
     return r
