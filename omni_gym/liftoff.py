@@ -15,6 +15,9 @@ keeps every wheel down; recover_rate = 0 (with lift_rate > 0) keeps a lifted whe
 reset. A switch that never happens has ``next_switch = inf``; a tiny rate may also give a finite but
 astronomically late ``next_switch``, which the world treats as never (see
 :meth:`omni_gym.world.World._schedule_switch`).
+
+:class:`ScheduledContactProcess` is the deterministic counterpart: it replays a fixed list of lift
+events (the events inferred by :mod:`omni_gym.discrepancy.events`) through the same interface.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ import numpy as np
 # (advance draws every switch) and has no physical meaning for a wheel leaving the floor. The same
 # bound as the environments' and model files' (omni_gym.bounds, omni_gym.envs.config).
 RATE_MAX = 1e3
+OVERLAP_TOL = 1e-6  # s: scheduled events closer than this count as back to back (times are rounded to 1e-6 s)
 
 
 def contact_cases(n: int) -> np.ndarray:
@@ -108,6 +112,57 @@ class ContactProcess:
             self.case = int(self.rng.integers(1, len(self.cases))) if self.case == 0 else 0
             self.next_switch = self._draw_holding(switch_time)
             changed = True
+        return changed
+
+
+class ScheduledContactProcess:
+    """Contact mask that replays a fixed list of lift events (duck-types ContactProcess for the World).
+
+    Args:
+        n_wheels: number of wheels.
+        events: (t_start, t_end, case) on the robot's local clock [s] (0 = its last reset),
+            t_start < t_end, non-overlapping; case indexes ``cases`` (row 0 = all down is not a lift).
+        cases: optional (k, n) bool masks, row 0 all down (default :func:`contact_cases`).
+    """
+
+    def __init__(self, n_wheels: int, events: list[tuple[float, float, int]] | tuple[tuple[float, float, int], ...],
+                 cases: np.ndarray | None = None) -> None:
+        self.cases = contact_cases(n_wheels) if cases is None else np.asarray(cases, dtype=bool)
+        evs = sorted((float(a), float(b), int(c)) for a, b, c in events)
+        for i, (a, b, c) in enumerate(evs):
+            if not (math.isfinite(a) and math.isfinite(b) and a < b):
+                raise ValueError(f"event {i}: need finite t_start < t_end [s], got ({a}, {b})")
+            if not 1 <= c < len(self.cases):
+                raise ValueError(f"event {i}: case must be in 1..{len(self.cases) - 1}, got {c}")
+            if i and a < evs[i - 1][1]:
+                if a < evs[i - 1][1] - OVERLAP_TOL:
+                    raise ValueError(f"events overlap at {a} s")
+                # Back-to-back events whose times were rounded differently (1e-6 s): one ends, the next starts.
+                evs[i] = (evs[i - 1][1], b, c)
+        self.events = evs
+        # Switch list: (time, case after the switch).
+        self._switches = [s for a, b, c in evs for s in ((a, c), (b, 0))]
+        self.reset(0.0)
+
+    def reset(self, t: float = 0.0) -> None:
+        """All wheels down; the schedule restarts (its times are on the clock this reset zeroes)."""
+        self.case = 0
+        self._i = 0
+        self.next_switch = self._switches[0][0] if self._switches else math.inf
+
+    @property
+    def mask(self) -> np.ndarray:
+        return self.cases[self.case]
+
+    def advance(self, t: float) -> bool:
+        """Apply every scheduled switch at or before time t [s]; True if the mask changed."""
+        changed = False
+        while self.next_switch <= t:
+            new = self._switches[self._i][1]
+            changed |= new != self.case
+            self.case = new
+            self._i += 1
+            self.next_switch = self._switches[self._i][0] if self._i < len(self._switches) else math.inf
         return changed
 
 

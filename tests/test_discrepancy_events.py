@@ -7,12 +7,13 @@ import numpy as np
 import pytest
 
 from omni_gym.discrepancy.dataset import Dataset, Run
-from omni_gym.discrepancy.events import PARAMS_PER_EVENT, ScheduledContactProcess, infer_events
-from omni_gym.discrepancy.explain import RULES, Evaluator, _sse, count_components, noise_estimate
+from omni_gym.discrepancy.events import PARAMS_PER_EVENT, infer_events
+from omni_gym.discrepancy.explain import RULES, Evaluator
 from omni_gym.discrepancy.recovery import nominal_model
+from omni_gym.discrepancy.residuals import count_components, noise_estimate, run_sse
 from omni_gym.discrepancy.simulate import FIT_DT, Job, simulate_jobs
 from omni_gym.discrepancy.synth import pose_lever
-from omni_gym.liftoff import contact_cases
+from omni_gym.liftoff import ScheduledContactProcess, contact_cases
 from omni_gym.world import DEFAULT_DT, World
 
 
@@ -67,7 +68,7 @@ def test_event_inference_finds_one_known_lift():
         runs.append(Run(name=shell.name, t=t, cmd=cmd, pose=meas, enc=ang))
     ds = Dataset(path=Path("."), model=model, model_json=model.to_json(), description="", runs=runs)
     res0 = Evaluator(ds, lever).residuals([model])[0]
-    sse0 = np.array([_sse(r) for r in res0])
+    sse0 = np.array([run_sse(r) for r in res0])
     sigma = noise_estimate(res0, [r.t for r in runs])
     n_comp = count_components(ds)
     fit = infer_events(ds, model, lever, PARAMS_PER_EVENT * math.log(n_comp.sum()), sse0, n_comp, FIT_DT,

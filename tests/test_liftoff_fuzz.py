@@ -237,7 +237,7 @@ def test_synth_refuses_a_rate_above_the_bound(tmp_path, capsys):
 def test_scheduled_lift_event_beyond_the_horizon_never_fires():
     """The discrepancy workflow's replayed events go through the same scheduling: an event at 1e300 s
     (a run ending at t = 1e308, issue 13 item 9) must neither hang nor fire."""
-    from omni_gym.discrepancy.events import ScheduledContactProcess
+    from omni_gym.liftoff import ScheduledContactProcess
 
     world = World(load_model("phunopas2018"))
     with hang_guard():

@@ -7,6 +7,7 @@ Modules (each one job):
 * :mod:`.simulate`: batched simulation of runs × candidate models in one :class:`~omni_gym.world.World`.
 * :mod:`.outliers`: tracker outliers, single pose rows no motion and no tracker noise can explain.
 * :mod:`.localise`: where the nominal model's residuals concentrate (multiple shooting).
+* :mod:`.residuals`: shooting windows, per-run SSE, the decision metric, the noise estimate.
 * :mod:`.events`: lift-event inference for the stochastic ``wheel_liftoff`` candidate.
 * :mod:`.explain`: fit every candidate effect, score on held-out runs, decide.
 * :mod:`.plausible`: units and plausible ranges of the fitted parameters (flags only).

@@ -9,7 +9,7 @@ Laplace): the most likely event sequence of each run, plus a BIC cost of 3·ln N
 
 Search (all runs batched, see :func:`infer_events`):
 
-1. **Windows.** The multiple-shooting windows (``explain.shooting_windows``, 1 s, each restarted
+1. **Windows.** The multiple-shooting windows (``residuals.shooting_windows``, 1 s, each restarted
    from the measured state) make an event show up locally. Per window, the nominal window and every
    single-event alternative on a coarse grid (lifted case × start every :data:`GRID_DT` × duration
    in :data:`DURATIONS`, clipped to the window) are simulated in one batched call over all windows.
@@ -47,7 +47,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from omni_gym.liftoff import contact_cases
+from omni_gym.discrepancy.residuals import geo_mse, run_sse, shooting_windows
+from omni_gym.discrepancy.simulate import Job, pose_residual, simulate_poses
+from omni_gym.liftoff import OVERLAP_TOL, contact_cases
 
 GRID_DT = 0.05  # s: start grid of the window search (half the shortest duration)
 DURATIONS = (0.05, 0.1, 0.2, 0.4)  # s: coarse lifted durations (mean holding 1/recover_rate ~ 0.2 s)
@@ -59,7 +61,6 @@ ADD_ROUNDS = 3  # rounds of the global "one more event" move...
 ADD_LEVEL = 1.2  # ...for runs whose open-loop MSE is above this multiple of sigma^2...
 ADD_TOP = 3  # ...trying each run's 3 best additions, each refined before the comparison
 CASE_ALPHA = 0.01  # reject events whose lifted cases are this unlikely under the uniform draw (step 4)
-OVERLAP_TOL = 1e-6  # s: events closer than this count as back to back (times are rounded to 1e-6 s)
 MAX_LIFTED_SHARE = 0.5  # most of the moving time that inferred events may keep a wheel lifted (step 4)
 SKIP_FACTOR = 3.0  # skip the sequential/global moves when the window proposal is above 3 x the adequacy limit
 SEQ_MAX_EVENTS = 12  # most events per run of the sequential open-loop decoding
@@ -73,57 +74,6 @@ EVENT_METHOD = ("wheel_liftoff: MAP lift events per run (window grid search, ope
                 "score is a marginal-likelihood approximation (events inferred on held-out runs too)")
 
 Event = tuple[float, float, int]  # (t_start [s], t_end [s], case index into contact_cases(n), >= 1)
-
-
-class ScheduledContactProcess:
-    """Contact mask that replays a fixed list of lift events (duck-types ContactProcess for the World).
-
-    Args:
-        n_wheels: number of wheels.
-        events: (t_start, t_end, case) on the robot's local clock [s] (0 = its last reset),
-            t_start < t_end, non-overlapping; case indexes ``cases`` (row 0 = all down is not a lift).
-        cases: optional (k, n) bool masks, row 0 all down (default :func:`contact_cases`).
-    """
-
-    def __init__(self, n_wheels: int, events: list[Event] | tuple[Event, ...],
-                 cases: np.ndarray | None = None) -> None:
-        self.cases = contact_cases(n_wheels) if cases is None else np.asarray(cases, dtype=bool)
-        evs = sorted((float(a), float(b), int(c)) for a, b, c in events)
-        for i, (a, b, c) in enumerate(evs):
-            if not (math.isfinite(a) and math.isfinite(b) and a < b):
-                raise ValueError(f"event {i}: need finite t_start < t_end [s], got ({a}, {b})")
-            if not 1 <= c < len(self.cases):
-                raise ValueError(f"event {i}: case must be in 1..{len(self.cases) - 1}, got {c}")
-            if i and a < evs[i - 1][1]:
-                if a < evs[i - 1][1] - OVERLAP_TOL:
-                    raise ValueError(f"events overlap at {a} s")
-                # Back-to-back events whose times were rounded differently (1e-6 s): one ends, the next starts.
-                evs[i] = (evs[i - 1][1], b, c)
-        self.events = evs
-        # Switch list: (time, case after the switch).
-        self._switches = [s for a, b, c in evs for s in ((a, c), (b, 0))]
-        self.reset(0.0)
-
-    def reset(self, t: float = 0.0) -> None:
-        """All wheels down; the schedule restarts (its times are on the clock this reset zeroes)."""
-        self.case = 0
-        self._i = 0
-        self.next_switch = self._switches[0][0] if self._switches else math.inf
-
-    @property
-    def mask(self) -> np.ndarray:
-        return self.cases[self.case]
-
-    def advance(self, t: float) -> bool:
-        """Apply every scheduled switch at or before time t [s]; True if the mask changed."""
-        changed = False
-        while self.next_switch <= t:
-            new = self._switches[self._i][1]
-            changed |= new != self.case
-            self.case = new
-            self._i += 1
-            self.next_switch = self._switches[self._i][0] if self._i < len(self._switches) else math.inf
-        return changed
 
 
 @dataclass
@@ -230,8 +180,6 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
         adequacy: largest row-weighted geometric-mean MSE with the events, in units of σ̂², for the
             events to be kept (step 4; None: no check).
     """
-    from omni_gym.discrepancy.explain import _sse, geo_mse, shooting_windows
-    from omni_gym.discrepancy.simulate import Job, pose_residual, simulate_poses
 
     runs = ds.runs
     R = len(runs)
@@ -358,17 +306,17 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
     cur_res: list[np.ndarray | None] = [None] * R
     live = [ri for ri in range(R) if cur[ri]]
     for ri, r in zip(live, open_loop([(ri, cur[ri]) for ri in live]), strict=True):
-        cur_sse[ri], cur_res[ri] = _sse(r), r
+        cur_sse[ri], cur_res[ri] = run_sse(r), r
 
     def accept(trials: list[tuple[int, list[Event]]]) -> bool:
         """Simulate the trials (one batch); each run takes its best trial if it lowers the score."""
         best_trial: dict[int, tuple[float, list[Event], np.ndarray]] = {}
         for (ri, sched), r in zip(trials, open_loop(trials), strict=True):
-            sc = score(ri, _sse(r), len(sched))
+            sc = score(ri, run_sse(r), len(sched))
             if sc < score(ri, cur_sse[ri], len(cur[ri])) - 1e-9 and (ri not in best_trial or sc < best_trial[ri][0]):
                 best_trial[ri] = (sc, sched, r)
         for ri, (_, sched, r) in best_trial.items():
-            cur[ri], cur_sse[ri], cur_res[ri] = list(sched), _sse(r), r
+            cur[ri], cur_sse[ri], cur_res[ri] = list(sched), run_sse(r), r
         return bool(best_trial)
 
     def refine_sweep(shifts: tuple[float, ...], only: set[int] | None = None) -> bool:
@@ -484,7 +432,7 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
         # Refine the sequential proposal too, then keep per run the better (penalised, whole-run) one.
         win_state = ([list(e) for e in cur], cur_sse.copy(), list(cur_res))
         for ri in range(R):
-            cur[ri], cur_sse[ri], cur_res[ri] = list(seq[ri]), _sse(seq_res[ri]), seq_res[ri]
+            cur[ri], cur_sse[ri], cur_res[ri] = list(seq[ri]), run_sse(seq_res[ri]), seq_res[ri]
         refine_sweep(REFINE_OL)
         for ri in range(R):
             w_ev, w_sse, w_res = win_state[0][ri], win_state[1][ri], win_state[2][ri]
@@ -505,7 +453,7 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
                 break
             ranked: dict[int, list[tuple[float, list[Event], np.ndarray]]] = {}
             for (ri, sched), r in zip(trials, open_loop(trials), strict=True):
-                ranked.setdefault(ri, []).append((score(ri, _sse(r), len(sched)), sched, r))
+                ranked.setdefault(ri, []).append((score(ri, run_sse(r), len(sched)), sched, r))
             saved = ([list(e) for e in cur], cur_sse.copy(), list(cur_res))
             best_final = {ri: (score(ri, cur_sse[ri], len(cur[ri])), cur[ri], cur_sse[ri], cur_res[ri])
                           for ri in ranked}
@@ -513,7 +461,7 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
                 for ri, lst in ranked.items():
                     lst.sort(key=lambda x: x[0])
                     if k < len(lst):
-                        cur[ri], cur_sse[ri], cur_res[ri] = list(lst[k][1]), _sse(lst[k][2]), lst[k][2]
+                        cur[ri], cur_sse[ri], cur_res[ri] = list(lst[k][1]), run_sse(lst[k][2]), lst[k][2]
                     else:
                         cur[ri], cur_sse[ri], cur_res[ri] = saved[0][ri], saved[1][ri], saved[2][ri]
                 refine_sweep(REFINE_OL, only=set(ranked))

@@ -16,10 +16,8 @@ from omni_gym.discrepancy.explain import (
     RULES,
     Evaluator,
     candidates,
-    count_components,
     decide,
     fit_candidate,
-    geo_mse,
     make_folds,
     max_ticks,
     param_intervals,
@@ -27,6 +25,7 @@ from omni_gym.discrepancy.explain import (
 from omni_gym.discrepancy.finite import finite_json
 from omni_gym.discrepancy.localise import localise
 from omni_gym.discrepancy.outliers import OUTLIER_RULE, drop_outliers, find_outliers
+from omni_gym.discrepancy.residuals import count_components, geo_mse
 from omni_gym.discrepancy.simulate import FIT_DT
 from omni_gym.discrepancy.synth import pose_lever
 from omni_gym.liftoff import contact_cases

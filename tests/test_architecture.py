@@ -1,0 +1,163 @@
+"""The package's imports layer without circles (issue 14 item 3).
+
+Every module of ``omni_gym/`` and ``agents/`` is parsed with ``ast``; every import counts, at module
+level and inside functions (a function-level import runs too, it only runs later), relative imports
+resolved. ``from pkg import name`` is an edge to the module ``pkg.name`` when it is one, else to ``pkg``.
+
+Layers (a module belongs to the longest prefix in :data:`LAYERS` that names it):
+
+* core: every ``omni_gym`` module outside the subpackages below (robot, model, world, ...);
+* ``omni_gym.envs``: the Gymnasium environments, on core;
+* ``omni_gym.discrepancy``: the ``gap``/``synth`` workflow, on core only (no environments, no agents);
+* ``agents``: baselines and SB3 training, on core and the environments (not the discrepancy workflow);
+* ``omni_gym.cli``: the command line, on top of everything.
+
+A new layer (e.g. ``omni_gym.physics``) is one entry in :data:`LAYERS` (and its name in :data:`CORE`
+when core may import it).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("omni_gym", "agents")
+CORE = {"omni_gym"}
+# layer (module-name prefix) -> the layers its modules may import (their own included)
+LAYERS: dict[str, set[str] | None] = {
+    "omni_gym": CORE,
+    "omni_gym.envs": CORE | {"omni_gym.envs"},
+    "omni_gym.discrepancy": CORE | {"omni_gym.discrepancy"},
+    "agents": CORE | {"omni_gym.envs", "agents"},
+    "omni_gym.cli": None,  # on top: imports anything
+}
+# (importer, imported) pairs allowed against the layers, with the reason.
+ALLOWED_UP = {
+    # Importing omni_gym registers the environment ids with Gymnasium (gym.make("OmniGoToPose-v0")
+    # works after `import omni_gym`); the package module re-exports, it is not a core module.
+    ("omni_gym", "omni_gym.envs"),
+}
+
+
+def _modules() -> dict[str, tuple[Path, bool]]:
+    """Dotted module name -> (file, is a package ``__init__``)."""
+    out = {}
+    for pkg in PACKAGES:
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            parts = list(path.relative_to(ROOT).with_suffix("").parts)
+            is_pkg = parts[-1] == "__init__"
+            out[".".join(parts[:-1] if is_pkg else parts)] = (path, is_pkg)
+    return out
+
+
+def _known(name: str, modules: dict) -> str | None:
+    """The longest prefix of ``name`` that is one of ``modules`` (None: outside the packages)."""
+    while name and name not in modules:
+        name = name.rpartition(".")[0]
+    return name or None
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Module -> the package modules it imports (anywhere in its body)."""
+    modules = _modules()
+    graph = {}
+    for mod, (path, is_pkg) in modules.items():
+        targets: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+            if isinstance(node, ast.Import):
+                targets |= {_known(a.name, modules) for a in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:  # relative: from the package of this module, level - 1 packages up
+                    pkg = mod.split(".") if is_pkg else mod.split(".")[:-1]
+                    pkg = pkg[:len(pkg) - (node.level - 1)]
+                    base = ".".join(pkg + ([base] if base else []))
+                for alias in node.names:
+                    sub = f"{base}.{alias.name}"
+                    targets.add(sub if sub in modules else _known(base, modules))
+        graph[mod] = {t for t in targets if t is not None and t != mod}
+    return graph
+
+
+def layer(mod: str) -> str:
+    """The layer of module ``mod``: the longest matching prefix in :data:`LAYERS`."""
+    return max((k for k in LAYERS if mod == k or mod.startswith(k + ".")), key=len)
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One import cycle as [a, b, ..., a], or None (depth-first search with colours)."""
+    state: dict[str, int] = {}  # 1: on the current path, 2: done
+    path: list[str] = []
+
+    def visit(m: str) -> list[str] | None:
+        state[m] = 1
+        path.append(m)
+        for n in sorted(graph.get(m, ())):
+            if state.get(n) == 1:
+                return path[path.index(n):] + [n]
+            if n not in state and (found := visit(n)):
+                return found
+        path.pop()
+        state[m] = 2
+        return None
+
+    for m in sorted(graph):
+        if m not in state and (found := visit(m)):
+            return found
+    return None
+
+
+def upward_imports(graph: dict[str, set[str]]) -> list[str]:
+    """Every import from a module to a layer its own layer may not import, except :data:`ALLOWED_UP`."""
+    bad = []
+    for mod, targets in sorted(graph.items()):
+        allowed = LAYERS[layer(mod)]
+        for t in sorted(targets):
+            if allowed is not None and layer(t) not in allowed and (mod, layer(t)) not in ALLOWED_UP:
+                bad.append(f"{mod} ({layer(mod)}) imports {t} ({layer(t)})")
+    return bad
+
+
+def test_no_import_cycle():
+    assert find_cycle(import_graph()) is None, " -> ".join(find_cycle(import_graph()))
+
+
+def test_no_import_points_up_the_layers():
+    assert upward_imports(import_graph()) == []
+
+
+def test_every_allowed_exception_is_still_needed():
+    """A stale allow-list entry would hide a future upward import of the same pair."""
+    graph = import_graph()
+    used = {(m, layer(t)) for m, ts in graph.items() for t in ts}
+    assert ALLOWED_UP <= used
+
+
+def test_the_checks_catch_a_cycle_and_an_upward_import():
+    """The checkers on made-up graphs: a cycle through a function-level import, and core importing agents."""
+    assert find_cycle({"a.x": {"a.y"}, "a.y": {"a.z"}, "a.z": {"a.x"}}) == ["a.x", "a.y", "a.z", "a.x"]
+    assert find_cycle({"a.x": {"a.y"}, "a.y": set()}) is None
+    assert upward_imports({"omni_gym.model": {"agents.train"}}) == [
+        "omni_gym.model (omni_gym) imports agents.train (agents)"]
+    assert upward_imports({"omni_gym.discrepancy.synth": {"omni_gym.envs.core"}})
+    assert upward_imports({"agents.train": {"omni_gym.discrepancy.synth"}})
+    assert upward_imports({"agents.train": {"omni_gym.cli"}})
+    assert upward_imports({"omni_gym.cli": {"agents.train", "omni_gym.discrepancy.synth"}}) == []
+
+
+@pytest.mark.parametrize("source, expect", [
+    ("from . import b\n", "p.b"),  # relative, from a module of package p
+    ("from .b import f\n", "p.b"),
+    ("def g():\n    from p.b import f\n", "p.b"),  # function level
+])
+def test_the_parser_resolves_relative_and_function_level_imports(tmp_path, monkeypatch, source, expect):
+    (tmp_path / "p").mkdir()
+    (tmp_path / "p" / "__init__.py").write_text("")
+    (tmp_path / "p" / "a.py").write_text(source)
+    (tmp_path / "p" / "b.py").write_text("def f():\n    pass\n")
+    monkeypatch.setitem(globals(), "ROOT", tmp_path)
+    monkeypatch.setitem(globals(), "PACKAGES", ("p",))
+    assert import_graph()["p.a"] == {expect}
