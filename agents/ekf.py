@@ -75,7 +75,7 @@ from scipy.stats import chi2
 
 from agents.slip_detector import DetectorConfig, SlipDetector
 from omni_gym.checks import wrap_angle
-from omni_gym.robot import RobotSpec
+from omni_gym.physics.robot import RobotSpec
 
 X, Y, TH, VX, VY, OM, BG = range(7)
 NX = 7

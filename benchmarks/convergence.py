@@ -4,7 +4,7 @@
 
 For three maneuvers of 2 s (step changes of body twist up to 0.4 m/s and 1.5 rad/s, then a stop) on
 `williams2002` / carpet, both friction models, the world runs at substeps from 4 ms down to 0.125 ms
-and is compared with `omni_gym.reference` (Radau, rtol 1e-10, exact roller/gap switching). Writes
+and is compared with `omni_gym.analysis.reference` (Radau, rtol 1e-10, exact roller/gap switching). Writes
 ``convergence.md`` (max position and heading errors) and ``convergence.png`` (log-log).
 """
 
@@ -20,9 +20,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from omni_gym.model import load_model  # noqa: E402
-from omni_gym.reference import reference_trajectory  # noqa: E402
-from omni_gym.world import DEFAULT_DT, World  # noqa: E402
+from omni_gym.analysis.reference import reference_trajectory  # noqa: E402
+from omni_gym.physics.model import load_model  # noqa: E402
+from omni_gym.physics.world import DEFAULT_DT, World  # noqa: E402
 
 STEPS = [4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4]
 SAMPLE = 0.02  # s between compared samples (a multiple of every step below)

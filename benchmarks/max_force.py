@@ -1,6 +1,6 @@
 """Maximum force before sliding vs robot orientation, after Williams et al. (2002), Fig. 8.
 
-For the williams2002 robot on every surface of ``omni_gym.friction.SURFACES`` (paper and carpet of
+For the williams2002 robot on every surface of ``omni_gym.physics.friction.SURFACES`` (paper and carpet of
 Table I, and the high-friction ``grip`` reference surface), compute the largest force
 F_max [N] at the centre of mass along world +x that friction can hold, as the robot's orientation θ
 sweeps one symmetry period 2π/3 of a three-wheeled robot. Two contact cases per surface:
@@ -29,9 +29,9 @@ matplotlib.use("Agg")  # headless: only files are written
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from omni_gym.friction import SURFACES  # noqa: E402
-from omni_gym.max_force import max_force_curve, static_loads  # noqa: E402
-from omni_gym.robot import williams2002  # noqa: E402
+from omni_gym.analysis.max_force import max_force_curve, static_loads  # noqa: E402
+from omni_gym.physics.friction import SURFACES  # noqa: E402
+from omni_gym.physics.robot import williams2002  # noqa: E402
 
 PERIOD = 2 * math.pi / 3  # rad, symmetry period of a regular three-wheeled robot
 TABLE_POINTS = 13  # every 10°

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from omni_gym.model import SimModel
-from omni_gym.world import World
+from omni_gym.physics.model import SimModel
+from omni_gym.physics.world import World
 
 DISTANCE = 0.4  # m, along +x
 PAPER_DURATION = 3.75  # s: lost from our copy of the paper; fitted by benchmarks/tune_williams.py (3.73 s)

@@ -24,7 +24,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from paper_maneuver import PAPER, PAPER_CARPET_MEASURED, PAPER_DURATION, run_maneuver, summary  # noqa: E402
 
-from omni_gym.model import load_model  # noqa: E402
+from omni_gym.physics.model import load_model  # noqa: E402
 
 CASES = [("initial", "paper"), ("roller_gap", "paper"), ("initial", "carpet"), ("roller_gap", "carpet")]
 

@@ -21,9 +21,9 @@ import numpy as np
 from scipy.optimize import minimize
 from tqdm import tqdm
 
-import omni_gym.robot as robots
-from omni_gym.friction import SURFACES
-from omni_gym.model import SimModel
+import omni_gym.physics.robot as robots
+from omni_gym.physics.friction import SURFACES
+from omni_gym.physics.model import SimModel
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from paper_maneuver import PAPER, run_maneuver, summary  # noqa: E402

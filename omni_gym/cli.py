@@ -14,7 +14,7 @@ import numpy as np
 
 from omni_gym import __version__
 from omni_gym.bounds import CLI as CLI_BOUNDS
-from omni_gym.friction import FRICTION_MODELS, SURFACES
+from omni_gym.physics.friction import FRICTION_MODELS, SURFACES
 
 EXIT_BAD_INPUT = 2
 
@@ -129,7 +129,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_model_show(args: argparse.Namespace) -> int:
-    from omni_gym.model import load_model
+    from omni_gym.physics.model import load_model
 
     model = load_model(args.name, args.surface, args.friction)
     data = model.to_json()
@@ -178,9 +178,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 def _simulate_into(args: argparse.Namespace, out) -> int:
     """The simulation of ``omni-gym simulate``, written to ``out`` (the transaction's temporary file)."""
     from omni_gym.io import TRAJECTORY_HEADER, read_commands, write_csv_atomic
-    from omni_gym.model import Actuation, load_model
-    from omni_gym.replay import simulate_commands
-    from omni_gym.world import DEFAULT_DT
+    from omni_gym.physics.model import Actuation, load_model
+    from omni_gym.physics.replay import simulate_commands
+    from omni_gym.physics.world import DEFAULT_DT
 
     dt = DEFAULT_DT if args.dt is None else args.dt
     check_option("--dt", dt)
@@ -263,7 +263,7 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     # Refuse a bad --out before the slow imports; write_synthetic checks again (with the truth file).
     Output(args.out, "dir", force=args.force, inputs=[args.model], marker="dataset.json", what="dataset").preflight()
     from omni_gym.discrepancy.synth import truth_path, write_synthetic
-    from omni_gym.model import load_model
+    from omni_gym.physics.model import load_model
 
     check_option("--seed", args.seed)
     model = load_model(args.model, args.surface, args.friction)

@@ -1,10 +1,10 @@
 """Seeded sensor models: wheel encoders, gyroscope, compass, accelerometer and a camera/tracker.
 
-Frames and units (see :mod:`omni_gym.robot`):
+Frames and units (see :mod:`omni_gym.physics.robot`):
 
 * World frame: fixed, x/y in the floor plane, z up; pose (x, y, θ) in [m, m, rad].
 * Body frame: x forward, y left, z up; the heading θ is the angle from world x to body x.
-* Wheel angles [rad] and wheel speeds [rad/s] use the sign convention of :mod:`omni_gym.robot`.
+* Wheel angles [rad] and wheel speeds [rad/s] use the sign convention of :mod:`omni_gym.physics.robot`.
 
 Randomness: every random draw comes from a ``numpy.random.Generator`` handed to the sensor (in its
 constructor or in ``reset``), never from the global numpy RNG, so a seed fixes every reading.

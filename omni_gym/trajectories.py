@@ -24,8 +24,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from omni_gym.checks import finite_array, finite_scalar, positive, wrap_angle
-from omni_gym.kinematics import forward, inverse, world_to_body
-from omni_gym.robot import RobotSpec
+from omni_gym.physics.kinematics import forward, inverse, world_to_body
+from omni_gym.physics.robot import RobotSpec
 
 TWO_PI = 2.0 * math.pi
 

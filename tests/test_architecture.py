@@ -4,16 +4,19 @@ Every module of ``omni_gym/`` and ``agents/`` is parsed with ``ast``; every impo
 level and inside functions (a function-level import runs too, it only runs later), relative imports
 resolved. ``from pkg import name`` is an edge to the module ``pkg.name`` when it is one, else to ``pkg``.
 
-Layers (a module belongs to the longest prefix in :data:`LAYERS` that names it):
+Layers (a module belongs to the longest prefix in :data:`LAYERS` that names it), bottom up:
 
-* core: every ``omni_gym`` module outside the subpackages below (robot, model, world, ...);
+* utilities: ``omni_gym.checks``, ``omni_gym.bounds``, ``omni_gym.io``, ``omni_gym.outputs`` (argument
+  checks, input bounds, file reading, atomic writing), on nothing else of the package;
+* ``omni_gym.physics``: robot, model, kernel, world, replay, ..., on the utilities only;
+* ``omni_gym.analysis``: the validation integrator and the max-force analysis, on the physics;
+* core: the other ``omni_gym`` modules (sensors, trajectories, the package ``__init__``), on the physics;
 * ``omni_gym.envs``: the Gymnasium environments, on core;
 * ``omni_gym.discrepancy``: the ``gap``/``synth`` workflow, on core only (no environments, no agents);
 * ``agents``: baselines and SB3 training, on core and the environments (not the discrepancy workflow);
 * ``omni_gym.cli``: the command line, on top of everything.
 
-A new layer (e.g. ``omni_gym.physics``) is one entry in :data:`LAYERS` (and its name in :data:`CORE`
-when core may import it).
+A new layer is one entry in :data:`LAYERS` (and its name in :data:`CORE` when core may import it).
 """
 
 from __future__ import annotations
@@ -25,9 +28,14 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("omni_gym", "agents")
-CORE = {"omni_gym"}
+UTILITIES = {"omni_gym.checks", "omni_gym.bounds", "omni_gym.io", "omni_gym.outputs"}
+PHYSICS = UTILITIES | {"omni_gym.physics"}
+CORE = PHYSICS | {"omni_gym"}
 # layer (module-name prefix) -> the layers its modules may import (their own included)
 LAYERS: dict[str, set[str] | None] = {
+    **{u: UTILITIES for u in UTILITIES},
+    "omni_gym.physics": PHYSICS,
+    "omni_gym.analysis": PHYSICS | {"omni_gym.analysis"},
     "omni_gym": CORE,
     "omni_gym.envs": CORE | {"omni_gym.envs"},
     "omni_gym.discrepancy": CORE | {"omni_gym.discrepancy"},
@@ -140,8 +148,11 @@ def test_the_checks_catch_a_cycle_and_an_upward_import():
     """The checkers on made-up graphs: a cycle through a function-level import, and core importing agents."""
     assert find_cycle({"a.x": {"a.y"}, "a.y": {"a.z"}, "a.z": {"a.x"}}) == ["a.x", "a.y", "a.z", "a.x"]
     assert find_cycle({"a.x": {"a.y"}, "a.y": set()}) is None
-    assert upward_imports({"omni_gym.model": {"agents.train"}}) == [
-        "omni_gym.model (omni_gym) imports agents.train (agents)"]
+    assert upward_imports({"omni_gym.physics.model": {"agents.train"}}) == [
+        "omni_gym.physics.model (omni_gym.physics) imports agents.train (agents)"]
+    assert upward_imports({"omni_gym.physics.world": {"omni_gym.sensors"}})  # physics below core
+    assert upward_imports({"omni_gym.bounds": {"omni_gym.physics.liftoff"}})  # utilities below physics
+    assert upward_imports({"omni_gym.discrepancy.synth": {"omni_gym.analysis.reference"}})
     assert upward_imports({"omni_gym.discrepancy.synth": {"omni_gym.envs.core"}})
     assert upward_imports({"agents.train": {"omni_gym.discrepancy.synth"}})
     assert upward_imports({"agents.train": {"omni_gym.cli"}})

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from omni_gym.cli import build_parser, main
-from omni_gym.model import SimModel, load_model
+from omni_gym.physics.model import SimModel, load_model
 
 
 def run_cli(*args):
@@ -288,14 +288,14 @@ def test_synth_options_out_of_bounds_are_one_line_errors(tmp_path, capsys, optio
 
 def test_simulate_never_writes_a_non_finite_number(tmp_path, capsys, monkeypatch):
     """Whatever the cause, a non-finite state is refused before anything is written."""
-    import omni_gym.replay
+    import omni_gym.physics.replay
 
     def diverging(model, times, commands, **kwargs):
         states = np.zeros((len(times), 6))
         states[1:, 0] = np.nan
         return states
 
-    monkeypatch.setattr(omni_gym.replay, "simulate_commands", diverging)
+    monkeypatch.setattr(omni_gym.physics.replay, "simulate_commands", diverging)
     code, cmds, out = _simulate(tmp_path, "t,w1,w2,w3\n0,1,1,1\n0.5,0,0,0\n")
     line = _one_error_line(capsys)
     assert code == 2 and "non-finite at t = 0.5 s" in line and not out.exists()
@@ -316,7 +316,7 @@ def test_every_bound_in_code_is_the_table_in_docs_bounds_md():
 
 def test_every_physical_model_input_has_a_bound():
     from omni_gym.bounds import MODEL
-    from omni_gym.model import EFFECT_PARAMS
+    from omni_gym.physics.model import EFFECT_PARAMS
 
     data = load_model("williams2002").to_json()
     numeric = [k for k, v in data.items() if isinstance(v, (int, float))]
@@ -327,7 +327,7 @@ def test_every_physical_model_input_has_a_bound():
 
 
 def test_every_surface_is_in_the_docs_table_with_its_coefficients():
-    from omni_gym.friction import SURFACES
+    from omni_gym.physics.friction import SURFACES
 
     rows = [line for line in (DOCS / "model.md").read_text().splitlines() if line.startswith("| `")]
     help_text = build_parser()._subparsers._group_actions[0].choices["simulate"].format_help()
@@ -344,7 +344,7 @@ def test_no_file_cites_a_path_outside_the_repository():
     files = [*root.glob("omni_gym/**/*.py"), *root.glob("docs/*.md"), *root.glob("agents/**/*.py"), root / "README.md"]
     offenders = [str(f.relative_to(root)) for f in files if "shared/" in f.read_text()]
     assert offenders == []
-    from omni_gym.robot import PRESETS
+    from omni_gym.physics.robot import PRESETS
 
     for make in PRESETS.values():
         assert all("shared/" not in why for why in make().assumptions.values())

@@ -20,7 +20,7 @@ import numpy as np
 from PIL import Image
 
 from omni_gym.envs import ENV_IDS
-from omni_gym.friction import SURFACES
+from omni_gym.physics.friction import SURFACES
 
 ROOT = Path(__file__).resolve().parents[1]
 MIN_SIDE = 200  # px: every picture the demo writes is at least this wide and high (the smallest GIF is 300 px)

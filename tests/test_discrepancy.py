@@ -18,7 +18,7 @@ from omni_gym.discrepancy.dataset import Run, load_dataset, write_dataset
 from omni_gym.discrepancy.recovery import nominal_model, run_case
 from omni_gym.discrepancy.synth import truth_path, write_synthetic
 from omni_gym.discrepancy.workflow import gap
-from omni_gym.model import SimModel, load_model
+from omni_gym.physics.model import SimModel, load_model
 
 # Small datasets keep the suite fast: 4 runs of 2.5 s at 50 Hz (see docs/discrepancy.md, "Tests").
 RUNS, DURATION = 4, 2.5

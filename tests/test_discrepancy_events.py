@@ -13,8 +13,8 @@ from omni_gym.discrepancy.recovery import nominal_model
 from omni_gym.discrepancy.residuals import count_components, noise_estimate, run_sse
 from omni_gym.discrepancy.simulate import FIT_DT, Job, simulate_jobs
 from omni_gym.discrepancy.synth import pose_lever
-from omni_gym.liftoff import ScheduledContactProcess, contact_cases
-from omni_gym.world import DEFAULT_DT, World
+from omni_gym.physics.liftoff import ScheduledContactProcess, contact_cases
+from omni_gym.physics.world import DEFAULT_DT, World
 
 
 def test_scheduled_process_replays_exactly_the_given_events():

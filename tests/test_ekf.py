@@ -20,7 +20,7 @@ from agents.ekf import BG, OM, TH, VX, VY, EKFConfig, OmniEKF, accel_model, moti
 from agents.slip_detector import SlipDetector
 from omni_gym.checks import wrap_angle as wrap
 from omni_gym.envs.decode import SensorObs, SensorObsDecoder
-from omni_gym.robot import phunopas2018
+from omni_gym.physics.robot import phunopas2018
 
 DT = 0.01
 ROBOT = phunopas2018()

@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 import omni_gym  # noqa: F401  (registers the ids)
-from omni_gym.model import load_model
+from omni_gym.physics.model import load_model
 
 IDS = ("OmniPathFollow-Williams-v0", "OmniPathFollow-Phunopas-v0", "OmniGoToPose-v0")
 STEPS = 3

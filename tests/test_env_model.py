@@ -1,7 +1,7 @@
 """``model=``: a calibrated model (JSON file or dict, effects included) enters every environment.
 
 The central check: a model with fitted effects drives the environment exactly as ``omni-gym simulate``
-(:func:`omni_gym.replay.simulate_commands`) replays it. Both build the same world from the same model
+(:func:`omni_gym.physics.replay.simulate_commands`) replays it. Both build the same world from the same model
 and run the same physics substeps on the same wheel commands, so the poses agree bit for bit; any
 tolerance would hide a model that did not reach the environment whole.
 """
@@ -20,8 +20,9 @@ import pytest
 
 import omni_gym  # noqa: F401  (registers the ids)
 from omni_gym.cli import main
-from omni_gym.model import SP_CX, SP_CY, WP_MUW, WP_R, load_model
-from omni_gym.replay import simulate_commands
+from omni_gym.physics.layout import SP_CX, SP_CY, WP_MUW, WP_R
+from omni_gym.physics.model import load_model
+from omni_gym.physics.replay import simulate_commands
 
 WILLIAMS = "OmniPathFollow-Williams-v0"
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"

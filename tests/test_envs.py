@@ -21,9 +21,9 @@ import pytest
 
 import omni_gym
 from omni_gym.envs.observations import LOOK_SCALE, POS_SCALE
-from omni_gym.friction import SURFACES
-from omni_gym.liftoff import contact_cases
-from omni_gym.model import SP_MASS, WP_MUW
+from omni_gym.physics.friction import SURFACES
+from omni_gym.physics.layout import SP_MASS, WP_MUW
+from omni_gym.physics.liftoff import contact_cases
 
 WILLIAMS = "OmniPathFollow-Williams-v0"
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from omni_gym import kernel
-from omni_gym.friction import SURFACES, gap_measure, on_gap, regularised_coulomb
-from omni_gym.liftoff import PHUNOPAS_TABLE2, ContactProcess, contact_cases
-from omni_gym.loads import static_loads, wheel_loads
-from omni_gym.robot import phunopas2018, williams2002
+from omni_gym.physics import kernel
+from omni_gym.physics.friction import SURFACES, gap_measure, on_gap, regularised_coulomb
+from omni_gym.physics.liftoff import PHUNOPAS_TABLE2, ContactProcess, contact_cases
+from omni_gym.physics.loads import static_loads, wheel_loads
+from omni_gym.physics.robot import phunopas2018, williams2002
 
 
 def test_surfaces_are_table_one():

@@ -26,7 +26,7 @@ from omni_gym.bounds import FILES
 from omni_gym.cli import main
 from omni_gym.discrepancy.dataset import load_dataset, run_header
 from omni_gym.io import column_bound, read_commands
-from omni_gym.model import load_model
+from omni_gym.physics.model import load_model
 
 N_WHEELS = 3
 MODEL_JSON = load_model("williams2002").to_json()

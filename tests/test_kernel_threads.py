@@ -10,7 +10,7 @@ CHILD = """
 import os
 import omni_gym
 print("import:", os.environ.get("OMP_WAIT_POLICY"))
-from omni_gym.kernel import substep_parallel, warm_up
+from omni_gym.physics.kernel import substep_parallel, warm_up
 warm_up(substep_parallel)
 print("after:", os.environ.get("OMP_WAIT_POLICY"))
 """

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from omni_gym import kinematics as kin
-from omni_gym.robot import phunopas2018, regular, williams2002
+from omni_gym.physics import kinematics as kin
+from omni_gym.physics.robot import phunopas2018, regular, williams2002
 
 R, r = 0.10, 0.05
 ALPHAS = np.pi / 4 + np.arange(4) * np.pi / 2

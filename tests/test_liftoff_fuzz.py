@@ -2,7 +2,7 @@
 
 Tiny rates used to hang or overflow the world's switch scheduling (``lift_rate=1e-30`` hung
 ``reset``, ``1e-16`` raised OverflowError, ``recover_rate=1e-30`` hung mid-episode). The code now
-decides "no switch" in float seconds before forming any integer (``omni_gym.world.switch_tick``), so
+decides "no switch" in float seconds before forming any integer (``omni_gym.physics.world.switch_tick``), so
 nothing here depends on 1/rate. The tests cannot time that structure; a regression would show as a
 test that never ends, so every case runs under a SIGALRM guard that turns a hang into a failure
 (the limit is minutes, far above the fraction of a second a case takes: it is not a timing test).
@@ -24,10 +24,10 @@ from hypothesis import strategies as st
 
 import omni_gym  # noqa: F401  (registers the environments)
 from omni_gym.cli import main as cli_main
-from omni_gym.liftoff import RATE_MAX, ContactProcess, contact_cases
-from omni_gym.model import load_model
-from omni_gym.replay import simulate_commands
-from omni_gym.world import World
+from omni_gym.physics.liftoff import RATE_MAX, ContactProcess, contact_cases
+from omni_gym.physics.model import load_model
+from omni_gym.physics.replay import simulate_commands
+from omni_gym.physics.world import World
 
 HANG_SECONDS = 300  # a hang guard, not a timing test: each guarded case needs well under a second
 FUZZ = settings(derandomize=True, max_examples=40, deadline=None,
@@ -237,7 +237,7 @@ def test_synth_refuses_a_rate_above_the_bound(tmp_path, capsys):
 def test_scheduled_lift_event_beyond_the_horizon_never_fires():
     """The discrepancy workflow's replayed events go through the same scheduling: an event at 1e300 s
     (a run ending at t = 1e308, issue 13 item 9) must neither hang nor fire."""
-    from omni_gym.liftoff import ScheduledContactProcess
+    from omni_gym.physics.liftoff import ScheduledContactProcess
 
     world = World(load_model("phunopas2018"))
     with hang_guard():

@@ -16,9 +16,9 @@ import math
 import numpy as np
 import pytest
 
-from omni_gym.friction import SURFACES, Surface
-from omni_gym.max_force import max_force_curve, max_static_force, static_loads
-from omni_gym.robot import GRAVITY, phunopas2018, regular, williams2002
+from omni_gym.analysis.max_force import max_force_curve, max_static_force, static_loads
+from omni_gym.physics.friction import SURFACES, Surface
+from omni_gym.physics.robot import GRAVITY, phunopas2018, regular, williams2002
 
 MU = 0.3
 ISO = Surface("iso", mu_drive=MU, mu_transverse=MU, mu_gap=MU)

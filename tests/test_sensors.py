@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from omni_gym.kinematics import rotation
+from omni_gym.physics.kinematics import rotation
 from omni_gym.sensors import (
     Accelerometer,
     CameraTracker,

@@ -326,7 +326,7 @@ def test_training_on_a_model_file_keeps_the_model_itself(tmp_path, capsys):
     """
     import gymnasium as gym
 
-    from omni_gym.model import load_model
+    from omni_gym.physics.model import load_model
 
     model = load_model("phunopas2018", "carpet", "roller_gap").with_effect(
         "wheel_radius", {"scale": [1.02, 0.98, 1.0, 1.01]})

@@ -13,8 +13,8 @@ import math
 import numpy as np
 import pytest
 
-from omni_gym.kinematics import forward
-from omni_gym.robot import phunopas2018, regular, williams2002
+from omni_gym.physics.kinematics import forward
+from omni_gym.physics.robot import phunopas2018, regular, williams2002
 from omni_gym.trajectories import (
     Circle,
     FigureEight,

@@ -1,4 +1,4 @@
-"""Validation of the pymunk world against the independent reference integration (omni_gym.reference).
+"""Validation of the pymunk world against the independent reference integration (omni_gym.analysis.reference).
 
 The reference integrates the same slip model with an error-controlled stiff solver (rtol 1e-10,
 atol 1e-12) and restarts exactly at every command change and roller/rigid-material switch, so its
@@ -21,10 +21,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from omni_gym.friction import Surface
-from omni_gym.model import SimModel, load_model
-from omni_gym.reference import reference_trajectory
-from omni_gym.world import DEFAULT_DT, World
+from omni_gym.analysis.reference import reference_trajectory
+from omni_gym.physics.friction import Surface
+from omni_gym.physics.model import SimModel, load_model
+from omni_gym.physics.world import DEFAULT_DT, World
 
 DT_SAMPLE = 0.01  # s, comparison grid (20 world substeps of 0.5 ms)
 DURATION = 2.0  # s, length of every manoeuvre

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from omni_gym.friction import Surface
-from omni_gym.liftoff import ContactProcess
-from omni_gym.model import Actuation, SimModel, load_model
-from omni_gym.robot import phunopas2018
-from omni_gym.world import SWITCH_HORIZON_TICKS, Arena, World, switch_tick
+from omni_gym.physics.friction import Surface
+from omni_gym.physics.liftoff import ContactProcess
+from omni_gym.physics.model import Actuation, SimModel, load_model
+from omni_gym.physics.robot import phunopas2018
+from omni_gym.physics.world import SWITCH_HORIZON_TICKS, Arena, World, switch_tick
 
 
 def twist_commands(model, twist):

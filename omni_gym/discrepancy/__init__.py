@@ -4,7 +4,7 @@ Modules (each one job):
 
 * :mod:`.dataset`: the dataset folder format (a contract, ``docs/formats.md``): read, validate, write.
 * :mod:`.synth`: datasets with a hidden effect, for testing the workflow where the truth is known.
-* :mod:`.simulate`: batched simulation of runs × candidate models in one :class:`~omni_gym.world.World`.
+* :mod:`.simulate`: batched simulation of runs × candidate models in one :class:`~omni_gym.physics.world.World`.
 * :mod:`.outliers`: tracker outliers, single pose rows no motion and no tracker noise can explain.
 * :mod:`.localise`: where the nominal model's residuals concentrate (multiple shooting).
 * :mod:`.residuals`: shooting windows, per-run SSE, the decision metric, the noise estimate.

@@ -25,7 +25,7 @@ import numpy as np
 
 from omni_gym import outputs
 from omni_gym.io import InputError, check_times, parse_cell, read_csv_rows
-from omni_gym.model import SimModel, read_json
+from omni_gym.physics.model import SimModel, read_json
 
 
 @dataclass

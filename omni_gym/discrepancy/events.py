@@ -1,6 +1,6 @@
 """Lift-event inference for the stochastic ``wheel_liftoff`` candidate.
 
-Lift-off is a random process (:class:`omni_gym.liftoff.ContactProcess`); a dataset holds one
+Lift-off is a random process (:class:`omni_gym.physics.liftoff.ContactProcess`); a dataset holds one
 realisation of it, which no rate pair can reproduce by simulation. The held-out likelihood of the
 rates marginalises the unobserved events. We approximate that integral by its largest term (MAP /
 Laplace): the most likely event sequence of each run, plus a BIC cost of 3·ln N per inferred event
@@ -49,7 +49,7 @@ import numpy as np
 
 from omni_gym.discrepancy.residuals import geo_mse, run_sse, shooting_windows
 from omni_gym.discrepancy.simulate import Job, pose_residual, simulate_poses
-from omni_gym.liftoff import OVERLAP_TOL, contact_cases
+from omni_gym.physics.liftoff import OVERLAP_TOL, contact_cases
 
 GRID_DT = 0.05  # s: start grid of the window search (half the shortest duration)
 DURATIONS = (0.05, 0.1, 0.2, 0.4)  # s: coarse lifted durations (mean holding 1/recover_rate ~ 0.2 s)

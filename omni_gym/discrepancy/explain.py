@@ -29,7 +29,7 @@ from omni_gym.discrepancy.dataset import Dataset
 from omni_gym.discrepancy.events import PARAMS_PER_EVENT, EventFit, infer_events
 from omni_gym.discrepancy.residuals import count_components, noise_estimate, run_sse, shooting_windows
 from omni_gym.discrepancy.simulate import FIT_DT, Job, pose_residual, simulate_poses
-from omni_gym.model import SimModel
+from omni_gym.physics.model import SimModel
 
 RULES = {
     "significance": 0.95,  # bootstrap share of run resamples in which the candidate beats nominal

@@ -28,7 +28,7 @@ import numpy as np
 from omni_gym.checks import wrap_angle
 from omni_gym.discrepancy.dataset import Dataset, Run
 from omni_gym.discrepancy.simulate import FIT_DT, Job, pose_residual, simulate_jobs
-from omni_gym.model import SimModel
+from omni_gym.physics.model import SimModel
 
 WINDOW = 0.5  # s, shooting window: long enough to show an error growing above tracker noise
 PHASE_BINS = 8

@@ -14,8 +14,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from omni_gym.loads import static_loads
-from omni_gym.model import SimModel
+from omni_gym.physics.loads import static_loads
+from omni_gym.physics.model import SimModel
 
 # Effect → parameter → unit (every key of model.EFFECT_PARAMS).
 UNITS: dict[str, dict[str, str]] = {
@@ -73,7 +73,7 @@ RANGES: dict[str, dict[str, Range]] = {
                                          "unloading (a centre-of-mass offset), not a lift"),
     },
 }
-# com_offset is judged by its effect on the wheel loads (static balance, omni_gym.loads), which
+# com_offset is judged by its effect on the wheel loads (static balance, omni_gym.physics.loads), which
 # relates the offset to the wheelbase whatever the wheel layout.
 COM_MIN_LOAD_SHARE = 1.0 / 3.0
 COM_WHY = ("a centre of mass that leaves a wheel less than a third of its equal load share is a large fraction of "

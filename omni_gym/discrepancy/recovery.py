@@ -15,7 +15,7 @@ import numpy as np
 
 from omni_gym.discrepancy.synth import write_synthetic
 from omni_gym.discrepancy.workflow import gap
-from omni_gym.model import SimModel, load_model
+from omni_gym.physics.model import SimModel, load_model
 
 # Two sizes of every library effect on the Williams robot (carpet, initial friction): "large" is
 # the default of omni-gym synth (roller_gap: the paper's carpet values), "small" about half of it.

@@ -13,7 +13,7 @@ from omni_gym.discrepancy.dataset import Dataset
 from omni_gym.discrepancy.finite import dumps_strict
 from omni_gym.discrepancy.plausible import UNITS
 from omni_gym.discrepancy.simulate import Job, simulate_jobs
-from omni_gym.model import SimModel
+from omni_gym.physics.model import SimModel
 
 PLOTTED_RUNS = 4
 

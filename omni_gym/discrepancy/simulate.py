@@ -1,4 +1,4 @@
-"""Batched simulation of runs × candidate models in one :class:`~omni_gym.world.World`.
+"""Batched simulation of runs × candidate models in one :class:`~omni_gym.physics.world.World`.
 
 Every robot of the world is one *job*: a run (or a window of it) replayed with its own model. All
 robots step together, so the per-substep Python overhead is paid once for the whole batch; fitting
@@ -13,9 +13,9 @@ import numpy as np
 
 from omni_gym.checks import wrap_angle
 from omni_gym.discrepancy.dataset import Run
-from omni_gym.liftoff import ContactProcess, ScheduledContactProcess
-from omni_gym.model import SimModel
-from omni_gym.world import World
+from omni_gym.physics.liftoff import ContactProcess, ScheduledContactProcess
+from omni_gym.physics.model import SimModel
+from omni_gym.physics.world import World
 
 FIT_DT = 0.001  # s: physics substep used for fitting (docs/discrepancy.md: vs 0.5 ms, far below tracker noise)
 
@@ -28,7 +28,7 @@ class Job:
     wheel angles (n,) [rad] and wheel speeds (n,) [rad/s] at row k0; default: at rest at the run's
     start pose with zero wheel angles. ``seed`` draws the wheel_liftoff contact process.
     ``schedule`` (optional): lift events (t_start [s], t_end [s], case) on the job's clock (0 at row
-    k0), replayed by :class:`~omni_gym.liftoff.ScheduledContactProcess` instead of the
+    k0), replayed by :class:`~omni_gym.physics.liftoff.ScheduledContactProcess` instead of the
     random process (used to replay inferred events).
     ``drag`` [N·s/m]: a viscous force −drag·v on the centre of mass (not a library effect: used to
     make data the library cannot explain).

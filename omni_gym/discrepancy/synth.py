@@ -22,9 +22,9 @@ import numpy as np
 from omni_gym.bounds import CLI
 from omni_gym.discrepancy.dataset import Run, write_dataset
 from omni_gym.discrepancy.simulate import Job, simulate_jobs
-from omni_gym.model import EFFECT_PARAMS, SimModel
 from omni_gym.outputs import Output
-from omni_gym.world import DEFAULT_DT
+from omni_gym.physics.model import EFFECT_PARAMS, SimModel
+from omni_gym.physics.world import DEFAULT_DT
 
 RATE = 50.0  # Hz, command and tracker rows
 COUNTS_PER_REV = 2048

@@ -28,8 +28,8 @@ from omni_gym.discrepancy.outliers import OUTLIER_RULE, drop_outliers, find_outl
 from omni_gym.discrepancy.residuals import count_components, geo_mse
 from omni_gym.discrepancy.simulate import FIT_DT
 from omni_gym.discrepancy.synth import pose_lever
-from omni_gym.liftoff import contact_cases
 from omni_gym.outputs import Output
+from omni_gym.physics.liftoff import contact_cases
 
 METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2)), M the geometric mean over runs "
           "(weighted by observed rows) of each run's mean squared residual over x, y and heading x lever; each run is "

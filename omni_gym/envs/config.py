@@ -24,12 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.bounds import Bound
+from omni_gym.bounds import RATE_MAX, Bound
 from omni_gym.checks import is_number
-from omni_gym.friction import FRICTION_MODELS, SURFACES, Surface
-from omni_gym.liftoff import RATE_MAX
-from omni_gym.model import ACTUATIONS, SimModel, read_json
-from omni_gym.robot import PRESETS, robot_preset
+from omni_gym.physics.friction import FRICTION_MODELS, SURFACES, Surface
+from omni_gym.physics.model import ACTUATIONS, SimModel, read_json
+from omni_gym.physics.robot import PRESETS, robot_preset
 from omni_gym.sensors import SensorConfig
 
 TASKS = ("path", "goto")
@@ -42,10 +41,10 @@ RESET_OPTIONS: tuple[str, ...] = ()  # reset(options=...) keys the environments 
 
 MAX_EPISODE_STEPS = 1_000_000  # reference tables: 48 bytes per step and robot (48 MB at the bound)
 MAX_OBSTACLES = 1000  # each is a pymunk shape in every robot's arena
-MAX_RATE = RATE_MAX  # 1/s: a mean holding time of 1 ms, two default physics substeps (omni_gym.liftoff)
+MAX_RATE = RATE_MAX  # 1/s: a mean holding time of 1 ms, two default physics substeps (omni_gym.physics.liftoff)
 WHEEL_COUNT = (3, 16)  # a planar omni robot needs 3 wheels; more than 16 is not a wheel layout of this kind
 MIN_OBSTACLE_RADIUS = 0.001  # m
-WALL_RADIUS = 0.01  # m, thickness of the wall segments (omni_gym.world)
+WALL_RADIUS = 0.01  # m, thickness of the wall segments (omni_gym.physics.world)
 
 
 # Reasons: docs/bounds.md, "Environment keywords" (the bound class is omni_gym.bounds.Bound).
@@ -240,7 +239,7 @@ def _read_model_file(value) -> SimModel:
     path = Path(os.fsdecode(value))
     label = f"model={str(path)!r}"  # the whole path (repr of a str is one line)
     try:
-        data = read_json(path)  # the one JSON file reader (omni_gym.model)
+        data = read_json(path)  # the one JSON file reader (omni_gym.physics.model)
     except ValueError as exc:
         raise ValueError(f"invalid {label}: {str(exc).removeprefix(f'{path}: ')}") from None
     return _model_from_json(data, label)

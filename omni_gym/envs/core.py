@@ -1,6 +1,6 @@
 """The batched engine behind both the single and the vectorised environments.
 
-``TaskCore`` holds B robots in one :class:`~omni_gym.world.World` and does, for all of them at once:
+``TaskCore`` holds B robots in one :class:`~omni_gym.physics.world.World` and does, for all of them at once:
 action → wheel commands, one control period of physics, observations, rewards and flags. A single
 environment is a core with B = 1, so the vectorised environment reproduces N single environments
 exactly: every per-robot quantity is computed by the same code on the same numbers, every random
@@ -31,11 +31,11 @@ from omni_gym.envs.observations import (  # noqa: F401  (LOOKAHEAD_SECONDS, ACC_
     state_offsets,
 )
 from omni_gym.envs.references import draw_reference
-from omni_gym.kernel import WH_CMD
-from omni_gym.liftoff import ContactProcess
-from omni_gym.model import SP_CX, SP_CY, Actuation
+from omni_gym.physics.layout import SP_CX, SP_CY, WH_CMD
+from omni_gym.physics.liftoff import ContactProcess
+from omni_gym.physics.model import Actuation
+from omni_gym.physics.world import Arena, World
 from omni_gym.sensors import SensorSuite
-from omni_gym.world import Arena, World
 
 # Reward weights (docs/environments.md): r = W_POS·exp(−e/E_POS) + W_HEAD·exp(−|eθ|/E_HEAD) − W_EFFORT·mean(a²)
 W_POS, E_POS, W_HEAD, E_HEAD, W_EFFORT = 0.7, 0.1, 0.3, 0.3, 0.05
@@ -343,7 +343,7 @@ class RobotEnvAttributes:
 
     @property
     def robot(self):
-        """The robot (:class:`omni_gym.robot.RobotSpec`: wheel layout, radii, mass) of the base model."""
+        """The robot (:class:`omni_gym.physics.robot.RobotSpec`: wheel layout, radii, mass) of the base model."""
         return self.core.robot
 
     @property

@@ -26,7 +26,7 @@ from types import ModuleType
 import numpy as np
 
 from omni_gym.envs.config import EnvConfig
-from omni_gym.robot import RobotSpec
+from omni_gym.physics.robot import RobotSpec
 
 SIZE = 600  # px, default canvas width and height
 PAD = 8  # px around the arena

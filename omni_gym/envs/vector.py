@@ -23,12 +23,12 @@ from gymnasium.vector.utils import batch_space
 
 from omni_gym.envs.config import check_reset_options, check_seed, is_number, make_config
 from omni_gym.envs.core import OBS_CLIP, RobotEnvAttributes, TaskCore, as_actions
-from omni_gym.world import ARENA_ROOM
+from omni_gym.physics.world import ARENA_ROOM
 
 
 def max_robots(arena_half_size: float) -> int:
     """How many robots one space holds: arenas are laid out along x, each ``2^ceil(log2(2h + 4))`` m wide,
-    within ``ARENA_ROOM`` (the rule of :class:`omni_gym.world.World`)."""
+    within ``ARENA_ROOM`` (the rule of :class:`omni_gym.physics.world.World`)."""
     spacing = 2.0 ** math.ceil(math.log2(2.0 * arena_half_size + 4.0))
     return int(ARENA_ROOM // spacing) - 1
 

@@ -10,8 +10,8 @@ The JSON form is a contract read by the CLI and the discrepancy workflow (``docs
 
 Effects are extensions of the nominal model. Most only change the numbers the force kernel reads
 (:meth:`SimModel.kernel_params`), so they need no change to the world; ``wheel_liftoff`` is the
-exception: it adds no kernel numbers but makes its user (``omni_gym.replay``, the environments,
-``omni_gym.discrepancy.simulate``) install a wheel contact process (:mod:`omni_gym.liftoff`) in the world.
+exception: it adds no kernel numbers but makes its user (``omni_gym.physics.replay``, the environments,
+``omni_gym.discrepancy.simulate``) install a wheel contact process (:mod:`omni_gym.physics.liftoff`) in the world.
 """
 
 from __future__ import annotations
@@ -25,17 +25,38 @@ from pathlib import Path
 import numpy as np
 
 from omni_gym.bounds import MODEL as MODEL_BOUNDS
-from omni_gym.friction import DEFAULT_K, Surface, check_friction_model, surface_preset
 from omni_gym.io import InputError, read_text
-from omni_gym.robot import GRAVITY, RobotSpec, Wheel, robot_preset
-
-# Layout of the per-robot scalar parameter vector read by the kernel.
-SP_MASS, SP_INERTIA, SP_K, SP_KIN_RATIO, SP_VS, SP_PITCH, SP_GAP, SP_CX, SP_CY, SP_TAU = range(10)
-SP_MODE, SP_KP, SP_KI, SP_TMAX, SP_JW = range(10, 15)
-N_SP = 15
-# Layout of the per-wheel parameter rows.
-WP_PX, WP_PY, WP_DX, WP_DY, WP_R, WP_MUW, WP_MUT, WP_GAPW, WP_GAPT, WP_PHASE = range(10)
-N_WP = 10
+from omni_gym.physics.friction import DEFAULT_K, Surface, check_friction_model, surface_preset
+from omni_gym.physics.layout import (
+    N_SP,
+    N_WP,
+    SP_CX,
+    SP_CY,
+    SP_GAP,
+    SP_INERTIA,
+    SP_JW,
+    SP_K,
+    SP_KI,
+    SP_KIN_RATIO,
+    SP_KP,
+    SP_MASS,
+    SP_MODE,
+    SP_PITCH,
+    SP_TAU,
+    SP_TMAX,
+    SP_VS,
+    WP_DX,
+    WP_DY,
+    WP_GAPT,
+    WP_GAPW,
+    WP_MUT,
+    WP_MUW,
+    WP_PHASE,
+    WP_PX,
+    WP_PY,
+    WP_R,
+)
+from omni_gym.physics.robot import GRAVITY, RobotSpec, Wheel, robot_preset
 
 ACTUATIONS = ("ideal", "servo")
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from omni_gym.liftoff import ContactProcess
-from omni_gym.model import Actuation, SimModel
-from omni_gym.world import DEFAULT_DT, Arena, World
+from omni_gym.physics.liftoff import ContactProcess
+from omni_gym.physics.model import Actuation, SimModel
+from omni_gym.physics.world import DEFAULT_DT, Arena, World
 
 
 def simulate_commands(model: SimModel, times: np.ndarray, commands: np.ndarray, dt: float = DEFAULT_DT,

@@ -17,7 +17,7 @@ Wheels are ideal velocity sources: wheel i turns at its commanded speed w_i (pie
 and its angle φ_i = ∫ w_i dt is piecewise linear. In the ``roller_gap`` friction model the wheel
 rests on rigid material while |(φ_i mod p) − p/2| < g/2 (p = 2π/rollers, g = (1 − roller_fraction)
 p) and then both coefficients are mu_gap; otherwise (and always in the ``initial`` model) they are
-mu_drive and mu_transverse. The normal loads N_i come from :func:`omni_gym.loads.wheel_loads`: equal
+mu_drive and mu_transverse. The normal loads N_i come from :func:`omni_gym.physics.loads.wheel_loads`: equal
 shares m·g/n_contact with the centre of mass at the geometric centre (the paper's assumption), static
 balance with a centre-of-mass offset.
 
@@ -35,8 +35,8 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from omni_gym.loads import wheel_loads
-from omni_gym.model import SimModel
+from omni_gym.physics.loads import wheel_loads
+from omni_gym.physics.model import SimModel
 
 SUPPORTED_EFFECTS = ("com_offset",)
 _TWO_OVER_PI = 2.0 / math.pi

@@ -14,7 +14,7 @@ Both rates lie in [0, :data:`RATE_MAX`]. A rate of 0 means that switch never hap
 keeps every wheel down; recover_rate = 0 (with lift_rate > 0) keeps a lifted wheel up until the next
 reset. A switch that never happens has ``next_switch = inf``; a tiny rate may also give a finite but
 astronomically late ``next_switch``, which the world treats as never (see
-:meth:`omni_gym.world.World._schedule_switch`).
+:meth:`omni_gym.physics.world.World._schedule_switch`).
 
 :class:`ScheduledContactProcess` is the deterministic counterpart: it replays a fixed list of lift
 events (the events inferred by :mod:`omni_gym.discrepancy.events`) through the same interface.
@@ -27,12 +27,8 @@ from numbers import Real
 
 import numpy as np
 
-# Upper bound on lift_rate and recover_rate [1/s]: a mean dwell of 1 ms, two default 0.5 ms substeps.
-# The world samples the contact mask once per substep, so faster switching is not resolved by the
-# physics (several switches fall inside one substep and only the last counts); it would only add work
-# (advance draws every switch) and has no physical meaning for a wheel leaving the floor. The same
-# bound as the environments' and model files' (omni_gym.bounds, omni_gym.envs.config).
-RATE_MAX = 1e3
+from omni_gym.bounds import RATE_MAX  # upper bound on lift_rate and recover_rate [1/s] (why: there)
+
 OVERLAP_TOL = 1e-6  # s: scheduled events closer than this count as back to back (times are rounded to 1e-6 s)
 
 

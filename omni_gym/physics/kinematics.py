@@ -1,14 +1,14 @@
 """Omni-wheel kinematics: inverse, forward (least squares) and the wheel-consistency residual.
 
 Body twist q = (vx, vy, ω): velocity [m/s] of the geometric centre in the body frame and yaw rate
-[rad/s]. Wheel speeds w [rad/s] follow the sign convention of :mod:`omni_gym.robot`.
+[rad/s]. Wheel speeds w [rad/s] follow the sign convention of :mod:`omni_gym.physics.robot`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from omni_gym.robot import RobotSpec
+from omni_gym.physics.robot import RobotSpec
 
 
 def rotation(theta: float) -> np.ndarray:

@@ -29,9 +29,9 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 from scipy.optimize import linprog
 
-from omni_gym.friction import Surface
-from omni_gym.loads import balance_loads
-from omni_gym.robot import GRAVITY, RobotSpec
+from omni_gym.physics.friction import Surface
+from omni_gym.physics.loads import balance_loads
+from omni_gym.physics.robot import GRAVITY, RobotSpec
 
 __all__ = ["max_static_force", "max_force_curve", "static_loads"]
 

@@ -6,8 +6,9 @@ and obstacles. Robot *j* lives in its own arena, offset along x, so robots never
 robot's obstacles while sharing one space (and one pymunk step).
 
 One :meth:`World.step` of duration T runs T/dt substeps. A substep reads every body's state through
-pymunk's batch API, calls the compiled force kernel (:mod:`omni_gym.kernel`) for all robots at once,
-writes the effective forces back, and steps the space. Poses, velocities and wheel states are
+pymunk's batch API (:mod:`omni_gym.physics.pymunk_batch`), calls the compiled force kernel
+(:mod:`omni_gym.physics.kernel`) for all robots at once, writes the effective forces back, and steps
+the space. Poses, velocities and wheel states are
 returned in each robot's own arena frame (origin at its arena centre).
 
 Default substep dt = 0.5 ms (20 per 10 ms control step): the convergence study
@@ -22,23 +23,26 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pymunk
-from pymunk import batch as pmbatch
 
-from omni_gym.kernel import (
+from omni_gym.physics.kernel import PARALLEL_MIN_ROBOTS, substep, substep_parallel, warm_up
+from omni_gym.physics.layout import (
+    N_SP,
     N_WH,
-    PARALLEL_MIN_ROBOTS,
+    N_WP,
+    SP_CX,
+    SP_CY,
+    SP_INERTIA,
+    SP_MASS,
     WH_ANGLE,
     WH_CMD,
     WH_INT,
     WH_LOAD,
     WH_SPEED,
-    substep,
-    substep_parallel,
-    warm_up,
 )
-from omni_gym.liftoff import ContactProcess
-from omni_gym.loads import wheel_loads
-from omni_gym.model import N_SP, N_WP, SP_INERTIA, SP_MASS, Actuation, SimModel
+from omni_gym.physics.liftoff import ContactProcess
+from omni_gym.physics.loads import wheel_loads
+from omni_gym.physics.model import Actuation, SimModel
+from omni_gym.physics.pymunk_batch import BodyBatch
 
 DEFAULT_DT = 0.0005  # s, physics substep
 # Arena j's origin is at x = ARENA_BASE + j·spacing, with spacing a power of two. All arenas then lie
@@ -218,34 +222,11 @@ class World:
                         self.collided[index[s.body]] = True
 
             space.on_collision(ROBOT_COLLISION, OBSTACLE_COLLISION, begin=begin)
-        # Batch buffers: one get of (position, angle, velocity, angular velocity) per body and one
-        # set of (force, torque). Bodies come back in insertion order.
-        self._get_fields = (pmbatch.BodyFields.POSITION | pmbatch.BodyFields.ANGLE
-                            | pmbatch.BodyFields.VELOCITY | pmbatch.BodyFields.ANGULAR_VELOCITY)
-        self._set_fields = pmbatch.BodyFields.FORCE | pmbatch.BodyFields.TORQUE
-        self._get_buf = pmbatch.Buffer()
-        self._set_buf = pmbatch.Buffer()
-        pmbatch.get_space_bodies(space, self._get_fields, self._get_buf)
-        pmbatch.get_space_bodies(space, self._set_fields, self._set_buf)
-        # The space's static body is listed too (after the dynamic ones) once it carries shapes.
-        B = self.n_robots
-        states = np.frombuffer(self._get_buf.float_buf(), dtype=np.float64).reshape(-1, 6)
-        forces = np.frombuffer(self._set_buf.float_buf(), dtype=np.float64).reshape(-1, 3)
-        self._state_view = states[:B]
-        self._force_view = forces[:B]
-        # Pre-built batch requests, called straight through pymunk's cffi library: the per-call
-        # setup in pymunk.batch costs more than the data transfer for a few robots.
-        ffi, lib = pmbatch.ffi, pmbatch.lib
-        self._get_req = ffi.new("pmBatchedData *")
-        self._get_req.fields = self._get_fields.value
-        self._get_req.floatArray = self._get_buf._float_arr
-        self._get_req.intArray = self._get_buf._int_arr
-        self._set_req = ffi.new("pmBatchedData *")
-        self._set_req.fields = self._set_fields.value
-        self._set_req.floatArray = self._set_buf._float_arr
-        self._set_req.intArray = self._set_buf._int_arr
-        self._get_iter = ffi.addressof(lib, "pmSpaceBodyGetIteratorFuncBatched")
-        self._set_iter = ffi.addressof(lib, "pmSpaceBodySetIteratorFuncBatched")
+        # One batched read of (position, angle, velocity, angular velocity) per body and one batched
+        # write of (force, torque), through the module that owns pymunk's internals.
+        self._batch = BodyBatch(space, self.n_robots)
+        self._state_view = self._batch.states
+        self._force_view = self._batch.forces
 
     def _add_arena(self, j: int) -> None:
         ox, oy = self.origins[j]
@@ -378,9 +359,7 @@ class World:
         self._next_switch_tick = int(self._switch_tick.min())
 
     def _read_state(self) -> None:
-        self._get_buf._float_arr.num = 0
-        self._get_buf._int_arr.num = 0
-        pmbatch.lib.cpSpaceEachBody(self.space._space, self._get_iter, self._get_req)
+        self._batch.read()
 
     @property
     def pose(self) -> np.ndarray:
@@ -397,7 +376,7 @@ class World:
         self._read_state()
         st = self._state_view
         theta, om = st[:, 2], st[:, 5]
-        com = self.sp[:, [7, 8]]
+        com = self.sp[:, [SP_CX, SP_CY]]
         c, s = np.cos(theta), np.sin(theta)
         rx = c * com[:, 0] - s * com[:, 1]
         ry = s * com[:, 0] + c * com[:, 1]
@@ -416,26 +395,16 @@ class World:
         dt = self.dt
         space = self.space
         space.step(0.0)  # lets pymunk check newly added bodies; later substeps call the C step directly
-        cspace = space._space
-        each_body = pmbatch.lib.cpSpaceEachBody
-        space_step = pmbatch.lib.cpSpaceStep
-        get_arr, get_int = self._get_buf._float_arr, self._get_buf._int_arr
-        set_arr = self._set_buf._float_arr
-        get_iter, get_req = self._get_iter, self._get_req
-        set_iter, set_req = self._set_iter, self._set_req
-        n_set = set_arr.num
+        batch = self._batch
+        read, write, space_step = batch.read, batch.write, batch.step
         state = self._state_view
         wheels, sp, wp, ext, force, slip = self.wheels, self.sp, self.wp, self.ext_force, self._force_view, self.slip
         kernel = self._kernel
         for _ in range(count):
             if self.tick >= self._next_switch_tick:
                 self._advance_contacts(self.tick)
-            get_arr.num = 0
-            get_int.num = 0
-            each_body(cspace, get_iter, get_req)
+            read()
             kernel(dt, state, wheels, sp, wp, ext, force, slip)
-            set_arr.num = 0
-            each_body(cspace, set_iter, set_req)
-            set_arr.num = n_set
-            space_step(cspace, dt)
+            write()
+            space_step(dt)
             self.tick += 1

@@ -23,7 +23,10 @@ from contextlib import contextmanager
 import numba
 import numpy as np
 
-from omni_gym.model import (
+from omni_gym.physics.layout import (
+    N_SP,
+    N_WH,
+    N_WP,
     SP_CX,
     SP_CY,
     SP_GAP,
@@ -39,6 +42,11 @@ from omni_gym.model import (
     SP_TAU,
     SP_TMAX,
     SP_VS,
+    WH_ANGLE,
+    WH_CMD,
+    WH_INT,
+    WH_LOAD,
+    WH_SPEED,
     WP_DX,
     WP_DY,
     WP_GAPT,
@@ -52,9 +60,6 @@ from omni_gym.model import (
 )
 
 TWO_OVER_PI = 2.0 / math.pi
-# Layout of the per-wheel state rows.
-WH_ANGLE, WH_SPEED, WH_CMD, WH_INT, WH_LOAD = range(5)
-N_WH = 5
 
 
 @numba.njit(cache=True, inline="always")
@@ -243,8 +248,8 @@ def substep(dt, state, wheels, sp, wp, ext, out_force, out_slip):
             (world) and yaw rate ω [rad/s], as pymunk's batch API lays them out.
         wheels (B, n, 5): per wheel the integrated angle [rad] and speed [rad/s] (both updated), the
             commanded speed [rad/s], the PI integrator state [rad] (servo only; updated) and the
-            normal load N_i [N] (zero for a lifted wheel); layout WH_* below.
-        sp (B, N_SP), wp (B, n, N_WP): parameters, layouts in :mod:`omni_gym.model`.
+            normal load N_i [N] (zero for a lifted wheel); layout WH_* in :mod:`omni_gym.physics.layout`.
+        sp (B, N_SP), wp (B, n, N_WP): parameters, layouts in :mod:`omni_gym.physics.layout`.
         ext (B, 3): extra generalised force (F_x, F_y [N], torque [N·m] about the centre of mass).
         out_force (B, 3): effective F_x, F_y [N] at the centre of mass and torque [N·m]; written.
         out_slip (B, n, 2): drive slip v_W and transverse velocity v_T [m/s]; written.
@@ -296,8 +301,6 @@ def warm_up(kernel=substep) -> None:
     For :func:`substep_parallel` this first call also starts numba's threads, with passive waiting
     (:func:`_passive_openmp`).
     """
-    from omni_gym.model import N_SP, N_WP
-
     z = np.zeros
     sp = z((2, N_SP))
     sp[:, SP_MASS] = sp[:, SP_INERTIA] = sp[:, SP_K] = sp[:, SP_KIN_RATIO] = sp[:, SP_VS] = sp[:, SP_PITCH] = 1.0

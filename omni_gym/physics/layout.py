@@ -1,0 +1,26 @@
+"""Every array layout shared by the model, the force kernel and the world (column indices).
+
+One home for the indices: :meth:`omni_gym.physics.model.SimModel.kernel_params` writes ``sp``/``wp``,
+:mod:`omni_gym.physics.kernel` reads them and reads/writes ``wheels``, and
+:class:`omni_gym.physics.world.World` and the environments read single fields by these names, never
+by literal offsets. Units are those of the field: SI (kg, kg·m², m, s, rad, N), body frame for
+positions and directions.
+"""
+
+from __future__ import annotations
+
+# Per-robot scalar parameter vector ``sp`` (B, N_SP), written by SimModel.kernel_params:
+# mass [kg], inertia [kg·m²], friction stiffness k [s/m], kinetic/static ratio, Stribeck speed v_s
+# [m/s], roller pitch [rad], gap width [rad], centre of mass x, y [m] (body frame), motor lag tau [s],
+SP_MASS, SP_INERTIA, SP_K, SP_KIN_RATIO, SP_VS, SP_PITCH, SP_GAP, SP_CX, SP_CY, SP_TAU = range(10)
+# actuation mode (index in ACTUATIONS), servo kp, ki, torque limit [N·m], wheel inertia [kg·m²].
+SP_MODE, SP_KP, SP_KI, SP_TMAX, SP_JW = range(10, 15)
+N_SP = 15
+# Per-wheel parameter rows ``wp`` (B, n, N_WP): position x, y [m] and drive direction (body frame),
+# radius [m], drive and transverse friction coefficients, gap coefficients, roller phase [rad].
+WP_PX, WP_PY, WP_DX, WP_DY, WP_R, WP_MUW, WP_MUT, WP_GAPW, WP_GAPT, WP_PHASE = range(10)
+N_WP = 10
+# Per-wheel state rows ``wheels`` (B, n, N_WH): angle [rad], speed [rad/s], command [rad/s],
+# servo integral [rad], normal load [N].
+WH_ANGLE, WH_SPEED, WH_CMD, WH_INT, WH_LOAD = range(5)
+N_WH = 5
