@@ -172,3 +172,21 @@ def test_the_parser_resolves_relative_and_function_level_imports(tmp_path, monke
     monkeypatch.setitem(globals(), "ROOT", tmp_path)
     monkeypatch.setitem(globals(), "PACKAGES", ("p",))
     assert import_graph()["p.a"] == {expect}
+
+
+def test_the_package_reexports_load_on_first_use_and_are_the_physics_objects():
+    """`import omni_gym` loads neither the world nor numba (import stays light); the re-exported
+    names are the very objects of their physics modules."""
+    import subprocess
+    import sys
+
+    code = ("import sys, omni_gym; print(sorted(m for m in ('omni_gym.physics.world', 'omni_gym.physics.kernel', "
+            "'numba', 'pymunk') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert out.stdout.strip() == "[]"
+    import importlib
+
+    import omni_gym
+    for name, module in omni_gym._EXPORTS.items():
+        assert getattr(omni_gym, name) is getattr(importlib.import_module(module), name)
+        assert name in omni_gym.__all__
