@@ -16,9 +16,6 @@ and friction level; see ``docs/model.md``.
 from __future__ import annotations
 
 import math
-import os
-from collections.abc import Iterator
-from contextlib import contextmanager
 
 import numba
 import numpy as np
@@ -274,35 +271,13 @@ def substep_parallel(dt, state, wheels, sp, wp, ext, out_force, out_slip):
 PARALLEL_MIN_ROBOTS = 256
 
 
-@contextmanager
-def _passive_openmp() -> Iterator[None]:
-    """``OMP_WAIT_POLICY=PASSIVE`` (unless the user set it) while numba starts its threads, then restored.
-
-    numba's threading layer here is ``omp`` (GNU libgomp; ``numba.threading_layer()`` after a parallel
-    call; tbb is not installed). libgomp reads ``OMP_WAIT_POLICY`` once, when numba loads it at the
-    first parallel call, so setting it just for that call is enough. Passive threads sleep instead of
-    spinning while they wait: on a shared 2-core machine spinning threads made a loaded run 40x slower
-    (passive: 2x faster than serial). The variable is restored afterwards so the process's other
-    OpenMP users (torch loads its own libgomp) keep their own setting; it used to be set when
-    ``omni_gym`` was imported. If numba's threads already run, this changes nothing.
-    """
-    previous = os.environ.get("OMP_WAIT_POLICY")
-    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-    try:
-        yield
-    finally:
-        if previous is None:
-            os.environ.pop("OMP_WAIT_POLICY", None)
-
-
 def warm_up(kernel=substep) -> None:
     """Compile (or load from cache) ``kernel`` on tiny inputs, so the first real step is not slow.
 
-    For :func:`substep_parallel` this first call also starts numba's threads, with passive waiting
-    (:func:`_passive_openmp`).
+    For :func:`substep_parallel` this first call may also start numba's OpenMP threads, which wait
+    passively (``OMP_WAIT_POLICY``, set when ``omni_gym`` is imported: see ``omni_gym/__init__.py``).
     """
     z = np.zeros
     sp = z((2, N_SP))
     sp[:, SP_MASS] = sp[:, SP_INERTIA] = sp[:, SP_K] = sp[:, SP_KIN_RATIO] = sp[:, SP_VS] = sp[:, SP_PITCH] = 1.0
-    with _passive_openmp():
-        kernel(1e-3, z((2, 6)), z((2, 3, N_WH)), sp, z((2, 3, N_WP)), z((2, 3)), z((2, 3)), z((2, 3, 2)))
+    kernel(1e-3, z((2, 6)), z((2, 3, N_WH)), sp, z((2, 3, N_WP)), z((2, 3)), z((2, 3)), z((2, 3, 2)))
