@@ -89,16 +89,18 @@ def _fmt(x: float, integer: bool = False) -> str:
     return f"{mantissa}e{int(exponent)}" if exponent else mantissa
 
 
-# Reasons shared by several rows.
-_MU = ("real wheel-floor pairs stay below about 2 (`grip` uses 2 for no slip); up to 10 the implicit "
+# Reasons shared by several rows (also by the effect parameters, omni_gym.physics.effects).
+MU_REASON = ("real wheel-floor pairs stay below about 2 (`grip` uses 2 for no slip); up to 10 the implicit "
        "step stays stable (stiffness N·μ·(2/π)·k/m ≤ 6·10⁴ /s; above μ ≈ 5 use dt ≤ 0.25 ms, docs/model.md)")
 _LENGTH = ("a robot larger than 20 m across is not a wheeled base of this kind; also keeps every lever "
            "arm far inside float range")
-_RATE = ("as the environments' `lift_rate`: any tiny rate is safe (a switch beyond the run is never "
+RATE_REASON = ("as the environments' `lift_rate`: any tiny rate is safe (a switch beyond the run is never "
          "scheduled, docs/model.md); above 1000 /s a wheel switches within two 0.5 ms substeps, faster than "
          "the contact model resolves")
 
 # --- Model JSON (`--model FILE.json`, `dataset.json`, `gym.make(..., model=...)`) -------------------
+# The effect parameters' rows (`effects.EFFECT.KEY`) live with their effects (omni_gym.physics.effects);
+# omni_gym.physics.model.MODEL_BOUNDS is this table followed by them, as docs/bounds.md shows it.
 
 MODEL: dict[str, Bound] = {b.name: b for b in (
     Bound("mass", 1e-3, 1e4, "kg", "a 1 g micro-robot to a 10 t industrial omnidirectional platform; "
@@ -115,27 +117,11 @@ MODEL: dict[str, Bound] = {b.name: b for b in (
           "roller pitch 2π/rollers stays far above the wheel's turn in one substep", integer=True),
     Bound("roller_fraction", 0.0, 1.0, "", "share of each roller pitch covered by roller", lo_open=True),
     Bound("body_radius", 1e-3, 20.0, "m", "collision disc; " + _LENGTH),
-    Bound("surface.mu_drive", 0.0, 10.0, "", _MU),
-    Bound("surface.mu_transverse", 0.0, 10.0, "", _MU),
-    Bound("surface.mu_gap", 0.0, 10.0, "", _MU),
+    Bound("surface.mu_drive", 0.0, 10.0, "", MU_REASON),
+    Bound("surface.mu_transverse", 0.0, 10.0, "", MU_REASON),
+    Bound("surface.mu_gap", 0.0, 10.0, "", MU_REASON),
     Bound("surface.k", 1.0, 1e4, "s/m", "below 1 s/m the law gives half its limit at 1 m/s slip, no longer "
           "Coulomb friction; above 10⁴ (10x the paper's 1000) the 0.5 ms step does not resolve it"),
-    Bound("effects.roller_gap.mu_gap", 0.0, 10.0, "", _MU),
-    Bound("effects.roller_gap.roller_fraction", 0.0, 1.0, "", "as roller_fraction", lo_open=True),
-    Bound("effects.roller_gap.phase", -2 * math.pi, 2 * math.pi, "rad", "per wheel; one wheel turn: every "
-          "phase equals one within a pitch ≤ 2π"),
-    Bound("effects.kinetic_friction.ratio", 0.0, 1.0, "", "μ_k/μ_s: kinetic friction is at most static "
-          "friction (the effect is a drop from static to kinetic)"),
-    Bound("effects.kinetic_friction.v_s", 1e-4, 10.0, "m/s", "Stribeck speeds are about 1 mm/s to 0.1 m/s; "
-          "must be > 0 (the law divides by it)"),
-    Bound("effects.com_offset.com", -10.0, 10.0, "m", "each coordinate, as com"),
-    Bound("effects.wheel_radius.scale", 0.5, 2.0, "", "per wheel; a wheel whose rolling radius differs by "
-          "a factor 2 from its nominal radius is another wheel"),
-    Bound("effects.motor_lag.tau", 0.0, 10.0, "s", "a drive that needs more than 10 s to follow its "
-          "command is not a velocity source"),
-    Bound("effects.wheel_liftoff.lift_rate", 0.0, RATE_MAX, "1/s", "0 disables lift-off; " + _RATE),
-    Bound("effects.wheel_liftoff.recover_rate", 0.0, RATE_MAX, "1/s", "0 keeps a lifted wheel up until the end "
-          "of the run; " + _RATE),
 )}
 
 # --- Command and dataset files -------------------------------------------------------------------
@@ -177,7 +163,8 @@ CLI: dict[str, Bound] = {b.name: b for b in (
           "explicitly at the 0.5 ms step, stable while c·dt/m < 2; 1000 /s keeps c·dt/m ≤ 0.5"),
 )}
 
-SECTIONS: dict[str, dict[str, Bound]] = {"model": MODEL, "files": FILES, "cli": CLI}
+# The model table of docs/bounds.md is omni_gym.physics.model.MODEL_BOUNDS (this MODEL and the effects' rows).
+SECTIONS: dict[str, dict[str, Bound]] = {"files": FILES, "cli": CLI}
 
 
 def markdown_table(table: dict[str, Bound]) -> str:

@@ -16,6 +16,23 @@ def is_number(value) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
 
 
+def json_number(value, name: str) -> float:
+    """``value`` as a float if it is a finite JSON number (not a bool); ValueError naming ``name``.
+
+    The validator of numbers read from model files: unlike :func:`finite_scalar` it refuses strings
+    and bools (a JSON ``"1"`` or ``true`` is a typo there, not a number).
+    """
+    if not is_number(value):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    try:
+        x = float(value)
+    except OverflowError:  # a JSON integer beyond float range
+        raise ValueError(f"{name} must be finite, got an integer of {len(str(abs(value)))} digits") from None
+    if not math.isfinite(x):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return x
+
+
 def finite_scalar(name: str, value: float) -> float:
     """``value`` as a float; ValueError naming ``name`` if it is not a finite real number."""
     try:

@@ -3,6 +3,8 @@
 Every module of ``omni_gym/`` and ``agents/`` is parsed with ``ast``; every import counts, at module
 level and inside functions (a function-level import runs too, it only runs later), relative imports
 resolved. ``from pkg import name`` is an edge to the module ``pkg.name`` when it is one, else to ``pkg``.
+Imports in the body of ``if TYPE_CHECKING:`` do not count: they never run, they only name types for
+annotations (an effect's hooks take the model they change as an argument, typed by such an import).
 
 Layers (a module belongs to the longest prefix in :data:`LAYERS` that names it), bottom up:
 
@@ -68,13 +70,27 @@ def _known(name: str, modules: dict) -> str | None:
     return name or None
 
 
+def _is_type_checking(test: ast.expr) -> bool:
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+
+
+def runtime_nodes(tree: ast.AST) -> list[ast.AST]:
+    """Every node of ``tree`` except those in the body of an ``if TYPE_CHECKING:`` block."""
+    skip: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and _is_type_checking(node.test):
+            skip |= {id(n) for child in node.body for n in ast.walk(child)}
+    return [n for n in ast.walk(tree) if id(n) not in skip]
+
+
 def import_graph() -> dict[str, set[str]]:
     """Module -> the package modules it imports (anywhere in its body)."""
     modules = _modules()
     graph = {}
     for mod, (path, is_pkg) in modules.items():
         targets: set[str] = set()
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+        for node in runtime_nodes(ast.parse(path.read_text(encoding="utf-8"), str(path))):
             if isinstance(node, ast.Import):
                 targets |= {_known(a.name, modules) for a in node.names}
             elif isinstance(node, ast.ImportFrom):
@@ -127,6 +143,13 @@ def upward_imports(graph: dict[str, set[str]]) -> list[str]:
             if allowed is not None and layer(t) not in allowed and (mod, layer(t)) not in ALLOWED_UP:
                 bad.append(f"{mod} ({layer(mod)}) imports {t} ({layer(t)})")
     return bad
+
+
+def test_type_checking_imports_are_skipped_and_only_those():
+    src = ("from typing import TYPE_CHECKING\nimport a\nif TYPE_CHECKING:\n    import b\nelse:\n    import c\n"
+           "def f():\n    import d\n")
+    names = {a.name for n in runtime_nodes(ast.parse(src)) if isinstance(n, ast.Import) for a in n.names}
+    assert names == {"a", "c", "d"}
 
 
 def test_no_import_cycle():

@@ -308,22 +308,23 @@ DOCS = Path(__file__).resolve().parent.parent / "docs"
 
 def test_every_bound_in_code_is_the_table_in_docs_bounds_md():
     from omni_gym.bounds import SECTIONS, markdown_table
+    from omni_gym.physics.model import MODEL_BOUNDS
 
     text = (DOCS / "bounds.md").read_text()
-    for name, table in SECTIONS.items():
+    for name, table in {"model": MODEL_BOUNDS, **SECTIONS}.items():
         assert markdown_table(table) in text, f"docs/bounds.md: the {name} table differs from omni_gym/bounds.py"
 
 
 def test_every_physical_model_input_has_a_bound():
-    from omni_gym.bounds import MODEL
-    from omni_gym.physics.model import EFFECT_PARAMS
+    from omni_gym.physics.effects import REGISTRY
+    from omni_gym.physics.model import MODEL_BOUNDS
 
     data = load_model("williams2002").to_json()
     numeric = [k for k, v in data.items() if isinstance(v, (int, float))]
     numeric += [f"surface.{k}" for k, v in data["surface"].items() if isinstance(v, (int, float))]
     numeric += ["wheels[i].position", "wheels[i].drive (length)", "com"]
-    numeric += [f"effects.{e}.{k}" for e, keys in EFFECT_PARAMS.items() for k in keys]
-    assert sorted(numeric) == sorted(MODEL)
+    numeric += [f"effects.{name}.{k}" for name, effect in REGISTRY.items() for k in effect.keys]
+    assert sorted(numeric) == sorted(MODEL_BOUNDS)
 
 
 def test_every_surface_is_in_the_docs_table_with_its_coefficients():

@@ -13,7 +13,7 @@ import numpy as np
 
 from omni_gym.checks import wrap_angle
 from omni_gym.discrepancy.dataset import Run
-from omni_gym.physics.liftoff import ContactProcess, ScheduledContactProcess
+from omni_gym.physics.liftoff import ScheduledContactProcess
 from omni_gym.physics.model import SimModel
 from omni_gym.physics.world import World
 
@@ -49,13 +49,13 @@ def simulate_jobs(jobs: list[Job], dt: float = FIT_DT) -> list[tuple[np.ndarray,
     world = World([j.model for j in jobs], dt=dt)
     B, n = len(jobs), world.n_wheels
     for b, job in enumerate(jobs):
-        fx = job.model.effects.get("wheel_liftoff")
         if job.schedule is not None:
             if job.schedule:
                 world.set_contact_process(b, ScheduledContactProcess(n, job.schedule))
-        elif fx is not None and fx["lift_rate"] > 0:
-            world.set_contact_process(b, ContactProcess(n, fx["lift_rate"], fx["recover_rate"],
-                                                        np.random.default_rng(job.seed)))
+        else:
+            process = job.model.contact_process(np.random.default_rng(job.seed))
+            if process is not None:
+                world.set_contact_process(b, process)
     ends = [j.k1 % len(j.run.t) for j in jobs]
     starts = np.array([j.run.start_pose if j.state0 is None else j.state0[0] for j in jobs])
     world.reset(starts)

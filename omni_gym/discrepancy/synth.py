@@ -23,6 +23,7 @@ from omni_gym.bounds import CLI
 from omni_gym.discrepancy.dataset import Run, write_dataset
 from omni_gym.discrepancy.simulate import Job, simulate_jobs
 from omni_gym.outputs import Output
+from omni_gym.physics.effects import REGISTRY
 from omni_gym.physics.model import EFFECT_PARAMS, SimModel
 from omni_gym.physics.world import DEFAULT_DT
 
@@ -30,6 +31,7 @@ RATE = 50.0  # Hz, command and tracker rows
 COUNTS_PER_REV = 2048
 # Effects outside the library that synth can hide (to test the `unexplained` outcome).
 EXTRA_EFFECTS = {"viscous_drag": ("c",)}
+EXTRA_DEFAULTS = {"viscous_drag": {"c": 4.0}}  # N·s/m
 
 
 def pose_lever(model: SimModel) -> float:
@@ -38,27 +40,11 @@ def pose_lever(model: SimModel) -> float:
 
 
 def default_params(name: str, model: SimModel, rng: np.random.Generator) -> dict:
-    """Moderate default parameters of a hidden effect (roller phases drawn from ``rng``)."""
-    n = model.n_wheels
-    if name == "roller_gap":
-        pitch = 2 * math.pi / model.robot.rollers
-        return {"mu_gap": model.surface.mu_gap, "roller_fraction": model.robot.roller_fraction,
-                "phase": [float(v) for v in rng.uniform(0, pitch, n)]}
-    if name == "kinetic_friction":
-        return {"ratio": 0.6, "v_s": 0.02}
-    if name == "com_offset":
-        return {"com": [0.015, -0.01]}
-    if name == "wheel_radius":
-        scale = np.ones(n)
-        scale[1] = 0.95
-        return {"scale": [float(v) for v in scale]}
-    if name == "motor_lag":
-        return {"tau": 0.08}
-    if name == "wheel_liftoff":
-        return {"lift_rate": 0.5, "recover_rate": 5.0}
-    if name == "viscous_drag":
-        return {"c": 4.0}
-    return {}
+    """Moderate default parameters of a hidden effect (the library's own defaults; random draws such as
+    roller phases from ``rng``)."""
+    if name in REGISTRY:
+        return REGISTRY[name].synth_default(model, rng)
+    return dict(EXTRA_DEFAULTS.get(name, {}))
 
 
 def parse_hidden(spec: str, model: SimModel, rng: np.random.Generator) -> tuple[str, dict]:

@@ -26,6 +26,7 @@ import numpy as np
 
 from omni_gym.bounds import RATE_MAX, Bound
 from omni_gym.checks import is_number
+from omni_gym.physics import effects as effect_library
 from omni_gym.physics.friction import FRICTION_MODELS, SURFACES, Surface
 from omni_gym.physics.model import ACTUATIONS, SimModel, read_json
 from omni_gym.physics.robot import PRESETS, robot_preset
@@ -382,9 +383,10 @@ def randomized_model(cfg: EnvConfig, base: SimModel, rng: np.random.Generator) -
         surf = base.surface
         model = replace(model, surface=Surface(surf.name, surf.mu_drive * s, surf.mu_transverse * s,
                                                surf.mu_gap * s, surf.k))
-        if "roller_gap" in model.effects:
-            gap = model.effects["roller_gap"]
-            model = model.with_effect("roller_gap", {**gap, "mu_gap": gap["mu_gap"] * s})
+        for name, params in base.effects.items():  # effects with friction coefficients (roller_gap)
+            scaled = effect_library.get(name).scale_friction(params, s)
+            if scaled is not params:
+                model = model.with_effect(name, scaled)
     if cfg.randomize_mass is not None:
         s = float(rng.uniform(*cfg.randomize_mass))
         model = replace(model, robot=model.robot.with_changes(mass=base.robot.mass * s,

@@ -8,6 +8,7 @@ imports no environment, discrepancy, agent or command-line code (``tests/test_ar
 * :mod:`.loads`: normal load per wheel from the centre of mass and the contact set.
 * :mod:`.liftoff`: random and scheduled wheel contact processes.
 * :mod:`.model`: :class:`~.model.SimModel` (robot + surface + effects) and its JSON form.
+* :mod:`.effects`: the effect library, one module per model effect, and its registry.
 * :mod:`.layout`: every column index of the kernel's arrays.
 * :mod:`.kernel`: the numba force kernel of one substep.
 * :mod:`.pymunk_batch`: pymunk's batch internals, behind a checked version range.

@@ -8,24 +8,26 @@ The JSON form is a contract read by the CLI and the discrepancy workflow (``docs
      "surface": {"name", "mu_drive", "mu_transverse", "mu_gap", "k"},
      "effects": {EFFECT: {params}, ...}}
 
-Effects are extensions of the nominal model. Most only change the numbers the force kernel reads
-(:meth:`SimModel.kernel_params`), so they need no change to the world; ``wheel_liftoff`` is the
-exception: it adds no kernel numbers but makes its user (``omni_gym.physics.replay``, the environments,
-``omni_gym.discrepancy.simulate``) install a wheel contact process (:mod:`omni_gym.physics.liftoff`) in the world.
+Effects are extensions of the nominal model, each defined in one module of
+:mod:`omni_gym.physics.effects` (its parameters, their bounds and validation, and what it changes).
+An effect changes the numbers the force kernel reads (:meth:`SimModel.kernel_params`), or supplies a
+wheel contact process that the world's user installs (:meth:`SimModel.contact_process`: ``replay``,
+the environments, ``omni_gym.discrepancy.simulate``), or both.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import numbers
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from omni_gym.bounds import MODEL as MODEL_BOUNDS
+from omni_gym import bounds
+from omni_gym.checks import json_number
 from omni_gym.io import InputError, read_text
+from omni_gym.physics import effects as effect_library
 from omni_gym.physics.friction import DEFAULT_K, Surface, check_friction_model, surface_preset
 from omni_gym.physics.layout import (
     N_SP,
@@ -56,19 +58,15 @@ from omni_gym.physics.layout import (
     WP_PY,
     WP_R,
 )
+from omni_gym.physics.liftoff import ContactProcess
 from omni_gym.physics.robot import GRAVITY, RobotSpec, Wheel, robot_preset
 
 ACTUATIONS = ("ideal", "servo")
 
-# Effect name → allowed parameter keys (all required unless they have a default below).
-EFFECT_PARAMS: dict[str, tuple[str, ...]] = {
-    "roller_gap": ("mu_gap", "roller_fraction", "phase"),
-    "kinetic_friction": ("ratio", "v_s"),
-    "com_offset": ("com",),
-    "wheel_radius": ("scale",),
-    "motor_lag": ("tau",),
-    "wheel_liftoff": ("lift_rate", "recover_rate"),
-}
+# Effect name → its parameter keys (all required), from the effect library.
+EFFECT_PARAMS: dict[str, tuple[str, ...]] = {name: e.keys for name, e in effect_library.REGISTRY.items()}
+# Every bound of a model file: the nominal model's (omni_gym.bounds.MODEL), then the effects' parameters.
+MODEL_BOUNDS = {**bounds.MODEL, **effect_library.bounds()}
 
 
 @dataclass(frozen=True)
@@ -124,52 +122,52 @@ class SimModel:
 
     @property
     def com(self) -> np.ndarray:
-        """Centre of mass [m], body frame, after the ``com_offset`` effect."""
-        if "com_offset" in self.effects:
-            return np.asarray(self.effects["com_offset"]["com"], dtype=float)
-        return np.asarray(self.robot.com, dtype=float)
+        """Centre of mass [m], body frame, after the effects (``com_offset`` moves it)."""
+        return self.kernel_params()[0][[SP_CX, SP_CY]]
 
     def kernel_params(self, actuation: Actuation = Actuation()) -> tuple[np.ndarray, np.ndarray]:
-        """(scalars (N_SP,), per-wheel rows (n, N_WP)) in the layout the force kernel reads."""
+        """(scalars (N_SP,), per-wheel rows (n, N_WP)) in the layout the force kernel reads.
+
+        The nominal model's numbers first; then every effect, in the model's order, changes its own
+        (:meth:`omni_gym.physics.effects.base.Effect.write_kernel`).
+        """
         r = self.robot
         s = self.surface
         n = r.n_wheels
-        fx = self.effects
         sp = np.zeros(N_SP)
         sp[SP_MASS] = r.mass
         sp[SP_INERTIA] = r.inertia
         sp[SP_K] = s.k
-        sp[SP_KIN_RATIO] = fx["kinetic_friction"]["ratio"] if "kinetic_friction" in fx else 1.0
-        sp[SP_VS] = fx["kinetic_friction"]["v_s"] if "kinetic_friction" in fx else 1.0
-        rollers = r.rollers
-        roller_fraction = r.roller_fraction
-        mu_gap = s.mu_gap
-        phase = np.zeros(n)
-        use_gap = self.friction == "roller_gap"
-        if "roller_gap" in fx:
-            use_gap = True
-            mu_gap = fx["roller_gap"]["mu_gap"]
-            roller_fraction = fx["roller_gap"]["roller_fraction"]
-            phase = np.asarray(fx["roller_gap"]["phase"], dtype=float)
-        pitch = 2.0 * math.pi / rollers
+        sp[SP_KIN_RATIO] = 1.0  # no Stribeck drop
+        sp[SP_VS] = 1.0  # unused at ratio 1; 1 keeps the law's division finite
+        pitch = 2.0 * math.pi / r.rollers
         sp[SP_PITCH] = pitch
-        sp[SP_GAP] = (1.0 - roller_fraction) * pitch if use_gap else 0.0
-        sp[SP_CX], sp[SP_CY] = self.com
-        sp[SP_TAU] = fx["motor_lag"]["tau"] if "motor_lag" in fx else 0.0
+        sp[SP_GAP] = (1.0 - r.roller_fraction) * pitch if self.friction == "roller_gap" else 0.0
+        sp[SP_CX], sp[SP_CY] = np.asarray(r.com, dtype=float)
+        sp[SP_TAU] = 0.0  # ideal velocity source
         sp[SP_MODE] = ACTUATIONS.index(actuation.kind)
         sp[SP_KP], sp[SP_KI] = actuation.kp, actuation.ki
         sp[SP_TMAX], sp[SP_JW] = actuation.torque_limit, actuation.wheel_inertia
         wp = np.zeros((n, N_WP))
         wp[:, [WP_PX, WP_PY]] = r.positions()
         wp[:, [WP_DX, WP_DY]] = r.drives()
-        scale = np.asarray(fx["wheel_radius"]["scale"], dtype=float) if "wheel_radius" in fx else np.ones(n)
-        wp[:, WP_R] = r.wheel_radius * scale
+        wp[:, WP_R] = r.wheel_radius * np.ones(n)
         wp[:, WP_MUW] = s.mu_drive
         wp[:, WP_MUT] = s.mu_transverse
-        wp[:, WP_GAPW] = mu_gap
-        wp[:, WP_GAPT] = mu_gap
-        wp[:, WP_PHASE] = phase
+        wp[:, WP_GAPW] = s.mu_gap
+        wp[:, WP_GAPT] = s.mu_gap
+        wp[:, WP_PHASE] = np.zeros(n)
+        for name, params in self.effects.items():
+            effect_library.get(name).write_kernel(params, sp, wp, self)
         return sp, wp
+
+    def contact_process(self, rng: np.random.Generator) -> ContactProcess | None:
+        """The wheel contact process an effect asks the world to install (drawing from ``rng``), or
+        None. At most one effect of the library supplies one (``wheel_liftoff``)."""
+        procs = [effect_library.get(name).contact_process(params, self.n_wheels, rng)
+                 for name, params in self.effects.items()]
+        procs = [p for p in procs if p is not None]
+        return procs[0] if procs else None
 
     # --- JSON ---------------------------------------------------------------------------------
 
@@ -240,27 +238,14 @@ class SimModel:
             raise ValueError(f"{where}: {exc}") from None
 
 
-def _number(value, name: str) -> float:
-    """``value`` as a float if it is a finite JSON number (not a bool); ValueError naming ``name``."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    try:
-        x = float(value)
-    except OverflowError:  # a JSON integer beyond float range
-        raise ValueError(f"{name} must be finite, got an integer of {len(str(abs(value)))} digits") from None
-    if not math.isfinite(x):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return x
-
-
 def _bounded(value, key: str, name: str | None = None) -> float:
-    """A finite number inside ``bounds.MODEL[key]``; ValueError naming ``name`` (default ``key``)."""
+    """A finite number inside ``MODEL_BOUNDS[key]``; ValueError naming ``name`` (default ``key``)."""
     name = name or key
-    return MODEL_BOUNDS[key].check(_number(value, name), name)
+    return MODEL_BOUNDS[key].check(json_number(value, name), name)
 
 
 def _vec2(value, name: str, key: str | None = None) -> tuple[float, float]:
-    """``[x, y]`` as two numbers, each inside ``bounds.MODEL[key]`` (default ``name``) [m]."""
+    """``[x, y]`` as two numbers, each inside ``MODEL_BOUNDS[key]`` (default ``name``) [m]."""
     if not isinstance(value, (list, tuple)) or len(value) != 2:
         raise ValueError(f"{name} must be [x, y], got {value!r}")
     return (_bounded(value[0], key or name, f"{name}[0]"), _bounded(value[1], key or name, f"{name}[1]"))
@@ -275,7 +260,7 @@ def _wheel(w, i: int, where: str) -> Wheel:
         pos = _vec2(w["position"], f"{name}.position", "wheels[i].position")
         if not isinstance(w["drive"], (list, tuple)) or len(w["drive"]) != 2:
             raise ValueError(f"{name}.drive must be [x, y], got {w['drive']!r}")
-        drive = (_number(w["drive"][0], f"{name}.drive[0]"), _number(w["drive"][1], f"{name}.drive[1]"))
+        drive = (json_number(w["drive"][0], f"{name}.drive[0]"), json_number(w["drive"][1], f"{name}.drive[1]"))
         norm = math.hypot(*drive)
         if norm == 0:
             raise ValueError(f"{name}.drive must be a non-zero vector")
@@ -292,31 +277,9 @@ def _default_body_radius(wheels: list[Wheel]) -> float:
 def validate_effect(name: str, params: dict, n_wheels: int) -> None:
     """Raise ValueError naming the effect and key if ``params`` do not fit the effect library.
 
-    Every parameter must lie inside its bound ``bounds.MODEL["effects.EFFECT.KEY"]``.
+    Every parameter must lie inside its bound (``MODEL_BOUNDS["effects.EFFECT.KEY"]``).
     """
-    if name not in EFFECT_PARAMS:
-        raise ValueError(f"unknown effect {name!r}; choose one of {sorted(EFFECT_PARAMS)}")
-    if not isinstance(params, dict):
-        raise ValueError(f"effect {name!r}: parameters must be an object")
-    allowed = EFFECT_PARAMS[name]
-    for key in params:
-        if key not in allowed:
-            raise ValueError(f"effect {name!r}: unknown parameter {key!r}; allowed {list(allowed)}")
-    for key in allowed:
-        if key not in params:
-            raise ValueError(f"effect {name!r}: missing parameter {key!r}")
-    lengths = {"phase": n_wheels, "scale": n_wheels, "com": 2}
-    for key, value in params.items():
-        bound_key = f"effects.{name}.{key}"
-        label = f"effect {name!r}: {key}"
-        if key in lengths:
-            what = "one per wheel" if key != "com" else "[x, y]"
-            if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != lengths[key]:
-                raise ValueError(f"{label} must be {lengths[key]} numbers ({what}), got {value!r}")
-            for j, v in enumerate(value):
-                _bounded(v, bound_key, f"{label}[{j}]")
-        else:
-            _bounded(value, bound_key, label)
+    effect_library.get(name).validate(params, n_wheels)
 
 
 def load_model(name_or_path: str, surface: str | None = None, friction: str | None = None) -> SimModel:

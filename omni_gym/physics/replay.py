@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from omni_gym.physics.liftoff import ContactProcess
 from omni_gym.physics.model import Actuation, SimModel
 from omni_gym.physics.world import DEFAULT_DT, Arena, World
 
@@ -17,15 +16,14 @@ def simulate_commands(model: SimModel, times: np.ndarray, commands: np.ndarray, 
     Row j of ``commands`` [rad/s] holds from ``times[j]`` to ``times[j+1]`` [s]; the last row ends
     the run. Switch times are rounded to the nearest substep ``dt``. Returns (K, 6):
     x, y [m], θ [rad] of the geometric centre and its world velocity ẋ, ẏ [m/s], ω [rad/s].
-    The ``wheel_liftoff`` effect, if present, draws its contact process from ``seed``.
+    An effect's wheel contact process (``wheel_liftoff``), if any, draws from ``seed``.
     """
     times = np.asarray(times, dtype=float)
     commands = np.asarray(commands, dtype=float)
     world = World(model, dt=dt, actuation=actuation, arena=arena)
-    if "wheel_liftoff" in model.effects:
-        p = model.effects["wheel_liftoff"]
-        world.set_contact_process(0, ContactProcess(model.n_wheels, p["lift_rate"], p["recover_rate"],
-                                                    np.random.default_rng(seed)))
+    process = model.contact_process(np.random.default_rng(seed))
+    if process is not None:
+        world.set_contact_process(0, process)
     world.reset()
     out = np.zeros((len(times), 6))
     ticks = np.rint(times / dt).astype(np.int64)
