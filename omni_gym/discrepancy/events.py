@@ -7,34 +7,40 @@ Laplace): the most likely event sequence of each run, plus a BIC cost of 3·ln N
 (start, end, lifted case) in the per-run likelihood units n_r·ln(SSE_r/n_r) of
 :func:`omni_gym.discrepancy.explain.decide` (N = residual components of the dataset).
 
-Search (all runs batched, see :func:`infer_events`):
+Search (all runs batched; :class:`EventInference`, one method per step, :func:`infer_events` runs it):
 
-1. **Windows.** The multiple-shooting windows (``residuals.shooting_windows``, 1 s, each restarted
-   from the measured state) make an event show up locally. Per window, the nominal window and every
-   single-event alternative on a coarse grid (lifted case × start every :data:`GRID_DT` × duration
-   in :data:`DURATIONS`, clipped to the window) are simulated in one batched call over all windows.
-   A window's best event is accepted when its gain n_w·ln(SSE_nominal/SSE_event) beats the event
-   cost; greedy passes add up to :data:`WINDOW_EVENTS` events per window; start/end are refined
-   locally.
-2. **Join** events cut by a window boundary (same case, touching ends), then go **open loop**:
-   every run is replayed from its start with its schedule — the other candidates are scored by the
-   open-loop full-run SSE, so this one is too — and each event's start/end is refined or the event
-   dropped by coordinate sweeps on the penalised open-loop score.
-3. **Sequential decoding** (second proposal per run): the open-loop residual is at noise level up to
-   the first missing event, so walk forward in time, fitting one event where the residual first
-   leaves the noise level. The better proposal per run is kept; runs still above the noise level get
-   global "one more event anywhere" moves; a run keeps its events only if their open-loop
-   likelihood gain beats their total cost.
-4. **Adequacy.** Lift-off says the nominal model is exact between events, so the MAP events must
-   leave a noise-level residual; otherwise they are absorbing a continuous model error (e.g. a
-   viscous drag) and are rejected (``adequacy``). Lift-off is also transient: events that keep a
-   wheel lifted more than :data:`MAX_LIFTED_SHARE` of the moving time describe a persistent load
-   change (a centre-of-mass offset unloads one wheel) and are rejected as well, and so are events
-   whose lifted cases are not a plausible uniform draw (exact multinomial test, p < :data:`CASE_ALPHA`):
-   the process lifts a random case, a systematic one-wheel effect lifts the same wheel every time.
+1. **Windows** (:meth:`~EventInference.search_windows`). The multiple-shooting windows
+   (``residuals.shooting_windows``, 1 s, each restarted from the measured state) make an event show
+   up locally. Per window, the nominal window and every single-event alternative on a coarse grid
+   (lifted case × start every :data:`GRID_DT` × duration in :data:`DURATIONS`, clipped to the window)
+   are simulated in one batched call over all windows. A window's best event is accepted when its
+   gain n_w·ln(SSE_nominal/SSE_event) beats the event cost; greedy passes add up to
+   :data:`WINDOW_EVENTS` events per window; start/end are refined locally.
+2. **Join and open loop** (:meth:`~EventInference.join_and_refine`). Events cut by a window boundary
+   are joined (same case, touching ends), then every run is replayed **open loop** from its start
+   with its schedule — the other candidates are scored by the open-loop full-run SSE, so this one is
+   too — and each event's start/end is refined or the event dropped by coordinate sweeps (shifts
+   :data:`REFINE_OL`) on the penalised open-loop score.
+3. **Decoding and keep test** (:meth:`~EventInference.decode_and_keep`). Sequential decoding gives a
+   second proposal per run: the open-loop residual is at noise level up to the first missing event,
+   so walk forward in time, fitting one event where the residual first leaves the noise level. The
+   better proposal per run is kept; runs still above the noise level get global "one more event
+   anywhere" moves. (Both are skipped when the step-2 proposal is far above the adequacy limit of
+   step 4, :data:`SKIP_FACTOR`.) Then fine coordinate sweeps (:data:`REFINE`, up to
+   :data:`OPEN_LOOP_ROUNDS`), and a run keeps its events only if their open-loop likelihood gain
+   beats their total cost.
+4. **Adequacy** (:meth:`~EventInference.check_adequacy`). Lift-off says the nominal model is exact
+   between events, so the MAP events must leave a noise-level residual; otherwise they are absorbing
+   a continuous model error (e.g. a viscous drag) and are rejected (``adequacy``). Lift-off is also
+   transient: events that keep a wheel lifted more than :data:`MAX_LIFTED_SHARE` of the moving time
+   describe a persistent load change (a centre-of-mass offset unloads one wheel) and are rejected as
+   well, and so are events whose lifted cases are not a plausible uniform draw (exact multinomial
+   test, p < :data:`CASE_ALPHA`): the process lifts a random case, a systematic one-wheel effect
+   lifts the same wheel every time.
 
-Rates from events (maximum likelihood for exponential holding times): lift_rate = events / time
-all wheels are down, recover_rate = 1 / mean lifted duration; with no event, the null point.
+Rates from events (:meth:`~EventInference.result` builds the :class:`EventFit`; maximum likelihood
+for exponential holding times, :meth:`EventFit.rates`): lift_rate = events / time all wheels are
+down, recover_rate = 1 / mean lifted duration; with no event, the null point.
 
 Times in this module are seconds on a job's local clock (0 = the job's first row) unless a name
 says run time.
@@ -47,9 +53,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from omni_gym.discrepancy.dataset import Dataset, Run
 from omni_gym.discrepancy.residuals import geo_mse, run_sse, shooting_windows
 from omni_gym.discrepancy.simulate import Job, pose_residual, simulate_poses
 from omni_gym.physics.liftoff import OVERLAP_TOL, contact_cases
+from omni_gym.physics.model import SimModel
 
 GRID_DT = 0.05  # s: start grid of the window search (half the shortest duration)
 DURATIONS = (0.05, 0.1, 0.2, 0.4)  # s: coarse lifted durations (mean holding 1/recover_rate ~ 0.2 s)
@@ -165,167 +173,251 @@ def _window_grid(tw: float, n_cases: int) -> list[Event]:
     return sorted(out)
 
 
-def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_comp: np.ndarray,
-                 dt: float, sigma: float | None = None, windows: list[tuple] | None = None, max_batch: int = 3000,
-                 counter: list[int] | None = None, adequacy: float | None = None) -> EventFit:
-    """MAP lift events of every run of ``ds`` (see the module docstring).
+def _free(ev: Event, taken: list[Event]) -> bool:
+    """True if ``ev`` overlaps none of the ``taken`` events (back to back within OVERLAP_TOL is allowed)."""
+    return all(ev[1] <= a + OVERLAP_TOL or ev[0] >= b - OVERLAP_TOL for a, b, _ in taken)
+
+
+Trial = tuple[int, list[Event]]  # (run index, candidate schedule on the run clock [s])
+Scored = tuple[float, list[Event], np.ndarray]  # (score, schedule, open-loop residual (K, 3) [m]) of a trial
+
+
+@dataclass
+class _RunFits:
+    """Working state of steps 2-3: the current events of every run and the open-loop fit they give."""
+
+    events: list[list[Event]]  # per run, on the run clock [s]
+    sse: np.ndarray  # (R,) open-loop SSE [m²] of each run replayed with its events
+    res: list[np.ndarray | None]  # per run: open-loop residual (K, 3) [m]; None while never simulated
+
+    def copy(self) -> _RunFits:
+        """Snapshot: new event lists and SSE array (residual arrays are shared; they are never modified)."""
+        return _RunFits([list(e) for e in self.events], self.sse.copy(), list(self.res))
+
+    def set(self, ri: int, events: list[Event], sse: float, res: np.ndarray | None) -> None:
+        """Run ri's events, open-loop SSE [m²] and residual [m]."""
+        self.events[ri], self.sse[ri], self.res[ri] = events, sse, res
+
+    def take(self, ri: int, other: _RunFits) -> None:
+        """Run ri's entry of ``other`` (the event list itself, not a copy)."""
+        self.set(ri, other.events[ri], other.sse[ri], other.res[ri])
+
+
+class EventInference:
+    """MAP lift events of every run of a dataset: the search of the module docstring, one method per step.
+
+    :meth:`run` calls the steps in order (1 :meth:`search_windows`, 2 :meth:`join_and_refine`,
+    3 :meth:`decode_and_keep`, 4 :meth:`check_adequacy`) and returns :meth:`result`. Every step
+    simulates its candidates in as few batched calls as the step's dependencies allow; the order of
+    the simulated jobs is part of the result (batching can change the last bits), so do not reorder them.
 
     Args:
         ds: the dataset; nominal: the nominal SimModel (no lift-off); lever [m]: heading lever.
         cost: likelihood cost of one event (BIC: 3·ln N) in n·ln(SSE/n) units.
         sse0: (R,) nominal open-loop SSE [m²]; n_comp: (R,) residual components per run.
-        dt: physics substep [s]; sigma: tracker noise estimate [m] (None: no repair step).
+        dt: physics substep [s]; sigma: tracker noise estimate [m] (None: step 3 skips its sequential
+            decoding and global moves, step 4 its noise-level check).
         windows: ``shooting_windows(ds)`` (computed if None).
+        max_batch: most jobs per simulate call.
         counter: optional one-element list to which the number of simulated robot-runs is added.
         adequacy: largest row-weighted geometric-mean MSE with the events, in units of σ̂², for the
             events to be kept (step 4; None: no check).
     """
 
-    runs = ds.runs
-    R = len(runs)
-    n_cases = len(contact_cases(ds.n_wheels))
-    wins = shooting_windows(ds) if windows is None else windows
-    count = counter if counter is not None else [0]
+    def __init__(self, ds: Dataset, nominal: SimModel, lever: float, cost: float, sse0: np.ndarray,
+                 n_comp: np.ndarray, dt: float, sigma: float | None = None, windows: list[tuple] | None = None,
+                 max_batch: int = 3000, counter: list[int] | None = None, adequacy: float | None = None) -> None:
+        self.ds, self.nominal, self.lever, self.cost = ds, nominal, lever, cost
+        self.sse0, self.n_comp, self.dt, self.sigma = sse0, n_comp, dt, sigma
+        self.max_batch, self.adequacy = max_batch, adequacy
+        self.runs: list[Run] = ds.runs
+        self.R = len(self.runs)
+        self.n_cases = len(contact_cases(ds.n_wheels))
+        self.wins: list[tuple] = shooting_windows(ds) if windows is None else windows  # (run, k0, k1, state0)
+        self.count: list[int] = counter if counter is not None else [0]  # simulated robot-runs
+        self.n: np.ndarray = np.maximum(n_comp, 1)  # (R,) residual components, at least 1
+        self.ends: list[float] = [float(r.t[-1]) for r in self.runs]  # (R,) run lengths [s]
+        # Working state, filled by the steps in order.
+        self.tws: list[float] = []  # step 1: window lengths [s]
+        self.win_events: list[list[Event]] = []  # step 1: per window, on the window clock [s]
+        self.fits = _RunFits([[] for _ in range(self.R)], np.array(sse0, dtype=float), [None] * self.R)  # steps 2-3
+        self.gain = np.zeros(self.R)  # step 3: (R,) likelihood gain of the kept events
+        self.moving = np.zeros(0)  # step 4: (R,) time commanded to move [s]
+        self.note = ""  # step 4: why the events were rejected
 
-    def run_batch(jobs: list) -> list[np.ndarray]:
-        count[0] += len(jobs)
-        return simulate_poses(jobs, dt, max_batch)
+    def run(self) -> EventFit:
+        """All steps in order; the EventFit."""
+        self.search_windows()
+        self.join_and_refine()
+        self.decode_and_keep()
+        self.check_adequacy()
+        return self.result()
 
-    def win_sse(wi: int, pose: np.ndarray) -> float:
-        ri, k0, k1, _ = wins[wi]
-        r = pose_residual(runs[ri].pose[k0 + 1:k1 + 1], pose[1:], lever)
+    # ---- simulation and scores -------------------------------------------------------------------------
+
+    def _run_batch(self, jobs: list[Job]) -> list[np.ndarray]:
+        """Simulated poses of ``jobs`` (one batched call), counted."""
+        self.count[0] += len(jobs)
+        return simulate_poses(jobs, self.dt, self.max_batch)
+
+    def _win_sse(self, wi: int, pose: np.ndarray) -> float:
+        """SSE [m²] of window wi's simulated ``pose`` (rows after its start) against the measurement."""
+        ri, k0, k1, _ = self.wins[wi]
+        r = pose_residual(self.runs[ri].pose[k0 + 1:k1 + 1], pose[1:], self.lever)
         r = r[np.all(np.isfinite(r), axis=1)]
         return float(np.sum(r * r))
 
-    def win_n(wi: int) -> int:
-        ri, k0, k1, _ = wins[wi]
-        return 3 * int(np.all(np.isfinite(runs[ri].pose[k0 + 1:k1 + 1]), axis=1).sum())
+    def _win_n(self, wi: int) -> int:
+        """Residual components of window wi (3 per observed row after its start)."""
+        ri, k0, k1, _ = self.wins[wi]
+        return 3 * int(np.all(np.isfinite(self.runs[ri].pose[k0 + 1:k1 + 1]), axis=1).sum())
 
-    def window_search(base: list[list[Event]], grids: list[list[Event]]) -> list[tuple[float, Event] | None]:
-        """Per window: best (gain, event) added to its ``base`` events, or None (one batched call)."""
+    def _open_loop(self, scheds: list[Trial]) -> list[np.ndarray]:
+        """Open-loop residual (K, 3) [m] of each (run, schedule), one batched call."""
+        if not scheds:
+            return []
+        poses = self._run_batch([Job(self.nominal, self.runs[ri], schedule=tuple(s)) for ri, s in scheds])
+        return [pose_residual(self.runs[ri].pose, p, self.lever) for (ri, _), p in zip(scheds, poses, strict=True)]
+
+    def _score(self, ri: int, s: float, k: int) -> float:
+        """Penalised likelihood change vs nominal of run ri with open-loop SSE s [m²] and k events (lower is
+        better)."""
+        return float(self.n[ri] * math.log(max(s, 1e-30) / max(self.sse0[ri], 1e-30)) + self.cost * k)
+
+    def _current_score(self, ri: int) -> float:
+        """Penalised score of run ri's current events."""
+        return self._score(ri, self.fits.sse[ri], len(self.fits.events[ri]))
+
+    def _geo_ratio(self) -> float:
+        """Row-weighted geometric-mean MSE of the current events, in units of sigma^2."""
+        return geo_mse(self.fits.sse, self.n_comp) / self.sigma**2
+
+    # ---- step 1: windows -------------------------------------------------------------------------------
+
+    def search_windows(self) -> None:
+        """Step 1: coarse single-event search per window; then, greedily, more events in the windows that
+        accepted one; then local refinement of each event's start and end. Sets ``win_events``."""
+        self.tws = [float(self.runs[ri].t[k1] - self.runs[ri].t[k0]) for ri, k0, k1, _ in self.wins]
+        self.win_events = [[] for _ in self.wins]
+        base = self.win_events
+        grids = [_window_grid(tw, self.n_cases) for tw in self.tws]
+        open_w = list(range(len(self.wins)))
+        for _ in range(WINDOW_EVENTS):
+            sub = [[ev for ev in grids[wi] if _free(ev, base[wi])] if wi in open_w else []
+                   for wi in range(len(self.wins))]
+            if not any(sub):
+                break
+            best = self._window_search(sub)
+            open_w = [wi for wi, b in enumerate(best) if b is not None]
+            for wi in open_w:
+                base[wi] = sorted([*base[wi], best[wi][1]])
+        self._refine_window_events()
+
+    def _window_search(self, grids: list[list[Event]]) -> list[tuple[float, Event] | None]:
+        """Per window: best (gain, event) added to its current events, or None (one batched call)."""
+        base = self.win_events
         jobs, owner = [], []
-        for wi, (ri, k0, k1, st) in enumerate(wins):
+        for wi, (ri, k0, k1, st) in enumerate(self.wins):
             if not grids[wi]:
                 continue
             for ev in [None, *grids[wi]]:
                 sched = tuple(base[wi]) if ev is None else tuple(sorted([*base[wi], ev]))
-                jobs.append(Job(nominal, runs[ri], k0=k0, k1=k1, state0=st, schedule=sched))
+                jobs.append(Job(self.nominal, self.runs[ri], k0=k0, k1=k1, state0=st, schedule=sched))
                 owner.append((wi, ev))
-        poses = run_batch(jobs)
-        best: list[tuple[float, Event] | None] = [None] * len(wins)
-        ref: dict[int, float] = {}
+        poses = self._run_batch(jobs)
+        best: list[tuple[float, Event] | None] = [None] * len(self.wins)
+        ref: dict[int, float] = {}  # window -> SSE [m²] of its current events
         for (wi, ev), pose in zip(owner, poses, strict=True):
-            s = win_sse(wi, pose)
+            s = self._win_sse(wi, pose)
             if ev is None:
                 ref[wi] = s
                 continue
-            n = win_n(wi)
+            n = self._win_n(wi)
             gain = n * math.log(max(ref[wi], 1e-30) / max(s, 1e-30))
-            if gain > cost and (best[wi] is None or gain > best[wi][0]):
+            if gain > self.cost and (best[wi] is None or gain > best[wi][0]):
                 best[wi] = (gain, ev)
         return best
 
-    def free(ev: Event, taken: list[Event]) -> bool:
-        return all(ev[1] <= a + OVERLAP_TOL or ev[0] >= b - OVERLAP_TOL for a, b, _ in taken)
-
-    # 1. Windows: coarse search; then, greedily, more events in the windows that accepted one.
-    tws = [float(runs[ri].t[k1] - runs[ri].t[k0]) for ri, k0, k1, _ in wins]
-    base: list[list[Event]] = [[] for _ in wins]
-    grids = [_window_grid(tw, n_cases) for tw in tws]
-    open_w = list(range(len(wins)))
-    for _ in range(WINDOW_EVENTS):
-        sub = [[ev for ev in grids[wi] if free(ev, base[wi])] if wi in open_w else [] for wi in range(len(wins))]
-        if not any(sub):
-            break
-        best = window_search(base, sub)
-        open_w = [wi for wi, b in enumerate(best) if b is not None]
-        for wi in open_w:
-            base[wi] = sorted([*base[wi], best[wi][1]])
-
-    # 1 (cont.). Local refinement of each window event's start and end (other events of the window fixed).
-    ref_grids: list[list[Event]] = [[] for _ in wins]
-    for wi, evs in enumerate(base):
-        for j, (a, b, c) in enumerate(evs):
-            others = evs[:j] + evs[j + 1:]
-            for da in REFINE:
-                for db in REFINE:
-                    na, nb = max(a + da, 0.0), min(b + db, tws[wi])
-                    if nb - na >= 0.01 and free((na, nb, c), others):
-                        ref_grids[wi].append((round(na, 6), round(nb, 6), c, j))
-    if any(ref_grids):
+    def _refine_window_events(self) -> None:
+        """Each window event's start and end shifted by REFINE (other events of the window fixed), one batch."""
+        base = self.win_events
+        ref_grids: list[list[tuple[float, float, int, int]]] = [[] for _ in self.wins]  # (start, end, case, j)
+        for wi, evs in enumerate(base):
+            for j, (a, b, c) in enumerate(evs):
+                others = evs[:j] + evs[j + 1:]
+                for da in REFINE:
+                    for db in REFINE:
+                        na, nb = max(a + da, 0.0), min(b + db, self.tws[wi])
+                        if nb - na >= 0.01 and _free((na, nb, c), others):
+                            ref_grids[wi].append((round(na, 6), round(nb, 6), c, j))
+        if not any(ref_grids):
+            return
         jobs, owner = [], []
-        for wi, (ri, k0, k1, st) in enumerate(wins):
+        for wi, (ri, k0, k1, st) in enumerate(self.wins):
             for a, b, c, j in ref_grids[wi]:
                 sched = tuple(sorted([*base[wi][:j], (a, b, c), *base[wi][j + 1:]]))
-                jobs.append(Job(nominal, runs[ri], k0=k0, k1=k1, state0=st, schedule=sched))
+                jobs.append(Job(self.nominal, self.runs[ri], k0=k0, k1=k1, state0=st, schedule=sched))
                 owner.append((wi, j, (a, b, c)))
-        poses = run_batch(jobs)
-        pick: dict[tuple[int, int], tuple[float, Event]] = {}
+        poses = self._run_batch(jobs)
+        pick: dict[tuple[int, int], tuple[float, Event]] = {}  # (window, event) -> (SSE [m²], refined event)
         for (wi, j, ev), pose in zip(owner, poses, strict=True):
-            s = win_sse(wi, pose)
+            s = self._win_sse(wi, pose)
             if (wi, j) not in pick or s < pick[(wi, j)][0]:
                 pick[(wi, j)] = (s, ev)
         # Coordinates refined independently per event, applied together (events rarely interact).
         for (wi, j), (_, ev) in pick.items():
             base[wi][j] = ev
-        for wi in range(len(wins)):
+        for wi in range(len(self.wins)):
             base[wi].sort()
 
-    # 2. Join on the run clock the events cut by a window boundary.
-    per_run: list[list[Event]] = [[] for _ in range(R)]
-    for wi, (ri, k0, _k1, _) in enumerate(wins):
-        t0 = float(runs[ri].t[k0])
-        for a, b, c in base[wi]:
-            a, b = a + t0, b + t0
-            prev = per_run[ri][-1] if per_run[ri] else None
-            if prev is not None and prev[2] == c and a - prev[1] <= GRID_DT / 2 + 1e-9:
-                per_run[ri][-1] = (prev[0], b, c)
-            elif prev is not None and a < prev[1]:
-                per_run[ri][-1] = (prev[0], a, prev[2])
-                per_run[ri].append((a, b, c))
-            else:
-                per_run[ri].append((a, b, c))
+    # ---- step 2: join and open loop --------------------------------------------------------------------
 
-    # 2 (cont.). Open loop: refine, prune, keep only sets that pay for themselves.
-    n = np.maximum(n_comp, 1)
-    ends = [float(r.t[-1]) for r in runs]
+    def join_and_refine(self) -> None:
+        """Step 2: window events joined on the run clock, replayed open loop, refined/pruned (REFINE_OL)."""
+        per_run = self._join_windows()
+        self.fits = _RunFits([list(e) for e in per_run], np.array(self.sse0, dtype=float), [None] * self.R)
+        live = [ri for ri in range(self.R) if self.fits.events[ri]]
+        for ri, r in zip(live, self._open_loop([(ri, self.fits.events[ri]) for ri in live]), strict=True):
+            self.fits.sse[ri], self.fits.res[ri] = run_sse(r), r
+        self._refine_sweep(REFINE_OL)
 
-    def open_loop(scheds: list[tuple[int, list[Event]]]) -> list[np.ndarray]:
-        """Open-loop residual (K, 3) [m] of each (run, schedule)."""
-        if not scheds:
-            return []
-        poses = run_batch([Job(nominal, runs[ri], schedule=tuple(s)) for ri, s in scheds])
-        return [pose_residual(runs[ri].pose, p, lever) for (ri, _), p in zip(scheds, poses, strict=True)]
+    def _join_windows(self) -> list[list[Event]]:
+        """Per run: the window events on the run clock [s], joining those cut by a window boundary."""
+        per_run: list[list[Event]] = [[] for _ in range(self.R)]
+        for wi, (ri, k0, _k1, _) in enumerate(self.wins):
+            t0 = float(self.runs[ri].t[k0])
+            for a, b, c in self.win_events[wi]:
+                a, b = a + t0, b + t0
+                prev = per_run[ri][-1] if per_run[ri] else None
+                if prev is not None and prev[2] == c and a - prev[1] <= GRID_DT / 2 + 1e-9:
+                    per_run[ri][-1] = (prev[0], b, c)
+                elif prev is not None and a < prev[1]:
+                    per_run[ri][-1] = (prev[0], a, prev[2])
+                    per_run[ri].append((a, b, c))
+                else:
+                    per_run[ri].append((a, b, c))
+        return per_run
 
-    def score(ri: int, s: float, k: int) -> float:
-        """Penalised likelihood change vs nominal (lower is better)."""
-        return float(n[ri] * math.log(max(s, 1e-30) / max(sse0[ri], 1e-30)) + cost * k)
-
-    cur = [list(e) for e in per_run]
-    cur_sse = np.array(sse0, dtype=float)
-    cur_res: list[np.ndarray | None] = [None] * R
-    live = [ri for ri in range(R) if cur[ri]]
-    for ri, r in zip(live, open_loop([(ri, cur[ri]) for ri in live]), strict=True):
-        cur_sse[ri], cur_res[ri] = run_sse(r), r
-
-    def accept(trials: list[tuple[int, list[Event]]]) -> bool:
+    def _accept(self, trials: list[Trial]) -> bool:
         """Simulate the trials (one batch); each run takes its best trial if it lowers the score."""
-        best_trial: dict[int, tuple[float, list[Event], np.ndarray]] = {}
-        for (ri, sched), r in zip(trials, open_loop(trials), strict=True):
-            sc = score(ri, run_sse(r), len(sched))
-            if sc < score(ri, cur_sse[ri], len(cur[ri])) - 1e-9 and (ri not in best_trial or sc < best_trial[ri][0]):
+        fits = self.fits
+        best_trial: dict[int, Scored] = {}
+        for (ri, sched), r in zip(trials, self._open_loop(trials), strict=True):
+            sc = self._score(ri, run_sse(r), len(sched))
+            if sc < self._current_score(ri) - 1e-9 and (ri not in best_trial or sc < best_trial[ri][0]):
                 best_trial[ri] = (sc, sched, r)
         for ri, (_, sched, r) in best_trial.items():
-            cur[ri], cur_sse[ri], cur_res[ri] = list(sched), run_sse(r), r
+            fits.set(ri, list(sched), run_sse(r), r)
         return bool(best_trial)
 
-    def refine_sweep(shifts: tuple[float, ...], only: set[int] | None = None) -> bool:
-        """Event j of every run shifted (start/end) or removed, j = 0, 1, ...: one batch per position;
-        later events see the earlier ones already refined (open loop is causal)."""
+    def _refine_sweep(self, shifts: tuple[float, ...], only: set[int] | None = None) -> bool:
+        """Event j of every run (of ``only``) shifted (start/end by ``shifts`` [s]) or removed, j = 0, 1, ...:
+        one batch per position; later events see the earlier ones already refined (open loop is causal)."""
+        cur = self.fits.events
         improved = False
         for j in range(max((len(e) for e in cur), default=0)):
-            trials: list[tuple[int, list[Event]]] = []
-            for ri in range(R):
+            trials: list[Trial] = []
+            for ri in range(self.R):
                 if j >= len(cur[ri]) or (only is not None and ri not in only):
                     continue
                 a, b, c = cur[ri][j]
@@ -333,66 +425,77 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
                 trials.append((ri, others))
                 for da in shifts:
                     for db in shifts:
-                        na, nb = max(a + da, 0.0), min(b + db, ends[ri])
-                        if (da or db) and nb - na >= 0.01 and free((na, nb, c), others):
+                        na, nb = max(a + da, 0.0), min(b + db, self.ends[ri])
+                        if (da or db) and nb - na >= 0.01 and _free((na, nb, c), others):
                             trials.append((ri, sorted([*others, (round(na, 6), round(nb, 6), c)])))
             if trials:
-                improved |= accept(trials)
+                improved |= self._accept(trials)
         return improved
 
-    def first_deviation_of(ri: int, r: np.ndarray) -> float | None:
+    # ---- step 3: sequential decoding, global moves, keep test ------------------------------------------
+
+    def decode_and_keep(self) -> None:
+        """Step 3: sequential proposal and global moves (skipped far from the noise level), fine sweeps,
+        per-run keep test. Sets ``gain``."""
+        # The costly moves only refine a proposal; when the step-2 proposal leaves the data far from the
+        # noise level (a continuous model error, not lift-off) they cannot pass the adequacy check of
+        # step 4, so they are skipped (compute only).
+        sigma = self.sigma
+        if sigma is not None and sigma > 0 and (self.adequacy is None
+                                                or self._geo_ratio() <= SKIP_FACTOR * self.adequacy):
+            self._keep_better(*self._sequential_decoding())
+            for _ in range(ADD_ROUNDS):
+                if not self._add_one_event():
+                    break
+        for _ in range(OPEN_LOOP_ROUNDS):
+            if not self._refine_sweep(REFINE):
+                break
+        self._keep_test()
+
+    def _first_deviation(self, ri: int, r: np.ndarray) -> float | None:
         """Run time [s] where the open-loop residual ``r`` of run ri first leaves the noise level."""
-        z = np.nan_to_num(np.sum(r[1:] ** 2, axis=1)) / (3 * sigma**2)
+        z = np.nan_to_num(np.sum(r[1:] ** 2, axis=1)) / (3 * self.sigma**2)
         m = np.convolve(z, np.ones(DEV_ROWS) / DEV_ROWS, mode="valid")  # mean over DEV_ROWS rows
         hit = np.flatnonzero(m > DEV_LEVEL)
-        return None if hit.size == 0 else float(runs[ri].t[1 + hit[0]])
+        return None if hit.size == 0 else float(self.runs[ri].t[1 + hit[0]])
 
-    def local_best(trials: list[tuple[int, list[Event]]], props: dict) -> dict:
-        """Per run: (local score, schedule, residual) of the best trial on rows t <= td + SEQ_HORIZON.
+    def _local_best(self, trials: list[Trial], tds: dict[int, float]) -> dict[int, Scored]:
+        """Per run: (local score, schedule, residual) of the best trial on rows t <= td + SEQ_HORIZON
+        (td: the run's deviation time [s] in ``tds``).
 
         Local score: n_loc·ln(SSE_loc) + cost·events, so a new event must pay its cost locally."""
-        out: dict[int, tuple[float, list[Event], np.ndarray]] = {}
-        for (ri, sched), r in zip(trials, open_loop(trials), strict=True):
-            rows = runs[ri].t[1:] <= props[ri][0] + SEQ_HORIZON
+        out: dict[int, Scored] = {}
+        for (ri, sched), r in zip(trials, self._open_loop(trials), strict=True):
+            rows = self.runs[ri].t[1:] <= tds[ri] + SEQ_HORIZON
             rr = r[1:][rows]
             rr = rr[np.all(np.isfinite(rr), axis=1)]
             nl = max(rr.size, 1)
-            sc = nl * math.log(max(float(np.sum(rr * rr)), 1e-30)) + cost * len(sched)
+            sc = nl * math.log(max(float(np.sum(rr * rr)), 1e-30)) + self.cost * len(sched)
             if ri not in out or sc < out[ri][0]:
                 out[ri] = (sc, sched, r)
         return out
 
-    refine_sweep(REFINE_OL)
+    def _sequential_decoding(self) -> tuple[list[list[Event]], list[np.ndarray]]:
+        """Sequential (causal) decoding on the open-loop residual: per run, the events and their residual.
 
-    def geo_ratio() -> float:
-        """Row-weighted geometric-mean MSE of the current events, in units of sigma^2."""
-        return geo_mse(cur_sse, n_comp) / sigma**2
-
-    # The costly moves below only refine a proposal; when the window proposal leaves the data far
-    # from the noise level (a continuous model error, not lift-off) they cannot pass the adequacy
-    # check of step 4, so they are skipped (compute only).
-    if sigma is not None and sigma > 0 and (adequacy is None or geo_ratio() <= SKIP_FACTOR * adequacy):
-        # 3. Sequential (causal) decoding on the open-loop residual, as a second proposal per run: the
-        # residual is at noise level up to the first missing event, so walk forward in time and fit
-        # one event where the residual first leaves the noise level, scored on the rows up to
-        # SEQ_HORIZON after that point (later, still missing events would only blur the comparison).
+        The residual is at noise level up to the first missing event, so walk forward in time and fit one
+        event where the residual first leaves the noise level, scored on the rows up to SEQ_HORIZON after
+        that point (later, still missing events would only blur the comparison)."""
+        R, ends, n_cases = self.R, self.ends, self.n_cases
         seq: list[list[Event]] = [[] for _ in range(R)]
-        seq_res: list[np.ndarray | None] = [None] * R
         active = set(range(R))
-        zero = [(ri, []) for ri in range(R)]
-        for ri, r in zip(range(R), open_loop(zero), strict=True):
-            seq_res[ri] = r
+        seq_res: list[np.ndarray] = self._open_loop([(ri, []) for ri in range(R)])
         for _ in range(SEQ_MAX_EVENTS):
-            props: dict[int, tuple[float, list[Event]]] = {}
-            trials = []
+            tds: dict[int, float] = {}  # run -> deviation time [s] the new event is scored around
+            trials: list[Trial] = []
             for ri in sorted(active):
-                td = first_deviation_of(ri, seq_res[ri])
+                td = self._first_deviation(ri, seq_res[ri])
                 last = seq[ri][-1][1] if seq[ri] else 0.0
                 if td is None or last >= ends[ri] - 0.05:
                     active.discard(ri)
                     continue
                 td = max(td, last)  # an imperfect last event: look right after it
-                props[ri] = (td, [])
+                tds[ri] = td
                 trials.append((ri, list(seq[ri])))
                 for s0 in np.arange(max(td - 0.5, last), min(td + SEQ_AHEAD, ends[ri]), GRID_DT):
                     for d in (*DURATIONS, 0.8):
@@ -407,7 +510,7 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
                         trials.append((ri, [*seq[ri][:-1], (a0, round(min(last + d, ends[ri]), 6), c0)]))
             if not trials:
                 break
-            best = local_best(trials, props)
+            best = self._local_best(trials, tds)
             # Refine the new event's start/end on the same local cost.
             trials = []
             for ri, (_, sched, _) in best.items():
@@ -420,7 +523,7 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
                         na, nb = max(a0 + da, lo), min(b0 + db, ends[ri])
                         if nb - na >= 0.01:
                             trials.append((ri, [*sched[:-1], (round(na, 6), round(nb, 6), c0)]))
-            best.update(local_best(trials, props))
+            best.update(self._local_best(trials, tds))
             for ri in list(active):
                 if ri not in best or best[ri][1] == seq[ri]:  # nothing pays its cost: the run is done
                     active.discard(ri)
@@ -429,87 +532,120 @@ def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_com
                 seq_res[ri] = best[ri][2]
             if not active:
                 break
-        # Refine the sequential proposal too, then keep per run the better (penalised, whole-run) one.
-        win_state = ([list(e) for e in cur], cur_sse.copy(), list(cur_res))
-        for ri in range(R):
-            cur[ri], cur_sse[ri], cur_res[ri] = list(seq[ri]), run_sse(seq_res[ri]), seq_res[ri]
-        refine_sweep(REFINE_OL)
-        for ri in range(R):
-            w_ev, w_sse, w_res = win_state[0][ri], win_state[1][ri], win_state[2][ri]
-            if score(ri, w_sse, len(w_ev)) <= score(ri, cur_sse[ri], len(cur[ri])):
-                cur[ri], cur_sse[ri], cur_res[ri] = w_ev, w_sse, w_res
-        # Global moves for runs still above the noise level: one more event anywhere on the coarse grid
-        # (replacing the events it overlaps), scored on the whole run. An added event often pays only
-        # once its neighbours have moved, so the ADD_TOP best additions of each run are each refined
-        # (one sweep) before they are compared with the current events.
-        for _ in range(ADD_ROUNDS):
-            trials = []
-            for ri in range(R):
-                if cur_sse[ri] <= ADD_LEVEL * n[ri] * sigma**2:
-                    continue
-                for ev in _window_grid(ends[ri], n_cases):
-                    trials.append((ri, sorted([*(x for x in cur[ri] if free(x, [ev])), ev])))
-            if not trials:
-                break
-            ranked: dict[int, list[tuple[float, list[Event], np.ndarray]]] = {}
-            for (ri, sched), r in zip(trials, open_loop(trials), strict=True):
-                ranked.setdefault(ri, []).append((score(ri, run_sse(r), len(sched)), sched, r))
-            saved = ([list(e) for e in cur], cur_sse.copy(), list(cur_res))
-            best_final = {ri: (score(ri, cur_sse[ri], len(cur[ri])), cur[ri], cur_sse[ri], cur_res[ri])
-                          for ri in ranked}
-            for k in range(ADD_TOP):
-                for ri, lst in ranked.items():
-                    lst.sort(key=lambda x: x[0])
-                    if k < len(lst):
-                        cur[ri], cur_sse[ri], cur_res[ri] = list(lst[k][1]), run_sse(lst[k][2]), lst[k][2]
-                    else:
-                        cur[ri], cur_sse[ri], cur_res[ri] = saved[0][ri], saved[1][ri], saved[2][ri]
-                refine_sweep(REFINE_OL, only=set(ranked))
-                for ri in ranked:
-                    sc = score(ri, cur_sse[ri], len(cur[ri]))
-                    if sc < best_final[ri][0] - 1e-9:
-                        best_final[ri] = (sc, list(cur[ri]), cur_sse[ri], cur_res[ri])
-            changed = False
-            for ri, (_, ev_, s_, r_) in best_final.items():
-                changed |= ev_ != saved[0][ri]
-                cur[ri], cur_sse[ri], cur_res[ri] = list(ev_), s_, r_
-            if not changed:
-                break
-    for _ in range(OPEN_LOOP_ROUNDS):
-        if not refine_sweep(REFINE):
-            break
-    gain = np.zeros(R)
-    for ri in range(R):
-        sc = score(ri, cur_sse[ri], len(cur[ri]))
-        if cur[ri] and sc < 0:
-            gain[ri] = n[ri] * math.log(max(sse0[ri], 1e-30) / max(cur_sse[ri], 1e-30))
-        else:  # the set does not pay its cost: the run has no inferred event
-            cur[ri], cur_sse[ri] = [], float(sse0[ri])
-    # 4. Adequacy: lift-off says the nominal model is exact between events, so the MAP events must
-    # explain the data to the tracker-noise level. If they leave more (row-weighted geometric-mean MSE
-    # > adequacy·σ̂², the decision's metric), the events are absorbing some other, continuous model
-    # error (a viscous drag is fitted by "coasting" pulses): the candidate then keeps no event.
-    # Time each run is commanded to move (a command row holds until the next row).
-    moving = np.array([float(np.sum(np.diff(r.t)[np.any(np.abs(r.cmd[:-1]) > 0, axis=1)])) for r in runs])
-    note = ""
-    lifted = sum(b - a for e in cur for a, b, _ in e)
-    share = lifted / max(float(moving.sum()), 1e-9)
-    if adequacy is not None and sigma is not None and sigma > 0 and any(cur) and geo_ratio() > adequacy:
-        note = (f"{sum(len(e) for e in cur)} inferred events rejected: with them the held-out MSE is "
-                f"{geo_ratio():.2f} x the tracker-noise variance (lift-off alone would leave noise; limit "
-                f"{adequacy:g})")
-    elif any(cur) and share > MAX_LIFTED_SHARE:
-        # Lift-off is an excursion from the all-down state. Wheels "lifted" most of the time describe
-        # a persistent load change (a centre-of-mass offset unloads one wheel), not lift-off.
-        note = (f"{sum(len(e) for e in cur)} inferred events rejected: they keep wheels lifted {100 * share:.0f} % "
-                f"of the moving time (lift-off is transient; limit {100 * MAX_LIFTED_SHARE:.0f} %)")
-    p_cases = case_uniformity(cur, n_cases)
-    if not note and p_cases < CASE_ALPHA:
-        # The process lifts a uniformly drawn case; events that (almost) all lift the same wheel
-        # mimic a systematic one-wheel effect (a centre-of-mass offset unloads one wheel).
-        counts = np.bincount([c for e in cur for _, _, c in e], minlength=n_cases)[1:]
-        note = (f"{sum(len(e) for e in cur)} inferred events rejected: their lifted cases {counts.tolist()} "
-                f"are not a uniform draw (p = {p_cases:.2g} < {CASE_ALPHA:g}); lift-off lifts a random case")
-    if note:
-        cur, cur_sse, gain = [[] for _ in range(R)], np.array(sse0, dtype=float), np.zeros(R)
-    return EventFit(events=cur, sse=cur_sse, gain=gain, durations=np.array(ends), moving=moving, note=note)
+        return seq, seq_res
+
+    def _keep_better(self, seq: list[list[Event]], seq_res: list[np.ndarray]) -> None:
+        """Refine the sequential proposal too (REFINE_OL), then keep per run the better (penalised, whole-run)
+        of it and the current (step-2) events."""
+        fits = self.fits
+        win_state = fits.copy()
+        for ri in range(self.R):
+            fits.set(ri, list(seq[ri]), run_sse(seq_res[ri]), seq_res[ri])
+        self._refine_sweep(REFINE_OL)
+        for ri in range(self.R):
+            if self._score(ri, win_state.sse[ri], len(win_state.events[ri])) <= self._current_score(ri):
+                fits.take(ri, win_state)
+
+    def _add_one_event(self) -> bool:
+        """One round of global moves; True if some run's events changed.
+
+        Runs still above the noise level try one more event anywhere on the coarse grid (replacing the events
+        it overlaps), scored on the whole run. An added event often pays only once its neighbours have moved,
+        so the ADD_TOP best additions of each run are each refined (one sweep) before they are compared with
+        the current events."""
+        fits, n = self.fits, self.n
+        trials: list[Trial] = []
+        for ri in range(self.R):
+            if fits.sse[ri] <= ADD_LEVEL * n[ri] * self.sigma**2:
+                continue
+            for ev in _window_grid(self.ends[ri], self.n_cases):
+                trials.append((ri, sorted([*(x for x in fits.events[ri] if _free(x, [ev])), ev])))
+        if not trials:
+            return False
+        ranked: dict[int, list[Scored]] = {}  # run -> (score, schedule, residual) per trial
+        for (ri, sched), r in zip(trials, self._open_loop(trials), strict=True):
+            ranked.setdefault(ri, []).append((self._score(ri, run_sse(r), len(sched)), sched, r))
+        saved = fits.copy()
+        best_final = {ri: (self._current_score(ri), fits.events[ri], fits.sse[ri], fits.res[ri]) for ri in ranked}
+        for k in range(ADD_TOP):
+            for ri, lst in ranked.items():
+                lst.sort(key=lambda x: x[0])
+                if k < len(lst):
+                    fits.set(ri, list(lst[k][1]), run_sse(lst[k][2]), lst[k][2])
+                else:
+                    fits.take(ri, saved)
+            self._refine_sweep(REFINE_OL, only=set(ranked))
+            for ri in ranked:
+                sc = self._current_score(ri)
+                if sc < best_final[ri][0] - 1e-9:
+                    best_final[ri] = (sc, list(fits.events[ri]), fits.sse[ri], fits.res[ri])
+        changed = False
+        for ri, (_, ev_, s_, r_) in best_final.items():
+            changed |= ev_ != saved.events[ri]
+            fits.set(ri, list(ev_), s_, r_)
+        return changed
+
+    def _keep_test(self) -> None:
+        """A run keeps its events only if their open-loop likelihood gain beats their total cost."""
+        fits = self.fits
+        self.gain = np.zeros(self.R)
+        for ri in range(self.R):
+            sc = self._current_score(ri)
+            if fits.events[ri] and sc < 0:
+                self.gain[ri] = self.n[ri] * math.log(max(self.sse0[ri], 1e-30) / max(fits.sse[ri], 1e-30))
+            else:  # the set does not pay its cost: the run has no inferred event
+                fits.events[ri], fits.sse[ri] = [], float(self.sse0[ri])
+
+    # ---- step 4: adequacy ------------------------------------------------------------------------------
+
+    def check_adequacy(self) -> None:
+        """Step 4: reject all events if they leave more than noise, keep wheels lifted too long, or lift
+        non-uniform cases. Sets ``moving`` and ``note`` (and clears the events when rejected)."""
+        # Lift-off says the nominal model is exact between events, so the MAP events must explain the data
+        # to the tracker-noise level. If they leave more (row-weighted geometric-mean MSE > adequacy·σ̂²,
+        # the decision's metric), the events are absorbing some other, continuous model error (a viscous
+        # drag is fitted by "coasting" pulses): the candidate then keeps no event.
+        # Time each run is commanded to move (a command row holds until the next row).
+        cur, sigma, adequacy = self.fits.events, self.sigma, self.adequacy
+        self.moving = np.array([float(np.sum(np.diff(r.t)[np.any(np.abs(r.cmd[:-1]) > 0, axis=1)]))
+                                for r in self.runs])
+        note = ""
+        lifted = sum(b - a for e in cur for a, b, _ in e)
+        share = lifted / max(float(self.moving.sum()), 1e-9)
+        if adequacy is not None and sigma is not None and sigma > 0 and any(cur) and self._geo_ratio() > adequacy:
+            note = (f"{sum(len(e) for e in cur)} inferred events rejected: with them the held-out MSE is "
+                    f"{self._geo_ratio():.2f} x the tracker-noise variance (lift-off alone would leave noise; "
+                    f"limit {adequacy:g})")
+        elif any(cur) and share > MAX_LIFTED_SHARE:
+            # Lift-off is an excursion from the all-down state. Wheels "lifted" most of the time describe
+            # a persistent load change (a centre-of-mass offset unloads one wheel), not lift-off.
+            note = (f"{sum(len(e) for e in cur)} inferred events rejected: they keep wheels lifted "
+                    f"{100 * share:.0f} % of the moving time (lift-off is transient; limit "
+                    f"{100 * MAX_LIFTED_SHARE:.0f} %)")
+        p_cases = case_uniformity(cur, self.n_cases)
+        if not note and p_cases < CASE_ALPHA:
+            # The process lifts a uniformly drawn case; events that (almost) all lift the same wheel
+            # mimic a systematic one-wheel effect (a centre-of-mass offset unloads one wheel).
+            counts = np.bincount([c for e in cur for _, _, c in e], minlength=self.n_cases)[1:]
+            note = (f"{sum(len(e) for e in cur)} inferred events rejected: their lifted cases {counts.tolist()} "
+                    f"are not a uniform draw (p = {p_cases:.2g} < {CASE_ALPHA:g}); lift-off lifts a random case")
+        self.note = note
+        if note:
+            self.fits = _RunFits([[] for _ in range(self.R)], np.array(self.sse0, dtype=float), [None] * self.R)
+            self.gain = np.zeros(self.R)
+
+    # ---- rates -----------------------------------------------------------------------------------------
+
+    def result(self) -> EventFit:
+        """The EventFit of the current state (its rates are the MLE from the events)."""
+        return EventFit(events=self.fits.events, sse=self.fits.sse, gain=self.gain, durations=np.array(self.ends),
+                        moving=self.moving, note=self.note)
+
+
+def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_comp: np.ndarray,
+                 dt: float, sigma: float | None = None, windows: list[tuple] | None = None, max_batch: int = 3000,
+                 counter: list[int] | None = None, adequacy: float | None = None) -> EventFit:
+    """MAP lift events of every run of ``ds`` (see the module docstring and :class:`EventInference` for the
+    arguments)."""
+    return EventInference(ds, nominal, lever, cost, sse0, n_comp, dt, sigma=sigma, windows=windows,
+                          max_batch=max_batch, counter=counter, adequacy=adequacy).run()
