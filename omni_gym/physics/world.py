@@ -38,6 +38,8 @@ from omni_gym.physics.layout import (
     WH_INT,
     WH_LOAD,
     WH_SPEED,
+    WP_PX,
+    WP_PY,
 )
 from omni_gym.physics.liftoff import ContactProcess
 from omni_gym.physics.loads import wheel_loads
@@ -257,7 +259,7 @@ class World:
         body = self.bodies[j]
         body.mass = sp[SP_MASS]
         body.moment = sp[SP_INERTIA]
-        body.center_of_gravity = tuple(model.com)
+        body.center_of_gravity = tuple(sp[[SP_CX, SP_CY]])  # after the effects (com_offset)
         self.models[j] = model
         self._update_loads(j)
 
@@ -325,8 +327,10 @@ class World:
         self._next_switch_tick = int(self._switch_tick.min())
 
     def _update_loads(self, j: int) -> None:
-        m = self.models[j]
-        self.loads[j] = wheel_loads(m.robot.positions(), m.com, self.sp[j, SP_MASS], m.gravity, self.contact[j])
+        # Wheel positions and centre of mass as the kernel sees them (after the model's effects).
+        positions = self.wp[j][:, [WP_PX, WP_PY]]
+        com = self.sp[j, [SP_CX, SP_CY]]
+        self.loads[j] = wheel_loads(positions, com, self.sp[j, SP_MASS], self.models[j].gravity, self.contact[j])
 
     @property
     def time(self) -> float:
