@@ -180,8 +180,8 @@ def read_metadata(path: str | Path) -> Metadata:
     def positive(key: str, cells: list[str], line: int) -> list[float]:
         out = [_number(c, path, line, key) for c in cells]
         for v in out:
-            if not v > 0:
-                raise InputError(f"{path}: line {line}: {key} must be > 0, got {v:g}")
+            if not (math.isfinite(v) and v > 0):  # 1e400 parses as inf
+                raise InputError(f"{path}: line {line}: {key} must be a finite number > 0, got {v:g}")
         return out
 
     line, cells = get("type")
