@@ -14,6 +14,7 @@ import numpy as np
 
 from omni_gym import __version__
 from omni_gym.bounds import CLI as CLI_BOUNDS
+from omni_gym.discrepancy.importers import FORMATS as IMPORT_FORMATS
 from omni_gym.physics.friction import FRICTION_MODELS, SURFACES
 
 EXIT_BAD_INPUT = 2
@@ -89,6 +90,18 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--out", required=True, help="dataset folder to write")
     _add_force_option(sy, "an existing dataset folder and its DATASET.truth.json")
     sy.set_defaults(handler=_cmd_synth)
+    im = sub.add_parser("import", help="write a dataset from another log format (OptiOdom sessions)")
+    im.add_argument("format", choices=sorted(IMPORT_FORMATS), help="log format: optiodom")
+    im.add_argument("sessions", nargs="+", metavar="SESSION_DIR",
+                    help="session folder(s) with <id>_metadata.csv and <id>_run-NN.csv")
+    im.add_argument("--out", required=True, help="dataset folder to write")
+    im.add_argument("--mass", type=float, default=None, help="assumed robot mass [kg] (not published; default and "
+                    "why in docs/formats.md, 'Importing OptiOdom logs')")
+    im.add_argument("--inertia", type=float, default=None, help="assumed yaw inertia [kg·m²] (default 0.5·mass·Li²)")
+    im.add_argument("--surface", choices=sorted(SURFACES), default=None,
+                    help="floor preset of the nominal model (default grip: no slip, as kinematic odometry assumes)")
+    _add_force_option(im, "an existing dataset folder")
+    im.set_defaults(handler=_cmd_import)
     # Further subcommands register here with their own set_defaults(handler=...).
     return parser
 
@@ -270,6 +283,22 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     write_synthetic(args.out, model, args.hidden, args.runs, args.noise, args.seed, args.duration, args.observe,
                     force=args.force, inputs=(args.model,))
     print(f"wrote {args.out} ({args.runs} runs); truth in {truth_path(args.out)}")
+    return 0
+
+
+def _cmd_import(args: argparse.Namespace) -> int:
+    from omni_gym.outputs import Output
+
+    # Refuse a bad --out before reading the logs; import_optiodom checks again under the lock.
+    Output(args.out, "dir", force=args.force, inputs=args.sessions, marker="dataset.json", what="dataset").preflight()
+    from omni_gym.discrepancy.importers import optiodom
+
+    mass = optiodom.MASS if args.mass is None else args.mass
+    surface = optiodom.SURFACE if args.surface is None else args.surface
+    s = optiodom.import_optiodom(args.sessions, args.out, force=args.force, mass=mass, inertia=args.inertia,
+                                 surface=surface)
+    print(f"imported {s.runs} runs from {len(s.sessions)} session(s), {s.duration:.1f} s of robot time "
+          f"(assumed: mass {s.mass:g} kg, inertia {s.inertia:.4g} kg·m², surface {s.surface}) -> {s.out}")
     return 0
 
 
