@@ -218,7 +218,8 @@ def test_fitted_model_replays_through_simulate(small_dataset, tmp_path):
 
 def test_progress_ticks_stay_within_each_fits_bound(small_dataset):
     """The progress bar's total is the sum of max_ticks: a fit that ticked more would overrun it."""
-    from omni_gym.discrepancy.explain import Evaluator, candidates, fit_candidate, make_folds, max_ticks
+    from omni_gym.discrepancy.candidates import candidates
+    from omni_gym.discrepancy.fitting import Evaluator, fit_candidate, make_folds, max_ticks
     from omni_gym.discrepancy.synth import pose_lever
 
     ds = load_dataset(small_dataset)

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from omni_gym.discrepancy.dataset import Dataset, Run
+from omni_gym.discrepancy.decision import RULES
 from omni_gym.discrepancy.events import PARAMS_PER_EVENT, infer_events
-from omni_gym.discrepancy.explain import RULES, Evaluator
+from omni_gym.discrepancy.fitting import Evaluator
 from omni_gym.discrepancy.recovery import nominal_model
 from omni_gym.discrepancy.residuals import count_components, noise_estimate, run_sse
 from omni_gym.discrepancy.simulate import FIT_DT, Job, simulate_jobs

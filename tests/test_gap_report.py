@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from omni_gym.cli import main
-from omni_gym.discrepancy import explain, plausible, workflow
+from omni_gym.discrepancy import candidates, plausible, workflow
 from omni_gym.discrepancy.dataset import load_dataset, write_dataset
 from omni_gym.discrepancy.finite import dumps_strict, finite_json
 from omni_gym.discrepancy.outliers import drop_outliers, find_outliers
@@ -53,7 +53,7 @@ def lag_dataset(tmp_path_factory):
 def only_motor_lag(monkeypatch):
     """Fit only the motor_lag candidate (fast); the decision rules are unchanged."""
     monkeypatch.setattr(workflow, "candidates",
-                        lambda model: [c for c in explain.candidates(model) if c.name == "motor_lag"])
+                        lambda model: [c for c in candidates.candidates(model) if c.name == "motor_lag"])
 
 
 # --- tracker outliers -----------------------------------------------------------------------------

@@ -9,7 +9,10 @@ Modules (each one job):
 * :mod:`.localise`: where the nominal model's residuals concentrate (multiple shooting).
 * :mod:`.residuals`: shooting windows, per-run SSE, the decision metric, the noise estimate.
 * :mod:`.events`: lift-event inference for the stochastic ``wheel_liftoff`` candidate.
-* :mod:`.explain`: fit every candidate effect, score on held-out runs, decide.
+* :mod:`.candidates`: the effect library as fit candidates (bounded parameter cubes, null points).
+* :mod:`.search`: batched local searches (roller-phase sweeps, Levenberg–Marquardt, valley lines).
+* :mod:`.fitting`: fit every candidate on all runs and on each fold's training runs (held-out errors).
+* :mod:`.decision`: score the candidates on held-out runs and decide the outcome.
 * :mod:`.plausible`: units and plausible ranges of the fitted parameters (flags only).
 * :mod:`.finite`: standard JSON only (non-finite numbers become ``null``).
 * :mod:`.report`: ``result.json``, ``report.md`` and plots.

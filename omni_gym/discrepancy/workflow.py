@@ -10,19 +10,12 @@ from pathlib import Path
 import numpy as np
 
 from omni_gym.discrepancy import plausible
+from omni_gym.discrepancy.candidates import candidates
 from omni_gym.discrepancy.dataset import load_dataset
+from omni_gym.discrepancy.decision import RULES, decide
 from omni_gym.discrepancy.events import EVENT_METHOD
-from omni_gym.discrepancy.explain import (
-    RULES,
-    Evaluator,
-    candidates,
-    decide,
-    fit_candidate,
-    make_folds,
-    max_ticks,
-    param_intervals,
-)
 from omni_gym.discrepancy.finite import finite_json
+from omni_gym.discrepancy.fitting import Evaluator, fit_candidate, make_folds, max_ticks, param_intervals
 from omni_gym.discrepancy.localise import localise
 from omni_gym.discrepancy.outliers import OUTLIER_RULE, drop_outliers, find_outliers
 from omni_gym.discrepancy.residuals import count_components, geo_mse

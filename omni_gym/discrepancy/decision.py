@@ -1,0 +1,132 @@
+"""Decision: rank the fitted candidates by held-out score and name the effect, or none, or unexplained.
+
+A candidate's held-out score is Σ_r n_r·ln(SSE_r/n_r) + p·ln(N) (BIC form; SSE_r the held-out error
+of run r from :mod:`.fitting`, n_r its residual components, N their sum, p parameters). Thresholds in
+:data:`RULES`, why in ``docs/discrepancy.md``: a candidate must improve the held-out error significantly
+(paired bootstrap over runs); it is named if it removes most of the gap beyond tracker noise, else the
+outcome is ``unexplained``; ``none`` when nothing improves and the nominal residual is at the noise level.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+import numpy as np
+
+from omni_gym.discrepancy.candidates import Candidate
+
+RULES = {
+    "significance": 0.95,  # bootstrap share of run resamples in which the candidate beats nominal
+    "min_improvement": 0.05,  # least held-out MSE reduction (share of nominal MSE) that counts
+    "noise_margin": 0.3,  # MSE within (1 + margin)·σ̂² counts as noise-level
+    "min_gap_reduction": 0.7,  # least reduction of the excess RMS for a named effect
+    "ambiguity": 0.8,  # winner must beat a qualifying runner-up in this share of resamples
+}
+N_BOOT = 400
+
+
+class HeldOutFit(Protocol):
+    """What :func:`decide` reads of a fit (:class:`omni_gym.discrepancy.fitting.FitResult`; a protocol here
+    because the fitting reads :data:`RULES`, so this module cannot import it)."""
+
+    candidate: Candidate
+    params_all: dict  # the all-run fit's effect parameters
+    heldout: np.ndarray  # (R,) per-run SSE [m²] of the fold fit that did not see the run
+    n_params_eff: int | None  # BIC parameter count when it differs from the candidate's dimensions
+
+
+def _share_better(gain: np.ndarray) -> float:
+    """Share of bootstrap resamples with a positive gain among those without a tie (0.5 if all tie)."""
+    decided = gain != 0
+    return float(np.mean(gain[decided] > 0)) if decided.any() else 0.5
+
+
+def decide(nominal_sse: np.ndarray, fits: list[HeldOutFit], n_comp: np.ndarray, sigma: float | None,
+           rng: np.random.Generator) -> dict:
+    """Rank candidates by penalised held-out score and choose the outcome (see the module docstring).
+
+    Per-run Gaussian likelihood: run r with n_r residual components and held-out SSE_r contributes
+    n_r·ln(SSE_r/n_r); a candidate's score adds p·ln(N). Per-run variances keep one run that a
+    slightly-off fit sends onto a different path (stick-slip is that sensitive) from outweighing
+    all the others, as it would in one pooled sum of squares.
+    """
+    N = float(n_comp.sum())
+    R = len(n_comp)
+    n = np.maximum(n_comp, 1)
+    L0 = n * np.log(np.maximum(nominal_sse, 1e-30) / n)
+    mse0 = math.exp(L0.sum() / N)  # n-weighted geometric mean of the per-run MSE
+    noise_var = sigma**2 if sigma is not None else 0.0
+    boot = np.stack([np.bincount(row, minlength=R) for row in rng.integers(0, R, (N_BOOT, R))])
+    ranking = []
+    Ls = []
+    for f in fits:
+        L = n * np.log(np.maximum(f.heldout, 1e-30) / n)
+        Ls.append(L)
+        mse = math.exp(L.sum() / N)
+        gain = boot @ (L0 - L)  # (N_BOOT,) log-likelihood gain over nominal in each resample
+        ranking.append({
+            "effect": f.candidate.name,
+            "score": float(L.sum() + (f.n_params_eff or f.candidate.n_params) * math.log(N)),
+            "heldout_rms": math.sqrt(mse),
+            "pooled_rms": math.sqrt(f.heldout.sum() / N),
+            "excess_rms": math.sqrt(max(mse - noise_var, 0.0)),
+            "improvement": 1.0 - mse / mse0 if mse0 > 0 else 0.0,
+            # A resample made only of runs the candidate leaves exactly as nominal (runs in which no
+            # lift event was inferred) is a tie and carries no evidence: ties are dropped, as in a
+            # sign test (all ties: 0.5).
+            "p_better_than_nominal": _share_better(gain),
+            "n_params": f.candidate.n_params,
+            "params": f.params_all,
+        })
+    score0 = float(L0.sum())
+    order = sorted(range(len(fits)), key=lambda i: ranking[i]["score"])
+    for i in order:
+        ranking[i]["beats_nominal"] = bool(ranking[i]["score"] < score0
+                                           and ranking[i]["p_better_than_nominal"] >= RULES["significance"]
+                                           and ranking[i]["improvement"] >= RULES["min_improvement"])
+    # Stability: the share of run resamples in which each candidate has the best held-out likelihood.
+    wins = np.argmin(np.stack([boot @ L for L in Ls]), axis=0)
+    for i in range(len(fits)):
+        ranking[i]["stability"] = float(np.mean(wins == i))
+    excess0 = math.sqrt(max(mse0 - noise_var, 0.0))
+    nominal_at_noise = sigma is not None and mse0 <= noise_var * (1 + RULES["noise_margin"])
+    best = order[0]
+    rb = ranking[best]
+    out = {"nominal_rms": math.sqrt(mse0), "nominal_excess_rms": excess0, "noise": sigma, "score_nominal": score0,
+           "ranking": [ranking[i] for i in order], "best": rb["effect"]}
+    reduction = 1.0 - rb["excess_rms"] / excess0 if excess0 > 0 else 0.0
+    best_at_noise = sigma is not None and rb["heldout_rms"] ** 2 <= noise_var * (1 + RULES["noise_margin"])
+    if not rb["beats_nominal"]:
+        if nominal_at_noise or sigma is None:
+            out["effect"] = "none"
+            out["why"] = ("no candidate improves the held-out error significantly"
+                          + (" and the nominal residual is at the tracker-noise level" if nominal_at_noise else ""))
+        else:
+            out["effect"] = "unexplained"
+            out["why"] = (f"the nominal residual ({1e3 * math.sqrt(mse0):.2f} mm RMS) is well above the tracker "
+                          f"noise ({1e3 * sigma:.2f} mm) and no candidate improves it significantly")
+        return out
+    if reduction < RULES["min_gap_reduction"] and not best_at_noise:
+        out["effect"] = "unexplained"
+        out["why"] = (f"the best candidate, {rb['effect']}, removes only {100 * reduction:.0f} % of the gap beyond "
+                      f"noise on held-out runs (needs {100 * RULES['min_gap_reduction']:.0f} %)")
+        return out
+    out["effect"] = rb["effect"]
+    out["why"] = (f"{rb['effect']} removes {100 * reduction:.0f} % of the held-out gap beyond noise and beats "
+                  f"the nominal model in {100 * rb['p_better_than_nominal']:.0f} % of run resamples")
+    # Ambiguity: a qualifying runner-up that the winner does not beat reliably across resamples.
+    amb = []
+    for i in order[1:]:
+        ri = ranking[i]
+        if not ri["beats_nominal"]:
+            continue
+        red_i = 1.0 - ri["excess_rms"] / excess0 if excess0 > 0 else 0.0
+        pairwise = float(np.mean(boot @ (Ls[i] - Ls[best]) > 0))
+        if red_i >= RULES["min_gap_reduction"] and pairwise < RULES["ambiguity"]:
+            amb.append({"effect": ri["effect"], "p_winner_better": pairwise})
+    if amb:
+        out["ambiguous_with"] = amb
+        out["why"] += ("; cannot be told apart from " + ", ".join(a["effect"] for a in amb)
+                       + " on this data")
+    return out

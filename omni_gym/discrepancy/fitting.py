@@ -1,0 +1,344 @@
+"""Fitting with folds: every candidate fitted on all runs and on each fold's training runs.
+
+Each point is simulated on every run in one world (:class:`Evaluator`), giving a table SSE[point, run].
+A fit starts from a scrambled Sobol design shared by all its searches (plus the effect's null point),
+then runs the batched local searches of :mod:`.search` (roller-phase sweeps, Levenberg–Marquardt,
+valley line searches) from the best design points. A fit on a set of runs is the point with the
+least SSE over those runs among everything simulated for it.
+
+Held-out errors: K folds by run (:func:`make_folds`). Fold k's fit sees only the other runs; its SSE on
+the runs of fold k is that candidate's held-out error there (scored by :func:`.decision.decide`).
+The stochastic ``wheel_liftoff`` is fitted by lift-event inference instead (:mod:`.events`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.stats import qmc
+
+from omni_gym.discrepancy.candidates import Candidate, null_point
+from omni_gym.discrepancy.dataset import Dataset
+from omni_gym.discrepancy.decision import RULES
+from omni_gym.discrepancy.events import PARAMS_PER_EVENT, EventFit, infer_events
+from omni_gym.discrepancy.residuals import count_components, noise_estimate, run_sse, shooting_windows
+from omni_gym.discrepancy.search import (
+    SearchContext,
+    SearchState,
+    levenberg_marquardt,
+    phase_search,
+    valley_search,
+)
+from omni_gym.discrepancy.simulate import FIT_DT, Job, pose_residual, simulate_poses
+from omni_gym.physics.model import SimModel
+
+# Search rounds of fit_candidate (also the progress bound max_ticks): LM iterations of the all-run and
+# fold fits, roller phase sweeps, valley line-search rounds.
+ITERATIONS, FOLD_ITERATIONS, PHASE_SWEEPS, VALLEY_ROUNDS = 6, 4, 2, 3
+
+
+class Evaluator:
+    """SSE per run of parameter points, by batched simulation (one world per call)."""
+
+    def __init__(self, dataset: Dataset, lever: float, dt: float = FIT_DT, max_batch: int = 1500) -> None:
+        self.ds = dataset
+        self.lever = lever
+        self.dt = dt
+        self.max_batch = max_batch
+        self.simulated = 0  # robot-runs simulated (for the report)
+        self._windows: list[tuple] | None = None
+        self._baseline: tuple | None = None
+
+    @property
+    def windows(self) -> list[tuple]:
+        """The dataset's :func:`shooting_windows` (computed once)."""
+        if self._windows is None:
+            self._windows = shooting_windows(self.ds)
+        return self._windows
+
+    def nominal_baseline(self, nominal: SimModel) -> tuple[list[np.ndarray], np.ndarray, float | None]:
+        """The nominal model's per-run residuals, per-run SSE [m²] and the tracker-noise estimate σ̂ [m]
+        (simulated once per evaluator: the workflow and the event inference share them)."""
+        if self._baseline is None:
+            res0 = self.residuals([nominal])[0]
+            self._baseline = (res0, np.array([run_sse(r) for r in res0]),
+                              noise_estimate(res0, [r.t for r in self.ds.runs]))
+        return self._baseline
+
+    def residuals(self, models: list[SimModel], shooting: bool = False) -> list[list[np.ndarray]]:
+        """Per model, per run: residual (K, 3) [m] measured − simulated.
+
+        ``shooting``: simulate the windows of :func:`shooting_windows` instead (each from the measured
+        state at its start) and return, per run, the windows' residual rows stacked.
+        """
+        if shooting:
+            return self._shooting_residuals(models)
+        runs = self.ds.runs
+        jobs = [Job(m, r) for m in models for r in runs]
+        out = simulate_poses(jobs, self.dt, self.max_batch)
+        self.simulated += len(jobs)
+        R = len(runs)
+        return [[pose_residual(run.pose, out[mi * R + ri], self.lever) for ri, run in enumerate(runs)]
+                for mi in range(len(models))]
+
+    def has_windows(self) -> bool:
+        """True when some run is observed densely enough for multiple shooting."""
+        return bool(self.windows)
+
+    def _shooting_residuals(self, models: list[SimModel]) -> list[list[np.ndarray]]:
+        wins = self.windows
+        jobs = [Job(m, self.ds.runs[ri], k0=k0, k1=k1, state0=st) for m in models for ri, k0, k1, st in wins]
+        out = simulate_poses(jobs, self.dt, self.max_batch)
+        self.simulated += len(jobs)
+        res = []
+        W = len(wins)
+        for mi in range(len(models)):
+            per_run: list[list[np.ndarray]] = [[np.zeros((1, 3))] for _ in self.ds.runs]
+            for wi, (ri, k0, k1, _) in enumerate(wins):
+                run = self.ds.runs[ri]
+                per_run[ri].append(pose_residual(run.pose[k0 + 1:k1 + 1], out[mi * W + wi][1:], self.lever))
+            res.append([np.vstack(x) for x in per_run])
+        return res
+
+
+@dataclass
+class FitResult:
+    """One candidate's fits: per fold and on all runs, with held-out errors and uncertainty."""
+
+    candidate: Candidate
+    u_all: np.ndarray
+    params_all: dict
+    sse_all: np.ndarray  # (R,) per-run SSE of the all-run fit
+    heldout: np.ndarray  # (R,) per-run SSE of the fold fit that did not see the run
+    fold_params: list[dict]
+    pool_u: np.ndarray  # points available to the all-run fit
+    pool_sse: np.ndarray  # their (P, R) SSE
+    # Stochastic candidate only: effective parameter count for the BIC penalty (2 rates + 3 per
+    # inferred lift event) and the inferred events (omni_gym.discrepancy.events.EventFit).
+    n_params_eff: int | None = None
+    event_fit: EventFit | None = None
+
+
+def make_folds(n_runs: int, rng: np.random.Generator, k: int = 3) -> np.ndarray:
+    """(R,) fold index of each run: K = min(k, R) folds of near-equal size, seeded order."""
+    k = min(k, n_runs)
+    order = rng.permutation(n_runs)
+    folds = np.empty(n_runs, dtype=int)
+    folds[order] = np.arange(n_runs) % k
+    return folds
+
+
+def max_ticks(cand: Candidate, iterations: int = ITERATIONS, fold_iterations: int = FOLD_ITERATIONS,
+              phase_sweeps: int = PHASE_SWEEPS, valley_rounds: int = VALLEY_ROUNDS) -> int:
+    """Most progress ticks :func:`fit_candidate` (same keyword values) makes for ``cand``: one per batch
+    round (design, LM iteration, phase sweep, valley search)."""
+    if cand.stochastic:
+        return 0
+    if any(d.periodic for d in cand.dims):
+        return 1 + 2 * (phase_sweeps + iterations) + 1 + iterations + fold_iterations
+    return 1 + iterations + valley_rounds * (1 + iterations) + fold_iterations
+
+
+def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray,
+                  rng: np.random.Generator, iterations: int = ITERATIONS, fold_iterations: int = FOLD_ITERATIONS,
+                  starts: int = 2, phase_grid: int = 32, phase_sweeps: int = PHASE_SWEEPS, phase_starts: int = 2,
+                  phase_restarts: int = 16, valley_rounds: int = VALLEY_ROUNDS,
+                  tick: Callable[[], None] | None = None) -> FitResult:
+    """Fit ``cand`` on all runs and on every fold's training runs (see the module docstring).
+
+    1. A shared scrambled Sobol design, plus the effect's null point (so a fit is never worse than
+       nominal on its training runs) and, for roller_gap, the nominal model's own μ'' and roller
+       fraction.
+    2. All-run fit: from the ``starts`` best design points that lie apart; roller phases searched
+       on a grid of the multiple-shooting cost, then batched Levenberg–Marquardt, then restarts on the
+       open-loop cost (``phase_restarts`` random phase vectors: coordinate descent over all
+       dimensions, LM from the best three) and a final phase sweep + LM.
+    3. Fold fits: Levenberg–Marquardt on the fold's training runs, warm-started at the all-run fit.
+       A fold fit is the point with the least training error among the design, the warm start and
+       its own steps. The warm start is the one channel by which held-out runs inform a fold fit:
+       it picks the basin (narrow roller-phase basins defeated independent per-fold searches on
+       two thirds of the data); everything the fold fit then does uses its training runs only.
+
+    The stochastic candidate (wheel_liftoff) is fitted by lift-event inference instead
+    (:func:`_fit_events`).
+    """
+    if cand.stochastic:
+        return _fit_events(cand, ev, nominal, folds)
+    p = cand.n_params
+    K = int(folds.max()) + 1
+    R = len(folds)
+    n0 = 16 if p <= 2 else 32 if p <= 4 else 64
+    design = qmc.Sobol(p, scramble=True, seed=rng).random(n0)
+    null = null_point(cand, nominal)
+    if null is not None:
+        design = np.vstack([null, design])
+    if cand.name == "roller_gap":
+        prior = np.full(p, 0.5)
+        prior[0] = np.clip((nominal.surface.mu_gap - cand.dims[0].lo) / (cand.dims[0].hi - cand.dims[0].lo), 0, 1)
+        prior[1] = np.clip((nominal.robot.roller_fraction - cand.dims[1].lo) / (cand.dims[1].hi - cand.dims[1].lo),
+                           0, 1)
+        design = np.vstack([prior, design[:1 + n0 // 4]])
+
+    def evaluate(us: np.ndarray, shooting: bool = False) -> tuple[np.ndarray, list[list[np.ndarray]]]:
+        res = ev.residuals([nominal.with_effect(cand.name, cand.params(u)) for u in us], shooting)
+        return np.array([[run_sse(r) for r in per_run] for per_run in res]), res
+
+    design_sse, design_res = evaluate(design)
+    if tick:
+        tick()
+    # Targets 0..K-1: the folds' training runs; target K: all runs.
+    train = [folds != k for k in range(K)] + [np.ones(R, dtype=bool)]
+    pools_u = [[design] for _ in train]
+    pools_sse = [[design_sse] for _ in train]
+    periodic = [j for j, d in enumerate(cand.dims) if d.periodic]
+    # With phases the search starts away from the null point (where phases do nothing).
+    rows = np.arange(len(design)) if not periodic or null is None else np.flatnonzero(np.any(design != null, axis=1))
+    n_starts = phase_starts if periodic else starts
+    free = [j for j in range(p) if j not in periodic]
+    chosen: list[int] = []
+    for i in rows[np.argsort(design_sse[rows].sum(axis=1))]:
+        if len(chosen) == n_starts:
+            break
+        # Starts lie apart (0.3 in the unit cube), so several basins are tried, not one basin twice;
+        # phases are searched from every start anyway, so only the other dimensions count.
+        if all(np.max(np.abs(design[i, free] - design[c, free])) >= 0.3 for c in chosen):
+            chosen.append(int(i))
+    states = [SearchState(t=K, u=design[i].copy(), res=design_res[i], cost=float(design_sse[i].sum()), lam=1e-2)
+              for i in chosen]
+    ctx = SearchContext(evaluate=evaluate, train=train, pools_u=pools_u, pools_sse=pools_sse, cand=cand, h=3e-3,
+                        tick=tick)
+    if periodic and ev.has_windows():
+        # Phases: the cost is multimodal in each (a gap passes once per roller pitch). On one long
+        # open-loop rollout a wrong phase of one wheel spoils the landscape of the others, so the
+        # phases are searched on the multiple-shooting cost (windows restarted from measured states:
+        # each wheel's gap contacts show up locally), from several starts whose other parameters
+        # differ (a phase grid under a wrong μ'' or roller fraction can settle in a compromise).
+        # Then LM on the open-loop cost, and one more phase sweep + LM from the best result: the
+        # phases found under the start's μ'' are re-searched under the fitted one.
+        phase_search(states, periodic, phase_grid, phase_sweeps, ctx, K)
+        levenberg_marquardt(states, iterations, ctx)
+        kept = min(states, key=lambda s: s.cost)
+        # The shooting cost is biased by noisy start states (velocities from the tracker), so its fit
+        # can sit in a neighbouring basin of the open-loop cost, where μ'', roller fraction and
+        # phases have co-adjusted into a compromise (the basins are narrow and coupled: neither LM
+        # nor a sweep of the phases alone leaves it). Restarts: the kept fit and `phase_restarts`
+        # random phase vectors under its μ'' and roller fraction; coordinate descent on the
+        # open-loop cost over all dimensions (μ'' and roller fraction on local grids, phases on a
+        # coarse full grid); LM from the best three; a fine phase sweep + LM from the best.
+        # Compute only: skipped when the kept fit explains less than RULES['min_improvement'] of the
+        # nominal error (noise-level data, where no basin of the effect can matter).
+        if kept.cost < (1.0 - RULES["min_improvement"]) * float(ev.nominal_baseline(nominal)[1].sum()):
+            restarts = np.tile(kept.u, (1 + phase_restarts, 1))
+            restarts[1:, periodic] = rng.random((phase_restarts, len(periodic)))
+            states = [SearchState(t=K, u=u, lam=1e-2) for u in restarts]  # scored by phase_search
+            phase_search(states, periodic, phase_grid // 2, phase_sweeps, ctx, K, shooting=False, local=free)
+            states = sorted(states, key=lambda s: s.cost)[:3]
+            levenberg_marquardt(states, iterations, ctx)
+            states = [replace(min(states, key=lambda s: s.cost))]  # a copy
+            phase_search(states, periodic, phase_grid, 1, ctx, K, shooting=False)
+            levenberg_marquardt(states, iterations, ctx)
+        if kept.cost < states[0].cost:
+            states = [kept]
+    else:
+        levenberg_marquardt(states, iterations, ctx)
+        # Narrow curved valleys (a centre-of-mass offset that shifts load onto a wheel at the edge of
+        # slip: ±0.5 mm across, tens of mm along) stop LM on small-scale roughness of the cost long
+        # before the valley floor's minimum; line searches along the valley, then LM again.
+        for _ in range(valley_rounds):
+            if not valley_search(states, ctx):
+                break
+            levenberg_marquardt(states, iterations, ctx)
+    i_all = int(np.argmin(np.vstack(pools_sse[K]).sum(axis=1)))
+    u_all = np.vstack(pools_u[K])[i_all]
+    a_sse = np.vstack(pools_sse[K])[i_all]
+    best = min(states, key=lambda s: s.cost)
+    fold_states = []
+    for k in range(K):
+        pools_u[k].append(best.u[None, :])
+        pools_sse[k].append(np.array([[run_sse(r) for r in best.res]]))
+        fold_states.append(SearchState(
+            t=k, u=best.u.copy(), res=best.res,
+            cost=float(sum(run_sse(r) for r, m in zip(best.res, train[k], strict=True) if m)), lam=1e-2))
+    levenberg_marquardt(fold_states, fold_iterations, ctx)
+    heldout = np.zeros(R)
+    fold_params = []
+    for k in range(K):
+        pu, ps = np.vstack(pools_u[k]), np.vstack(pools_sse[k])
+        i = int(np.argmin(ps[:, train[k]].sum(axis=1)))
+        heldout[folds == k] = ps[i, folds == k]
+        fold_params.append(cand.params(pu[i]))
+    return FitResult(candidate=cand, u_all=u_all, params_all=cand.params(u_all), sse_all=a_sse, heldout=heldout,
+                     fold_params=fold_params, pool_u=np.vstack(pools_u[K]), pool_sse=np.vstack(pools_sse[K]))
+
+
+def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray) -> FitResult:
+    """wheel_liftoff by MAP lift-event inference (omni_gym.discrepancy.events).
+
+    Every run's events are inferred with the BIC cost 3·ln N per event (N residual components of the
+    dataset); the candidate's per-run SSE is the open-loop replay of the run with its events. Rates
+    are the exponential-holding-time MLEs from the events: on all runs for the reported fit, and on
+    each fold's training runs for that fold's parameters.
+
+    **The held-out score is a marginal-likelihood approximation, not a pure prediction.** The events
+    are latent variables of each run, so they are inferred on every run — held-out runs included —
+    and only the rates come from training runs. The likelihood of a held-out run integrates over its
+    events; its MAP term, with each event charged its BIC cost (carried into :func:`decide` through
+    ``n_params_eff`` = 2 rates + 3 per event), approximates that integral. The event cost does not
+    depend on the fold's rates, so the inferred events are the same in every fold.
+    """
+    ds = ev.ds
+    n_comp = count_components(ds)
+    N = float(max(n_comp.sum(), 2))
+    _, sse0, sigma = ev.nominal_baseline(nominal)  # the same σ̂ the workflow reports
+    counter = [0]
+    efit = infer_events(ds, nominal, ev.lever, PARAMS_PER_EVENT * math.log(N), sse0, n_comp, ev.dt,
+                        sigma=sigma, windows=ev.windows, counter=counter,
+                        adequacy=1.0 + RULES["noise_margin"])  # "noise level" as the decision defines it
+    ev.simulated += counter[0]
+    null = null_point(cand, nominal)
+
+    def point(mask: np.ndarray | None) -> np.ndarray:
+        rates = efit.rates(mask)
+        if rates is None:
+            return null
+        u = np.array([(math.log(v) - math.log(d.lo)) / (math.log(d.hi) - math.log(d.lo))
+                      for d, v in zip(cand.dims, rates, strict=True)])
+        return np.clip(u, 0.0, 1.0)  # the candidate's bounds (rates outside them are clipped)
+
+    u_all = point(None)
+    K = int(folds.max()) + 1
+    fold_params = [cand.params(point(folds != k)) for k in range(K)]
+    return FitResult(candidate=cand, u_all=u_all, params_all=cand.params(u_all), sse_all=efit.sse.copy(),
+                     heldout=efit.sse.copy(), fold_params=fold_params, pool_u=u_all[None, :],
+                     pool_sse=efit.sse[None, :].copy(),
+                     n_params_eff=cand.n_params + PARAMS_PER_EVENT * efit.n_events(), event_fit=efit)
+
+
+def param_intervals(fit: FitResult, rng: np.random.Generator, n_boot: int = 200) -> dict:
+    """Bootstrap over runs: 5-95 % interval of each fitted dimension (refit = argmin over the pool).
+
+    For the event-inferred candidate the refit is the rate MLE from the resampled runs' events.
+    """
+    R = fit.pool_sse.shape[1]
+    idx = rng.integers(0, R, (n_boot, R))
+    if fit.event_fit is not None:
+        return _event_rate_intervals(fit, idx)
+    w = np.stack([np.bincount(row, minlength=R) for row in idx])  # (n_boot, R) run weights
+    best = np.argmin(w @ fit.pool_sse.T, axis=1)
+    vals = np.array([[d.value(float(x)) for d, x in zip(fit.candidate.dims, fit.pool_u[b], strict=True)]
+                     for b in best])
+    return {d.name: [float(np.percentile(vals[:, j], 5)), float(np.percentile(vals[:, j], 95))]
+            for j, d in enumerate(fit.candidate.dims)}
+
+
+def _event_rate_intervals(fit: FitResult, idx: np.ndarray) -> dict:
+    """5-95 % bootstrap range of the event-based rates (resamples without events: the null point)."""
+    ef = fit.event_fit
+    R = len(ef.events)
+    null = [fit.candidate.dims[0].lo, fit.candidate.dims[1].hi]
+    v = np.array([ef.rates_weighted(np.bincount(row, minlength=R).astype(float)) or null for row in idx])
+    return {d.name: [float(np.percentile(v[:, j], 5)), float(np.percentile(v[:, j], 95))]
+            for j, d in enumerate(fit.candidate.dims)}
