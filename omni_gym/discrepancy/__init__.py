@@ -3,13 +3,15 @@
 Modules (each one job):
 
 * :mod:`.dataset`: the dataset folder format (a contract, ``docs/formats.md``): read, validate, write.
+* :mod:`.importers`: real robot logs converted to datasets (``omni-gym import``: OptiOdom).
 * :mod:`.synth`: datasets with a hidden effect, for testing the workflow where the truth is known.
 * :mod:`.simulate`: batched simulation of runs × candidate models in one :class:`~omni_gym.physics.world.World`.
 * :mod:`.outliers`: tracker outliers, single pose rows no motion and no tracker noise can explain.
 * :mod:`.localise`: where the nominal model's residuals concentrate (multiple shooting).
 * :mod:`.residuals`: shooting windows, per-run SSE, the decision metric, the noise estimate.
 * :mod:`.events`: lift-event inference for the stochastic ``wheel_liftoff`` candidate.
-* :mod:`.candidates`: the effect library as fit candidates (bounded parameter cubes, null points).
+* :mod:`.candidates`: the effect library (``omni_gym.physics.effects``) as fit candidates (bounded
+  parameter cubes, null points).
 * :mod:`.search`: batched local searches (roller-phase sweeps, Levenberg–Marquardt, valley lines).
 * :mod:`.fitting`: fit every candidate on all runs and on each fold's training runs (held-out errors).
 * :mod:`.decision`: score the candidates on held-out runs and decide the outcome.

@@ -1,5 +1,9 @@
 """The effect library as fit candidates: each effect's fitted dimensions, their bounds and the null point.
 
+Every registered effect (:data:`omni_gym.physics.effects.REGISTRY`, in its order) is one candidate;
+the dimensions, the map from their values to the effect's parameters, the null point and an optional
+prior start are the effect's own (its module in ``omni_gym/physics/effects/``).
+
 A candidate's parameters live in the unit cube [0, 1]^p: :meth:`Dim.value` maps a coordinate to the
 parameter's bounds (log-spaced or linear; periodic dimensions wrap). :func:`null_point` is the point at
 which an effect changes nothing (a fit that includes it is never worse than nominal on its training runs).
@@ -7,39 +11,31 @@ which an effect changes nothing (a fit that includes it is never worse than nomi
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from omni_gym.physics.effects import REGISTRY, Dim, Effect
 from omni_gym.physics.model import SimModel
 
-
-@dataclass(frozen=True)
-class Dim:
-    """One fitted parameter: bounds [lo, hi] (log-spaced if ``log``; ``periodic`` wraps)."""
-
-    name: str
-    lo: float
-    hi: float
-    log: bool = False
-    periodic: bool = False
-
-    def value(self, u: float) -> float:
-        if self.log:
-            return float(math.exp(math.log(self.lo) + u * (math.log(self.hi) - math.log(self.lo))))
-        return float(self.lo + u * (self.hi - self.lo))
+__all__ = ["Candidate", "Dim", "candidates", "null_point", "prior_point", "to_cube"]
 
 
 @dataclass(frozen=True)
 class Candidate:
-    """A library effect with its fitted dimensions and how they map to the effect's parameters."""
+    """A library effect with its fitted dimensions and how they map to the effect's parameters.
+
+    ``null`` and ``prior``: dimension values (by :attr:`Dim.name`) of the null point and of an extra
+    start, from the effect (None: it has none); dimensions they leave out sit mid-range.
+    """
 
     name: str
     dims: tuple[Dim, ...]
     build: Callable[[list[float]], dict]
     stochastic: bool = False
+    null: dict[str, float] | None = None
+    prior: dict[str, float] | None = None
 
     @property
     def n_params(self) -> int:
@@ -48,57 +44,37 @@ class Candidate:
     def params(self, u: np.ndarray) -> dict:
         return self.build([d.value(float(x)) for d, x in zip(self.dims, u, strict=True)])
 
+    def point(self, values: dict[str, float]) -> np.ndarray:
+        """Unit-cube point with the given dimension values (others 0.5), clipped to the cube."""
+        u = np.full(self.n_params, 0.5)
+        for j, d in enumerate(self.dims):
+            if d.name in values:
+                u[j] = d.unit(values[d.name])
+        return np.clip(u, 0.0, 1.0)
+
+
+def _candidate(effect: Effect, model: SimModel) -> Candidate:
+    return Candidate(effect.name, effect.fit_dims(model), lambda v: effect.from_fit(v, model),
+                     stochastic=effect.stochastic, null=effect.null_fit(model), prior=effect.prior_fit(model))
+
 
 def candidates(model: SimModel) -> list[Candidate]:
     """The effect library as fit candidates for ``model`` (bounds wide enough for real robots)."""
-    n = model.n_wheels
-    pitch = 2 * math.pi / model.robot.rollers
-    lever = float(np.max(np.hypot(*model.robot.positions().T)))
-    c = 0.4 * lever  # the centre of mass well inside the support polygon
-    return [
-        Candidate("roller_gap", (Dim("mu_gap", 0.05, 1.5), Dim("roller_fraction", 0.6, 1.0),
-                                 *[Dim(f"phase{i + 1}", 0.0, pitch, periodic=True) for i in range(n)]),
-                  lambda v: {"mu_gap": v[0], "roller_fraction": v[1], "phase": list(v[2:])}),
-        Candidate("kinetic_friction", (Dim("ratio", 0.2, 1.0), Dim("v_s", 0.002, 0.3, log=True)),
-                  lambda v: {"ratio": v[0], "v_s": v[1]}),
-        Candidate("com_offset", (Dim("cx", -c, c), Dim("cy", -c, c)), lambda v: {"com": [v[0], v[1]]}),
-        Candidate("wheel_radius", tuple(Dim(f"scale{i + 1}", 0.85, 1.15) for i in range(n)),
-                  lambda v: {"scale": list(v)}),
-        Candidate("motor_lag", (Dim("tau", 0.001, 0.5, log=True),), lambda v: {"tau": v[0]}),
-        Candidate("wheel_liftoff", (Dim("lift_rate", 0.05, 5.0, log=True), Dim("recover_rate", 0.5, 50.0, log=True)),
-                  lambda v: {"lift_rate": v[0], "recover_rate": v[1]}, stochastic=True),
-    ]
+    return [_candidate(effect, model) for effect in REGISTRY.values()]
 
 
-def null_point(cand: Candidate, nominal: SimModel) -> np.ndarray | None:
-    """Unit-cube point at which the effect changes nothing (None when the family has none)."""
-    lo = {d.name: d.lo for d in cand.dims}
-    hi = {d.name: d.hi for d in cand.dims}
-    if cand.name == "kinetic_friction":
-        null = {"ratio": 1.0}
-    elif cand.name == "roller_gap":
-        null = {"roller_fraction": 1.0}  # no rigid material: the initial model
-    elif cand.name == "com_offset":
-        null = {"cx": float(nominal.com[0]), "cy": float(nominal.com[1])}
-    elif cand.name == "motor_lag":
-        null = {"tau": lo["tau"]}
-    elif cand.name == "wheel_liftoff":
-        null = {"lift_rate": lo["lift_rate"], "recover_rate": hi["recover_rate"]}
-    elif cand.name == "wheel_radius":
-        null = {d.name: 1.0 for d in cand.dims}
-    else:
-        null = None
-    if null is None:
-        return None
-    u = np.full(cand.n_params, 0.5)
-    for j, d in enumerate(cand.dims):
-        if d.name in null:
-            v = null[d.name]
-            u[j] = ((math.log(v) - math.log(d.lo)) / (math.log(d.hi) - math.log(d.lo)) if d.log
-                    else (v - d.lo) / (d.hi - d.lo))
-    if cand.name == "kinetic_friction":
-        u[1] = 0.5  # v_s is irrelevant at ratio 1
-    return np.clip(u, 0.0, 1.0)
+def null_point(cand: Candidate, nominal: SimModel | None = None) -> np.ndarray | None:
+    """Unit-cube point at which the effect changes nothing (None when the family has none).
+
+    ``nominal`` is accepted for callers that pass it; the point was computed for the model the
+    candidate was made for (:func:`candidates`).
+    """
+    return None if cand.null is None else cand.point(cand.null)
+
+
+def prior_point(cand: Candidate) -> np.ndarray | None:
+    """Unit-cube point of the effect's extra start (roller_gap: the nominal μ'' and roller share), or None."""
+    return None if cand.prior is None else cand.point(cand.prior)
 
 
 def to_cube(cand: Candidate, u: np.ndarray) -> np.ndarray:

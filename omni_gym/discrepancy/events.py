@@ -5,7 +5,7 @@ realisation of it, which no rate pair can reproduce by simulation. The held-out 
 rates marginalises the unobserved events. We approximate that integral by its largest term (MAP /
 Laplace): the most likely event sequence of each run, plus a BIC cost of 3·ln N per inferred event
 (start, end, lifted case) in the per-run likelihood units n_r·ln(SSE_r/n_r) of
-:func:`omni_gym.discrepancy.explain.decide` (N = residual components of the dataset).
+:func:`omni_gym.discrepancy.decision.decide` (N = residual components of the dataset).
 
 Search (all runs batched; :class:`EventInference`, one method per step, :func:`infer_events` runs it):
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.stats import qmc
 
-from omni_gym.discrepancy.candidates import Candidate, null_point
+from omni_gym.discrepancy.candidates import Candidate, null_point, prior_point
 from omni_gym.discrepancy.dataset import Dataset
 from omni_gym.discrepancy.decision import RULES
 from omni_gym.discrepancy.events import PARAMS_PER_EVENT, EventFit, infer_events
@@ -150,8 +150,8 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
     """Fit ``cand`` on all runs and on every fold's training runs (see the module docstring).
 
     1. A shared scrambled Sobol design, plus the effect's null point (so a fit is never worse than
-       nominal on its training runs) and, for roller_gap, the nominal model's own μ'' and roller
-       fraction.
+       nominal on its training runs) and the effect's prior start, if it has one (roller_gap: the
+       nominal model's own μ'' and roller fraction).
     2. All-run fit: from the ``starts`` best design points that lie apart; roller phases searched
        on a grid of the multiple-shooting cost, then batched Levenberg–Marquardt, then restarts on the
        open-loop cost (``phase_restarts`` random phase vectors: coordinate descent over all
@@ -175,11 +175,10 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
     null = null_point(cand, nominal)
     if null is not None:
         design = np.vstack([null, design])
-    if cand.name == "roller_gap":
-        prior = np.full(p, 0.5)
-        prior[0] = np.clip((nominal.surface.mu_gap - cand.dims[0].lo) / (cand.dims[0].hi - cand.dims[0].lo), 0, 1)
-        prior[1] = np.clip((nominal.robot.roller_fraction - cand.dims[1].lo) / (cand.dims[1].hi - cand.dims[1].lo),
-                           0, 1)
+    prior = prior_point(cand)
+    if prior is not None:
+        # An effect's prior start (roller_gap: the nominal model's own μ'' and roller fraction) stands in
+        # for most of the Sobol design: kept are the prior, the null point and a quarter of the design.
         design = np.vstack([prior, design[:1 + n0 // 4]])
 
     def evaluate(us: np.ndarray, shooting: bool = False) -> tuple[np.ndarray, list[list[np.ndarray]]]:
@@ -304,8 +303,7 @@ def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.nda
         rates = efit.rates(mask)
         if rates is None:
             return null
-        u = np.array([(math.log(v) - math.log(d.lo)) / (math.log(d.hi) - math.log(d.lo))
-                      for d, v in zip(cand.dims, rates, strict=True)])
+        u = np.array([d.unit(v) for d, v in zip(cand.dims, rates, strict=True)])
         return np.clip(u, 0.0, 1.0)  # the candidate's bounds (rates outside them are clipped)
 
     u_all = point(None)

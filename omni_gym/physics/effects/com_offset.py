@@ -42,7 +42,7 @@ class ComOffset(Effect):
         return {"com": [values[0], values[1]]}
 
     def null_fit(self, model) -> dict[str, float]:
-        com = model.robot.com
+        com = model.com  # the model's centre of mass as it stands (nominal, or already offset)
         return {"cx": float(com[0]), "cy": float(com[1])}
 
     def synth_default(self, model, rng) -> dict:
