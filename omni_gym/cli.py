@@ -76,6 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
     gp.add_argument("--json", action="store_true", help="print result.json")
     gp.add_argument("--seed", type=int, default=0, help="seed (>= 0) of folds, designs and bootstraps")
     gp.add_argument("--no-plots", action="store_true", help="skip the plots")
+    gp.add_argument("--max-effects", type=int, default=3,
+                    help="most effects named one after another (each step searches the gap left by the last; "
+                         "1: name one effect only)")
     _add_force_option(gp, "an existing report folder")
     gp.set_defaults(handler=_cmd_gap)
     sy = sub.add_parser("synth", help="write a dataset with a hidden effect (truth to DATASET.truth.json)")
@@ -247,7 +250,10 @@ def _cmd_gap(args: argparse.Namespace) -> int:
     from omni_gym.discrepancy.workflow import gap
 
     check_option("--seed", args.seed)
-    result = gap(args.dataset, args.out, seed=args.seed, plots=not args.no_plots, force=args.force)
+    if args.max_effects < 1:
+        raise ValueError(f"--max-effects must be an integer >= 1, got {args.max_effects}")
+    result = gap(args.dataset, args.out, seed=args.seed, plots=not args.no_plots, force=args.force,
+                 max_effects=args.max_effects)
     if args.json:
         print(json.dumps(result, indent=2, allow_nan=False))  # standard JSON (non-finite values are null)
     else:
@@ -257,8 +263,11 @@ def _cmd_gap(args: argparse.Namespace) -> int:
             return "-" if v is None else f"{1e3 * v:.2f}"
 
         print(f"effect: {result['effect']} ({result['why']})")
-        print(f"held-out gap beyond noise: {mm(g['before'])} mm -> {mm(g['after'])} mm; "
-              f"report: {args.out}/report.md")
+        for st in result["steps"][1:]:  # the effects named after the first, and the answer that ended the search
+            print(f"then: {st['effect']} ({st['why']})")
+        print(f"held-out gap beyond noise: {mm(g['before'])} mm -> {mm(g['after'])} mm"
+              + (f" with {' + '.join(result['effects'])}" if len(result["effects"]) > 1 else "")
+              + f"; report: {args.out}/report.md")
         flags = result["plausibility"]["flags"]
         if flags:
             print("implausible: " + "; ".join(

@@ -22,6 +22,10 @@ RULES = {
     "noise_margin": 0.3,  # MSE within (1 + margin)·σ̂² counts as noise-level
     "min_gap_reduction": 0.7,  # least reduction of the excess RMS for a named effect
     "ambiguity": 0.8,  # winner must beat a qualifying runner-up in this share of resamples
+    # Multi-effect search: a candidate that beats the step's baseline but removes less than
+    # min_gap_reduction of the original gap is kept as a partial explanation (and the search goes on)
+    # if it removes at least this share of the gap left at its step.
+    "min_step_reduction": 0.3,
 }
 N_BOOT = 400
 
@@ -43,8 +47,15 @@ def _share_better(gain: np.ndarray) -> float:
 
 
 def decide(nominal_sse: np.ndarray, fits: list[HeldOutFit], n_comp: np.ndarray, sigma: float | None,
-           rng: np.random.Generator) -> dict:
+           rng: np.random.Generator, reference_excess: float | None = None) -> dict:
     """Rank candidates by penalised held-out score and choose the outcome (see the module docstring).
+
+    ``nominal_sse``: the baseline's per-run SSE (the nominal model, or in a multi-effect search the
+    model with the effects named so far). ``reference_excess`` [m]: the gap beyond noise the
+    ``min_gap_reduction`` rule is measured against (default: the baseline's own; a multi-effect search
+    passes the nominal model's). When the best candidate beats the baseline but falls short of that
+    rule while removing at least ``min_step_reduction`` of the baseline's own gap, the outcome is
+    ``unexplained`` with ``partial`` naming it (the workflow may add it and search on).
 
     Per-run Gaussian likelihood: run r with n_r residual components and held-out SSE_r contributes
     n_r·ln(SSE_r/n_r); a candidate's score adds p·ln(N). Per-run variances keep one run that a
@@ -89,11 +100,12 @@ def decide(nominal_sse: np.ndarray, fits: list[HeldOutFit], n_comp: np.ndarray, 
     wins = np.argmin(np.stack([boot @ L for L in Ls]), axis=0)
     for i in range(len(fits)):
         ranking[i]["stability"] = float(np.mean(wins == i))
-    excess0 = math.sqrt(max(mse0 - noise_var, 0.0))
+    excess_base = math.sqrt(max(mse0 - noise_var, 0.0))
+    excess0 = excess_base if reference_excess is None else reference_excess
     nominal_at_noise = sigma is not None and mse0 <= noise_var * (1 + RULES["noise_margin"])
     best = order[0]
     rb = ranking[best]
-    out = {"nominal_rms": math.sqrt(mse0), "nominal_excess_rms": excess0, "noise": sigma, "score_nominal": score0,
+    out = {"nominal_rms": math.sqrt(mse0), "nominal_excess_rms": excess_base, "noise": sigma, "score_nominal": score0,
            "ranking": [ranking[i] for i in order], "best": rb["effect"]}
     reduction = 1.0 - rb["excess_rms"] / excess0 if excess0 > 0 else 0.0
     best_at_noise = sigma is not None and rb["heldout_rms"] ** 2 <= noise_var * (1 + RULES["noise_margin"])
@@ -111,6 +123,10 @@ def decide(nominal_sse: np.ndarray, fits: list[HeldOutFit], n_comp: np.ndarray, 
         out["effect"] = "unexplained"
         out["why"] = (f"the best candidate, {rb['effect']}, removes only {100 * reduction:.0f} % of the gap beyond "
                       f"noise on held-out runs (needs {100 * RULES['min_gap_reduction']:.0f} %)")
+        step_reduction = 1.0 - rb["excess_rms"] / excess_base if excess_base > 0 else 0.0
+        if step_reduction >= RULES["min_step_reduction"]:
+            out["partial"] = rb["effect"]
+            out["step_reduction"] = step_reduction
         return out
     out["effect"] = rb["effect"]
     out["why"] = (f"{rb['effect']} removes {100 * reduction:.0f} % of the held-out gap beyond noise and beats "

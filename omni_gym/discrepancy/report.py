@@ -53,6 +53,7 @@ def markdown(result: dict, figures: list[str]) -> str:
                   "absorbed another error):", ""]
         lines += [f"* ⚠ {f['param']} = {f['value']:.4g}, plausible [{f['lo']:.4g}, {f['hi']:.4g}]: {f['why']}"
                   for f in flags] + [""]
+    lines += _steps_lines(result)
     lines += _model_json_lines(effect)
     if effect in ("unexplained", "none"):
         lines += _next_steps(result)
@@ -100,6 +101,22 @@ def markdown(result: dict, figures: list[str]) -> str:
     if figures:
         lines += ["", "## Plots", ""] + [f"![{f}]({f})" for f in figures]
     return "\n".join(lines) + "\n"
+
+
+def _steps_lines(result: dict) -> list[str]:
+    """The staircase of the multi-effect search: one row per step (shown when it went past one step)."""
+    steps = result.get("steps", [])
+    if len(steps) < 2:
+        return []
+    lines = ["## Effects, step by step", "",
+             "After naming an effect, the workflow adds it to the model (all-run fit) and searches the remaining "
+             "gap again. Held-out gap beyond tracker noise before and after each step (staircase.png):", "",
+             "| step | answer | gap before [mm] | gap after [mm] | parameters |", "|---|---|---|---|---|"]
+    for st in steps:
+        lines.append(f"| {st['step']} | `{st['effect']}` | {_mm(st['gap_before'])} | {_mm(st['gap_after'])} "
+                     f"| `{_fmt(st.get('params', {}))}` |")
+    lines += ["", "; ".join(f"step {st['step']}: {st['why']}" for st in steps) + ".", ""]
+    return lines
 
 
 def _param_lines(effect: str, params: dict) -> list[str]:
@@ -300,7 +317,8 @@ def _plots(out: Path, result: dict, ds: Dataset, nominal: SimModel, model: SimMo
     runs = [ds.runs[i] for i in shown]
     sims = simulate_jobs([Job(m, r) for m in (nominal, model) for r in runs], dt=dt)
     nom, fit = sims[:len(runs)], sims[len(runs):]
-    label = result["effect"] if result["effect"] in nominal.effects or result.get("params") else "nominal"
+    named = result.get("effects") or []
+    label = " + ".join(named) if named else "nominal"
     files = []
     fig, axes = plt.subplots(1, len(runs), figsize=(4 * len(runs), 4), squeeze=False)
     for ax, run, (pn, _), (pf, _) in zip(axes[0], runs, nom, fit, strict=True):
@@ -354,8 +372,27 @@ def _plots(out: Path, result: dict, ds: Dataset, nominal: SimModel, model: SimMo
         axes[2].legend(fontsize=8)
     fig.tight_layout()
     files.append(_save(fig, out, "where.png"))
+    if len(result.get("steps", [])) >= 2:
+        files.append(_staircase(plt, out, result))
     plt.close("all")
     return files
+
+
+def _staircase(plt, out: Path, result: dict) -> str:
+    """Held-out gap beyond noise [mm] after each step of the multi-effect search."""
+    steps = result["steps"]
+    labels = ["nominal"] + [f"+ {st['effect']}" for st in steps if st.get("params") is not None]
+    values = [steps[0]["gap_before"]] + [st["gap_after"] for st in steps if st.get("params") is not None]
+    fig, ax = plt.subplots(figsize=(1.8 * len(labels) + 2, 3.5))
+    x = np.arange(len(labels))
+    ax.step(x, [1e3 * (v or 0.0) for v in values], where="mid", color="tab:blue")
+    ax.plot(x, [1e3 * (v or 0.0) for v in values], "o", color="tab:blue")
+    ax.set_xticks(x, labels)
+    ax.set_ylabel("held-out gap beyond noise [mm]")
+    ax.set_ylim(bottom=0)
+    ax.set_title(f"then: {steps[-1]['effect']}" if steps[-1].get("params") is None else "search stopped at the limit")
+    fig.tight_layout()
+    return _save(fig, out, "staircase.png")
 
 
 def _save(fig, out: Path, name: str) -> str:

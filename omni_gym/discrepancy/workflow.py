@@ -1,10 +1,24 @@
-"""``omni-gym gap``: localise, explain, add the effect, show the gap before and after."""
+"""``omni-gym gap``: localise, explain, add the effect, search the remaining gap again, show the staircase.
+
+The search names one effect at a time (:func:`_search_step`: fit every candidate not yet named on top of
+the current model, decide). A named effect is added to the model with its all-run fit and the next step
+searches what is left, until the answer is ``none`` or ``unexplained``, the library is used up, or
+``max_effects`` effects are named. A stochastic effect (``wheel_liftoff``) ends the search: with a random
+contact process in the model, a deterministic fit of anything else is no longer possible.
+
+Each step's baseline is the current model's all-run SSE (its earlier effects fitted on every run, the
+held-out runs included), so a later effect must beat an optimistic baseline: the loop errs towards
+stopping. The single-effect keys of ``result.json`` (``effect``, ``why``, ``params``, ``uncertainty``,
+``ranking``) describe the first step; ``effects`` and ``steps`` the whole search; ``model`` and ``gap``
+the final model.
+"""
 
 from __future__ import annotations
 
 import math
 import sys
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +29,7 @@ from omni_gym.discrepancy.dataset import load_dataset
 from omni_gym.discrepancy.decision import RULES, decide
 from omni_gym.discrepancy.events import EVENT_METHOD
 from omni_gym.discrepancy.finite import finite_json
-from omni_gym.discrepancy.fitting import Evaluator, fit_candidate, make_folds, max_ticks, param_intervals
+from omni_gym.discrepancy.fitting import Evaluator, FitResult, fit_candidate, make_folds, max_ticks, param_intervals
 from omni_gym.discrepancy.localise import localise
 from omni_gym.discrepancy.outliers import OUTLIER_RULE, drop_outliers, find_outliers
 from omni_gym.discrepancy.residuals import count_components, geo_mse
@@ -23,29 +37,84 @@ from omni_gym.discrepancy.simulate import FIT_DT
 from omni_gym.discrepancy.synth import pose_lever
 from omni_gym.outputs import Output
 from omni_gym.physics.liftoff import contact_cases
+from omni_gym.physics.model import SimModel
 
+MAX_EFFECTS = 3  # most effects one gap run names (each step fits the whole library again)
 METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2)), M the geometric mean over runs "
           "(weighted by observed rows) of each run's mean squared residual over x, y and heading x lever; each run is "
           "predicted by a fit that did not see it")
 
 
 def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds: int = 3,
-        progress: bool | None = None, dt: float = FIT_DT, plots: bool = True, force: bool = False) -> dict:
+        progress: bool | None = None, dt: float = FIT_DT, plots: bool = True, force: bool = False,
+        max_effects: int = MAX_EFFECTS) -> dict:
     """Run the workflow on ``dataset``; write the report folder ``out`` (if given); return the result.
 
     ``progress``: tqdm bar on stderr (None: only when stderr is a terminal). Same seed, same result.
+    ``max_effects`` (>= 1): most effects named one after another (module docstring).
     ``out`` is checked and locked before the work starts and appears complete or not at all
     (:class:`omni_gym.outputs.Output`): an existing report is refused unless ``force``; a report that
     is, contains or lies inside the dataset is refused.
     """
+    if isinstance(max_effects, bool) or not isinstance(max_effects, int) or max_effects < 1:
+        raise ValueError(f"max_effects must be an integer >= 1, got {max_effects!r}")
     if out is None:
-        return _gap(dataset, None, seed, folds, progress, dt, plots)
+        return _gap(dataset, None, seed, folds, progress, dt, plots, max_effects)
     with Output(Path(out), "dir", force=force, inputs=[dataset], marker="result.json", what="gap report") as tx:
-        return _gap(dataset, tx.path, seed, folds, progress, dt, plots)
+        return _gap(dataset, tx.path, seed, folds, progress, dt, plots, max_effects)
+
+
+@dataclass
+class Step:
+    """One step of the search: the candidates fitted on top of ``base`` and the decision."""
+
+    base: SimModel  # the model the candidates were added to
+    base_sse: np.ndarray  # (R,) its per-run SSE [m²] (the decision's baseline)
+    fits: list[FitResult]
+    decision: dict
+
+    @property
+    def partial(self) -> bool:
+        """True when the step's effect beats its baseline but, with the effects before it, explains too
+        little of the nominal gap to be named on its own (``decide``'s ``partial``)."""
+        return "partial" in self.decision
+
+    @property
+    def effect(self) -> str:
+        """The effect added at this step (named or partial), else ``none``/``unexplained``."""
+        return self.decision.get("partial", self.decision["effect"])
+
+    @property
+    def fit(self) -> FitResult | None:
+        """The added candidate's fit (None when the step ended the search with none/unexplained)."""
+        return next((f for f in self.fits if f.candidate.name == self.effect), None)
+
+
+def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: list[str], fold_of: np.ndarray,
+                 n_comp: np.ndarray, sigma: float | None, rng: np.random.Generator, bar, say, step: int,
+                 reference_excess: float | None = None) -> Step:
+    """Fit every library candidate not in ``exclude`` on top of ``base`` and decide (the 70 % rule
+    measured against ``reference_excess``, the nominal gap, from the second step on)."""
+    cands = [c for c in candidates(base) if c.name not in exclude]
+    if step > 1:  # the bar's first total covered step 1 only
+        bar.total += 1 + sum(max_ticks(c) + 1 for c in cands)
+        bar.refresh()
+    fits = []
+    prefix = f"step {step}: " if step > 1 else ""
+    for i, c in enumerate(cands, start=1):
+        say(f"{prefix}fitting candidate {i}/{len(cands)} {c.name}")
+        bar.set_postfix_str(c.name)
+        done = bar.n + max_ticks(c) + 1
+        fits.append(fit_candidate(c, ev, base, fold_of, rng, tick=lambda: bar.update(1)))
+        bar.update(max(done - bar.n, 0))  # searches that converge early skip their remaining rounds
+    say(f"{prefix}deciding")
+    decision = decide(base_sse, fits, n_comp, sigma, rng, reference_excess=reference_excess)
+    bar.update(1)
+    return Step(base=base, base_sse=base_sse, fits=fits, decision=decision)
 
 
 def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress: bool | None, dt: float,
-         plots: bool) -> dict:
+         plots: bool, max_effects: int = MAX_EFFECTS) -> dict:
     """The workflow of :func:`gap`; the report is written into ``out`` as it is (no transaction)."""
     from tqdm import tqdm
 
@@ -73,42 +142,70 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     fold_of = make_folds(R, rng, folds)
     cands = candidates(nominal)
     total = 2 + sum(max_ticks(c) + 1 for c in cands)
-    fits = []
+    steps: list[Step] = []
+    uncertainties: list[dict] = []
     with tqdm(total=total, desc="gap: fitting", file=sys.stderr, disable=not show, unit="batch") as bar:
         say("localising")
         where = localise(ds, nominal, lever, res0, dt=dt, sigma=sigma)
         bar.update(1)
-        for i, c in enumerate(cands, start=1):
-            say(f"fitting candidate {i}/{len(cands)} {c.name}")
-            bar.set_postfix_str(c.name)
-            done = bar.n + max_ticks(c) + 1
-            fits.append(fit_candidate(c, ev, nominal, fold_of, rng, tick=lambda: bar.update(1)))
-            bar.update(max(done - bar.n, 0))  # searches that converge early skip their remaining rounds
-        say("deciding")
-        decision = decide(sse0, fits, n_comp, sigma, rng)
-        bar.update(max(total - bar.n, 0))
-    by_name = {f.candidate.name: f for f in fits}
-    effect = decision["effect"]
-    result: dict = {"effect": effect, "why": decision["why"]}
-    if "ambiguous_with" in decision:
-        result["ambiguous_with"] = decision["ambiguous_with"]
+        model, base_sse = nominal, sse0
+        excess0 = _excess(sse0, n_comp, sigma**2 if sigma is not None else 0.0)
+        while True:
+            step = _search_step(ev, model, base_sse, [s.effect for s in steps], fold_of, n_comp, sigma, rng, bar,
+                                say, len(steps) + 1, reference_excess=excess0 if steps else None)
+            fit = step.fit
+            if fit is None:  # none or unexplained: the search ends here
+                break
+            steps.append(step)
+            uncertainties.append({
+                "params_5_95": param_intervals(fit, rng),
+                "fold_params": fit.fold_params,
+                "note": "5-95 % range of the refit over bootstrap resamples of the runs; fold_params are the fits "
+                        "each held-out fold was scored with",
+            })
+            model = model.with_effect(step.effect, fit.params_all)
+            base_sse = fit.sse_all
+            if len(steps) == max_effects or fit.candidate.stochastic or len(steps) == len(cands):
+                break
+            if sigma is not None and geo_mse(base_sse, n_comp) <= sigma**2 * (1 + RULES["noise_margin"]):
+                # Nothing left beyond tracker noise, even in-sample: no further effect can be warranted
+                # (the decision would call such a residual noise-level), so the search ends without a fit.
+                step = Step(base=model, base_sse=base_sse, fits=[], decision={
+                    "effect": "none", "why": "the residual with " + " + ".join(s.effect for s in steps)
+                    + " is at the tracker-noise level", "ranking": []})
+                break
+            say(f"{'named' if not step.partial else 'kept (partial)'} {step.effect}; searching the remaining gap")
+        bar.update(max(bar.total - bar.n, 0))
+    first = steps[0] if steps else step
+    final = step if step.fit is None else None  # the none/unexplained answer that ended the search, if one did
+    decision = first.decision
+    by_name = {f.candidate.name: f for f in first.fits}
     noise_var = sigma**2 if sigma is not None else 0.0
     N = float(n_comp.sum())
-    if effect in by_name:
-        fit = by_name[effect]
-        model = nominal.with_effect(effect, fit.params_all)
-        after_sse = fit.heldout
-        result["params"] = fit.params_all
-        result["uncertainty"] = {
-            "params_5_95": param_intervals(fit, rng),
-            "fold_params": fit.fold_params,
-            "note": "5-95 % range of the refit over bootstrap resamples of the runs; fold_params are the fits "
-                    "each held-out fold was scored with",
-        }
+    after_sse = steps[-1].fit.heldout if steps else sse0
+    # The answer: the first effect when the effects found together remove enough of the nominal gap
+    # (the last step's decision applied the 70 % rule to the whole chain), else the first step's own
+    # answer (none/unexplained), or unexplained for a chain that ran out of candidates short of it.
+    explained = bool(steps) and not steps[-1].partial
+    if explained:
+        effect, why = steps[0].effect, steps[0].decision["why"] if len(steps) == 1 else _chain_why(steps)
+    elif steps:
+        effect = "unexplained"
+        why = (f"{' + '.join(s.effect for s in steps)} together remove only "
+               f"{100 * (1 - _excess(after_sse, n_comp, noise_var) / excess0):.0f} % of the gap beyond noise on "
+               f"held-out runs (needs {100 * RULES['min_gap_reduction']:.0f} %); model.json carries them")
     else:
-        model = nominal
-        after_sse = sse0
+        effect, why = decision["effect"], decision["why"]
+    result: dict = {"effect": effect, "why": why}
+    if "ambiguous_with" in decision:
+        result["ambiguous_with"] = decision["ambiguous_with"]
+    if steps:
+        result["params"] = steps[0].fit.params_all
+        result["uncertainty"] = uncertainties[0]
+    else:
         result["params"] = {}
+    result["effects"] = [s.effect for s in steps]
+    result["steps"] = _steps_json(steps, uncertainties, final, sse0, n_comp, noise_var)
     if sigma is None:
         result.setdefault("uncertainty", {})["noise"] = (
             "tracker noise cannot be estimated (too few consecutive observed rows): gap values include noise, "
@@ -134,16 +231,18 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
             if f.event_fit.note:
                 entry["events_note"] = f.event_fit.note
         _annotate(entry, decision["nominal_excess_rms"], nominal)
+    flags = [fl for s in steps for fl in plausible.check(s.effect, s.fit.params_all, nominal)]
     result["plausibility"] = {
-        "flags": [fl.to_json() for fl in plausible.check(effect, result["params"], nominal)],
+        "flags": [fl.to_json() for fl in flags],
         "ranges": plausible.ranges_json(),
-        "note": "flags: fitted values of the named effect outside a physically plausible range (flagging only, the "
-                "fit is not changed); each ranking entry lists its own under 'implausible'",
+        "note": "flags: fitted values of the named effects outside a physically plausible range (flagging only, "
+                "the fit is not changed); each ranking entry lists its own under 'implausible'",
     }
     result["outliers"] = {"rows": [o.to_json() for o in flagged], "rule": OUTLIER_RULE}
     result["score_nominal"] = decision["score_nominal"]
     result["where"] = where
     result["settings"] = {"seed": seed, "folds": int(fold_of.max()) + 1, "dt": dt, "lever": lever,
+                          "max_effects": max_effects,
                           "liftoff": EVENT_METHOD, "rules": RULES, "robot_runs_simulated": ev.simulated}
     result["dataset"] = {"path": str(dataset), "runs": R, "description": ds.description}
     result, bad = finite_json(result)  # standard JSON: a value that could not be computed is null
@@ -155,6 +254,39 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         say("writing report")
         write_report(Path(out), result, ds, nominal, model, lever, dt, plots=plots)
     return result
+
+
+def _chain_why(steps: list[Step]) -> str:
+    """Why for a chain of effects: the last step's decision, which judged the whole chain."""
+    names = " + ".join(s.effect for s in steps)
+    return f"{names}: {steps[-1].decision['why']} (with the effects before it in the model)"
+
+
+def _excess(sse: np.ndarray, n_comp: np.ndarray, noise_var: float) -> float:
+    """The decision metric (:data:`METRIC`) of per-run SSE ``sse`` [m]."""
+    return math.sqrt(max(geo_mse(sse, n_comp) - noise_var, 0.0))
+
+
+def _steps_json(steps: list[Step], uncertainties: list[dict], final: Step | None, sse0: np.ndarray,
+                n_comp: np.ndarray, noise_var: float) -> list[dict]:
+    """The staircase: per named effect its parameters and the held-out gap beyond noise before and after
+    it; then the answer that ended the search (``none``/``unexplained``, with why), if one did."""
+    out = []
+    before = _excess(sse0, n_comp, noise_var)
+    for i, (s, u) in enumerate(zip(steps, uncertainties, strict=True), start=1):
+        after = _excess(s.fit.heldout, n_comp, noise_var)
+        out.append({"step": i, "effect": s.effect, "status": "partial" if s.partial else "named",
+                    "why": s.decision["why"], "params": s.fit.params_all,
+                    "gap_before": before, "gap_after": after, "params_5_95": u["params_5_95"],
+                    "ranking": [{"effect": r["effect"], "heldout_rms": r["heldout_rms"],
+                                 "beats_nominal": r["beats_nominal"]} for r in s.decision["ranking"]]})
+        before = after
+    if final is not None:
+        out.append({"step": len(steps) + 1, "effect": final.effect, "status": "end", "why": final.decision["why"],
+                    "gap_before": before, "gap_after": before,
+                    "ranking": [{"effect": r["effect"], "heldout_rms": r["heldout_rms"],
+                                 "beats_nominal": r["beats_nominal"]} for r in final.decision["ranking"]]})
+    return out
 
 
 def _rms(sse: float, n: int) -> float | None:

@@ -2,7 +2,7 @@
 
 * :mod:`.base`: the :class:`~.base.Effect` base class (schema, kernel/contact hooks, fit data).
 * :mod:`.roller_gap`, :mod:`.kinetic_friction`, :mod:`.com_offset`, :mod:`.wheel_radius`,
-  :mod:`.motor_lag`, :mod:`.wheel_liftoff`: the effects.
+  :mod:`.motor_lag`, :mod:`.wheel_liftoff`, :mod:`.wheel_geometry`: the effects.
 
 :data:`REGISTRY` lists them in a fixed order: the order in which the discrepancy workflow fits its
 candidates (it draws each fit's design from one seeded stream, so the order is part of a result)
@@ -18,11 +18,13 @@ from omni_gym.physics.effects.com_offset import ComOffset
 from omni_gym.physics.effects.kinetic_friction import KineticFriction
 from omni_gym.physics.effects.motor_lag import MotorLag
 from omni_gym.physics.effects.roller_gap import RollerGap
+from omni_gym.physics.effects.wheel_geometry import WheelGeometry
 from omni_gym.physics.effects.wheel_liftoff import WheelLiftoff
 from omni_gym.physics.effects.wheel_radius import WheelRadius
 
 REGISTRY: dict[str, Effect] = {e.name: e for e in (
     RollerGap(), KineticFriction(), ComOffset(), WheelRadius(), MotorLag(), WheelLiftoff(),
+    WheelGeometry(),  # after the first six: their candidates keep their seeded designs
 )}
 
 

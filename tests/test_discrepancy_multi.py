@@ -1,0 +1,88 @@
+"""Several effects at once (issue 15 item 3): the workflow names one effect, adds it to the model and
+searches the remaining gap again, until the answer is `none` or `unexplained`."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from omni_gym.cli import main
+from omni_gym.discrepancy import recovery, synth
+from omni_gym.discrepancy.dataset import write_dataset
+from omni_gym.discrepancy.workflow import gap
+
+# Two effects that act on different things: wheel radii (a steady kinematic error) and a motor lag (an
+# error only while the commands change). Large sizes of the recovery study.
+HIDDEN = {"wheel_radius": recovery.SIZES["wheel_radius"]["large"], "motor_lag": recovery.SIZES["motor_lag"]["large"]}
+RUNS, DURATION, NOISE = 4, 2.5, 0.001  # the recovery study's quick cases: 4 runs of 2.5 s, 1 mm tracker
+
+
+@pytest.fixture(scope="module")
+def two_effects(tmp_path_factory) -> Path:
+    nominal = recovery.nominal_model()
+    (first, p1), (second, p2) = HIDDEN.items()
+    truth = nominal.with_effect(first, p1)
+    runs, _ = synth.synthesize(truth, f"{second}:{json.dumps(p2)}", RUNS, NOISE, seed=5, duration=DURATION)
+    folder = tmp_path_factory.mktemp("multi") / "data"
+    write_dataset(folder, nominal.to_json(), "two hidden effects", runs)  # the nominal model has neither
+    return folder
+
+
+@pytest.fixture(scope="module")
+def report(two_effects, tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("multi_report") / "report"
+    gap(two_effects, out, seed=0, progress=False)
+    return out
+
+
+@pytest.fixture(scope="module")
+def result(report) -> dict:
+    return json.loads((report / "result.json").read_text())
+
+
+def test_both_hidden_effects_are_named_in_either_order(result):
+    assert set(result["effects"][:2]) == set(HIDDEN), (result["effects"], [s["why"] for s in result["steps"]])
+    # The extended model carries every named effect with its fitted parameters.
+    assert set(HIDDEN) <= set(result["model"]["effects"])
+    scale = result["model"]["effects"]["wheel_radius"]["scale"]
+    # The recovery study's tolerance for wheel_radius (0.01): a second effect in the data must not spoil it.
+    assert max(abs(a - b) for a, b in zip(scale, HIDDEN["wheel_radius"]["scale"], strict=True)) < 0.01
+    tau = result["model"]["effects"]["motor_lag"]["tau"]
+    assert abs(tau / HIDDEN["motor_lag"]["tau"] - 1) < 0.2  # the study's relative tolerance for tau
+
+
+def test_staircase_goes_down_and_single_effect_keys_describe_the_first_step(result):
+    steps = result["steps"]
+    named = [s for s in steps if "params" in s]
+    assert [s["effect"] for s in named] == result["effects"]
+    # Each named step removes gap: its held-out gap after is below its gap before, and the chain links up.
+    for a, b in zip(named, named[1:], strict=False):
+        assert b["gap_before"] == a["gap_after"]
+    assert all(s["gap_after"] < s["gap_before"] for s in named)
+    assert result["effect"] == named[0]["effect"] and result["params"] == named[0]["params"]
+    assert result["gap"]["after"] == pytest.approx(named[-1]["gap_after"])
+    # Together the two effects remove more of the gap than either alone: the first step's best candidate
+    # (motor_lag on this data) removes 67 %, short of the 70 % rule, so it is kept as a partial explanation;
+    # with wheel_radius the chain removes 87 % (measured; the rest is the noise estimate's own bias, issue 15
+    # item 6). 75 % sits between the two.
+    assert result["gap"]["after"] < 0.25 * result["gap"]["before"]
+    assert result["effect"] != "unexplained"
+
+
+def test_report_shows_the_staircase(report):
+    out = report
+    text = (out / "report.md").read_text()
+    assert "## Effects, step by step" in text and "staircase.png" in text
+    assert (out / "staircase.png").stat().st_size > 0
+    assert json.loads((out / "model.json").read_text())["effects"].keys() >= set(HIDDEN)
+
+
+def test_max_effects_one_names_one_effect_only(two_effects, tmp_path, capsys):
+    assert main(["gap", str(two_effects), "--out", str(tmp_path / "one"), "--max-effects", "1", "--no-plots"]) == 0
+    data = json.loads((tmp_path / "one" / "result.json").read_text())
+    assert len(data["effects"]) == 1 and len(data["model"]["effects"]) == 1
+    assert main(["gap", str(two_effects), "--out", str(tmp_path / "zero"), "--max-effects", "0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].endswith("--max-effects must be an integer >= 1, got 0") and not (tmp_path / "zero").exists()
