@@ -22,13 +22,18 @@ import pytest
 from omni_gym.discrepancy.recovery import NOISES, SIZES, TOLERANCES, run_case
 
 RUNS, DURATION = 4, 2.5
+# wheel_geometry fits 6 dimensions (3 distances, 3 mounting yaws): on 4 runs of 2.5 s its fold fits (2-3
+# runs each) are too loose for the held-out test (measured, large size, 3 mm: 39 % of the gap removed,
+# wheel_liftoff named instead); on 6 runs of 3 s (the benchmark's size) it is named with 100 % removed.
+DATA = {"wheel_geometry": (6, 3.0)}
 GRID = [(size, noise) for size in ("small", "large") for noise in NOISES]
 FULL = [(size, noise, seed) for size, noise in GRID for seed in (1, 2, 3)]
 QUICK = [("small", NOISES[0], 1), ("large", NOISES[-1], 1)]
 
 
 def _check(effect: str, cells: list[tuple]) -> None:
-    cases = [run_case(effect, SIZES[effect][size], noise, seed, RUNS, DURATION) for size, noise, seed in cells]
+    runs, duration = DATA.get(effect, (RUNS, DURATION))
+    cases = [run_case(effect, SIZES[effect][size], noise, seed, runs, duration) for size, noise, seed in cells]
     named = [c["named"] for c in cases]
     # A missed effect may be `unexplained` or `none`. Another effect's name is a wrong answer unless the
     # workflow itself says it cannot tell that effect from the hidden one on this data (the issue:

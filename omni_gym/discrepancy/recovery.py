@@ -38,8 +38,11 @@ def param_error(effect: str, truth: dict, fitted: dict, model: SimModel) -> dict
 
 
 def run_case(hidden: str, params: dict | None, noise: float, seed: int, runs: int, duration: float,
-             workdir: str | Path | None = None, observe: str = "all") -> dict:
-    """Synthesize one dataset, run ``gap`` on it, and score the answer against the truth."""
+             workdir: str | Path | None = None, observe: str = "all", max_effects: int = 1) -> dict:
+    """Synthesize one dataset, run ``gap`` on it, and score the answer against the truth.
+
+    One effect is hidden, so the study scores the first answer; ``max_effects`` = 1 (the default) skips
+    the search for further effects (``tests/test_discrepancy_multi.py`` covers that search)."""
     import json
 
     model = nominal_model()
@@ -48,7 +51,7 @@ def run_case(hidden: str, params: dict | None, noise: float, seed: int, runs: in
         folder = Path(tmp) / "data"
         truth = write_synthetic(folder, model, spec, runs, noise, seed, duration, observe)
         t0 = time.perf_counter()
-        result = gap(folder, None, seed=seed, progress=False)
+        result = gap(folder, None, seed=seed, progress=False, max_effects=max_effects)
         wall = time.perf_counter() - t0
     named = result["effect"]
     out = {"hidden": hidden, "noise": noise, "seed": seed, "named": named, "correct": named == hidden,
