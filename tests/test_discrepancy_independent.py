@@ -76,9 +76,9 @@ def test_integration_error_estimate_matches_the_reference():
     assert 0.7 * true < est < 1.5 * true, (est, true)
 
 
-def _independent_gap(tmp_path, hidden: dict | None, seed: int) -> dict:
+def _independent_gap(tmp_path, hidden: dict | None, seed: int, runs: int = 4, duration: float = 3.0) -> dict:
     folder = tmp_path / "data"
-    write_reference_dataset(folder, nominal_model(), hidden, runs=4, duration=3.0, seed=seed)
+    write_reference_dataset(folder, nominal_model(), hidden, runs=runs, duration=duration, seed=seed)
     return gap(folder, None, seed=seed, progress=False)
 
 
@@ -94,7 +94,38 @@ def test_nothing_hidden_in_independent_data_is_none(tmp_path):
 def test_com_offset_of_random_direction_in_independent_data_is_named(tmp_path):
     angle = np.random.default_rng(11).uniform(-math.pi, math.pi)
     truth = {"com": [0.016 * math.cos(angle), 0.016 * math.sin(angle)]}
-    result = _independent_gap(tmp_path, {"com_offset": truth}, seed=2)
+    # 3 runs of 2 s: fitting every candidate against a real gap (the roller_gap restarts run) costs
+    # about three times the null case's compute per run-second (76 s of CPU on 4 runs of 2.5 s).
+    result = _independent_gap(tmp_path, {"com_offset": truth}, seed=2, runs=3, duration=2.0)
     assert result["effect"] == "com_offset", result["why"]
     err = param_error("com_offset", truth, result["params"], nominal_model())
     assert err["com"] <= TOLERANCES["com_offset"]["com"], (result["params"], truth)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("noisy_start", [False, True], ids=["exact-start", "noisy-start"])
+def test_com_offset_fit_finds_the_truth_basin_over_seeds(tmp_path, noisy_start):
+    """The com_offset fit alone (no decision) on 6 seeds of independent data, 16 mm in a random
+    direction: every fit within the documented tolerance, at most the truth's SSE plus 1 % (a fit that
+    settles in another basin has a larger SSE than the truth's; measured 0.95-1.00x)."""
+    from omni_gym.discrepancy.candidates import candidates
+    from omni_gym.discrepancy.dataset import load_dataset
+    from omni_gym.discrepancy.fitting import fit_candidate, make_folds
+    from omni_gym.discrepancy.residuals import run_sse
+
+    model = nominal_model()
+    cand = next(c for c in candidates(model) if c.name == "com_offset")
+    for seed in range(1, 7):
+        angle = np.random.default_rng(1000 + seed).uniform(-math.pi, math.pi)
+        truth = {"com": [0.016 * math.cos(angle), 0.016 * math.sin(angle)]}
+        folder = tmp_path / f"s{seed}"
+        write_reference_dataset(folder, model, {"com_offset": truth}, runs=4, duration=3.0, seed=seed,
+                                noisy_start=noisy_start)
+        ds = load_dataset(folder)
+        ev = Evaluator(ds, pose_lever(model))
+        rng = np.random.default_rng(seed)
+        fit = fit_candidate(cand, ev, model, make_folds(len(ds.runs), rng), rng)
+        sse_truth = sum(run_sse(r) for r in ev.residuals([model.with_effect("com_offset", truth)])[0])
+        assert param_error("com_offset", truth, fit.params_all, model)["com"] <= TOLERANCES["com_offset"]["com"], \
+            (seed, fit.params_all, truth)
+        assert fit.sse_all.sum() <= 1.01 * sse_truth, seed

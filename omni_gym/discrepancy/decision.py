@@ -116,7 +116,8 @@ def decide(nominal_sse: np.ndarray, fits: list[HeldOutFit], n_comp: np.ndarray, 
         if nominal_at_noise or sigma is None:
             out["effect"] = "none"
             out["why"] = ("no candidate improves the held-out error significantly"
-                          + (" and the nominal residual is at the noise floor (tracker noise and integration error)" if nominal_at_noise else ""))
+                          + (" and the nominal residual is at the noise floor (tracker noise and integration error)"
+                             if nominal_at_noise else ""))
         else:
             out["effect"] = "unexplained"
             out["why"] = (f"the nominal residual ({1e3 * math.sqrt(mse0):.2f} mm RMS) is well above the noise "

@@ -50,11 +50,14 @@ def twist_steps(model: SimModel, rng: np.random.Generator, duration: float, rate
 
 
 def reference_runs(model: SimModel, hidden: dict | None, runs: int, duration: float, seed: int,
-                   noise_xy: float = NOISE_XY, noise_heading: float = NOISE_HEADING, **twist) -> list[Run]:
+                   noise_xy: float = NOISE_XY, noise_heading: float = NOISE_HEADING, noisy_start: bool = False,
+                   **twist) -> list[Run]:
     """``runs`` runs of random twist steps integrated by the reference with ``hidden`` effects
     (``{name: params}``, names from :data:`~omni_gym.analysis.reference.SUPPORTED_EFFECTS`; None: the
     nominal model), tracker noise ``noise_xy`` [m] in x and y and ``noise_heading`` [rad] in heading,
-    encoders quantised to :data:`~omni_gym.discrepancy.synth.COUNTS_PER_REV`. Seeded by ``seed``;
+    encoders quantised to :data:`~omni_gym.discrepancy.synth.COUNTS_PER_REV`. ``noisy_start``: the first
+    row is measured with the same noise as the others, as a real tracker's is (default: exact, as in
+    ``omni-gym synth``; the workflow takes a run's first pose as its start). Seeded by ``seed``;
     ``twist``: keywords of :func:`twist_steps` (``max_speed``, ``max_yaw_rate``)."""
     true_model = model
     for name, params in (hidden or {}).items():
@@ -69,7 +72,8 @@ def reference_runs(model: SimModel, hidden: dict | None, runs: int, duration: fl
         t, cmd = twist_steps(model, r_man, duration, **twist)
         ref = reference_trajectory(true_model, t, cmd, t)  # the last row holds no time: the run ends there
         pose = ref["pose"] + r_noise.normal(0.0, 1.0, (len(t), 3)) * np.array([noise_xy, noise_xy, noise_heading])
-        pose[0] = 0.0  # every run starts at rest at the origin, known exactly
+        if not noisy_start:
+            pose[0] = 0.0  # every run starts at rest at the origin, known exactly
         enc = np.floor(ref["wheel_angle"] / quantum) * quantum
         out.append(Run(name=f"run{i:03d}", t=t, cmd=cmd, pose=pose, enc=enc))
     return out
@@ -77,10 +81,10 @@ def reference_runs(model: SimModel, hidden: dict | None, runs: int, duration: fl
 
 def write_reference_dataset(folder: str | Path, model: SimModel, hidden: dict | None, runs: int = 8,
                             duration: float = 5.0, seed: int = 0, noise_xy: float = NOISE_XY,
-                            noise_heading: float = NOISE_HEADING, **twist) -> None:
+                            noise_heading: float = NOISE_HEADING, noisy_start: bool = False, **twist) -> None:
     """Write :func:`reference_runs` as a dataset folder with the nominal ``model`` (the hidden effects are
     not recorded in it)."""
-    data = reference_runs(model, hidden, runs, duration, seed, noise_xy, noise_heading, **twist)
+    data = reference_runs(model, hidden, runs, duration, seed, noise_xy, noise_heading, noisy_start, **twist)
     desc = (f"independent reference data: {runs} runs of {duration:g} s of random twist steps, tracker noise "
             f"{noise_xy:g} m (x, y) and {noise_heading:g} rad (heading), seed {seed}")
     write_dataset(folder, model.to_json(), desc, data)
