@@ -51,7 +51,10 @@ def decide(nominal_sse: np.ndarray, fits: list[HeldOutFit], n_comp: np.ndarray, 
     """Rank candidates by penalised held-out score and choose the outcome (see the module docstring).
 
     ``nominal_sse``: the baseline's per-run SSE (the nominal model, or in a multi-effect search the
-    model with the effects named so far). ``reference_excess`` [m]: the gap beyond noise the
+    model with the effects named so far). ``sigma`` [m]: the noise floor, RMS per residual component
+    that even an exact model leaves (the workflow passes sqrt(tracker noise² + the fitting step's
+    integration error²), :meth:`omni_gym.discrepancy.fitting.Evaluator.noise_floor`); None when unknown.
+    ``reference_excess`` [m]: the gap beyond noise the
     ``min_gap_reduction`` rule is measured against (default: the baseline's own; a multi-effect search
     passes the nominal model's). When the best candidate beats the baseline but falls short of that
     rule while removing at least ``min_step_reduction`` of the baseline's own gap, the outcome is
@@ -113,11 +116,13 @@ def decide(nominal_sse: np.ndarray, fits: list[HeldOutFit], n_comp: np.ndarray, 
         if nominal_at_noise or sigma is None:
             out["effect"] = "none"
             out["why"] = ("no candidate improves the held-out error significantly"
-                          + (" and the nominal residual is at the tracker-noise level" if nominal_at_noise else ""))
+                          + (" and the nominal residual is at the noise floor (tracker noise and integration error)"
+                             if nominal_at_noise else ""))
         else:
             out["effect"] = "unexplained"
-            out["why"] = (f"the nominal residual ({1e3 * math.sqrt(mse0):.2f} mm RMS) is well above the tracker "
-                          f"noise ({1e3 * sigma:.2f} mm) and no candidate improves it significantly")
+            out["why"] = (f"the nominal residual ({1e3 * math.sqrt(mse0):.2f} mm RMS) is well above the noise "
+                          f"floor ({1e3 * sigma:.2f} mm: tracker noise and integration error) and no candidate "
+                          "improves it significantly")
         return out
     if reduction < RULES["min_gap_reduction"] and not best_at_noise:
         out["effect"] = "unexplained"

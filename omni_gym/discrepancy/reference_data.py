@@ -1,0 +1,90 @@
+"""Datasets made by an independent implementation: the validation integrator, not the world we fit with.
+
+Every other synthetic dataset of the project comes from :class:`~omni_gym.physics.world.World`, the
+simulator the workflow fits with, so a flaw they share (the integration step, the switching of the
+friction law) is invisible to the recovery tests. These runs come from
+:func:`omni_gym.analysis.reference.reference_trajectory` (scipy's stiff solver, switching times
+handled exactly, written independently of the world and its kernel), as a user's data would come from
+a real robot: random twist steps, white tracker noise per channel, quantised encoders.
+
+Issue 15 item 6's data: 8 runs of about 5 s of random twist steps, white noise of 1 mm in x and y and
+2 mrad in heading, the Williams robot on carpet with the initial friction, nothing or a centre-of-mass
+offset hidden. Only ``com_offset`` can be hidden (the effects the reference integrator supports).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from omni_gym.analysis.reference import SUPPORTED_EFFECTS, reference_trajectory
+from omni_gym.discrepancy.dataset import Run, write_dataset
+from omni_gym.discrepancy.synth import COUNTS_PER_REV, RATE
+from omni_gym.physics.model import SimModel
+
+NOISE_XY = 0.001  # m: tracker noise in x and y (issue 15 item 6)
+NOISE_HEADING = 0.002  # rad: tracker noise in heading
+
+
+def twist_steps(model: SimModel, rng: np.random.Generator, duration: float, rate: float = RATE,
+                max_speed: float = 0.35, max_yaw_rate: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    """Times (K,) [s] and wheel commands (K, n) [rad/s] of random body-twist steps.
+
+    Segments of 0.3–1.0 s, each a step to a twist drawn uniformly: speed up to ``max_speed`` [m/s] in
+    a random body direction and yaw rate within ±``max_yaw_rate`` [rad/s], one segment in five a stop;
+    the last row stops.
+    """
+    k = int(round(duration * rate)) + 1
+    t = np.arange(k) / rate
+    twist = np.zeros((k, 3))
+    i = 0
+    while i < k - 1:
+        end = min(k - 1, i + int(rng.integers(int(0.3 * rate), int(1.0 * rate) + 1)))
+        if rng.random() >= 0.2:
+            v, ang = rng.uniform(0.0, max_speed), rng.uniform(-math.pi, math.pi)
+            twist[i:end] = [v * math.cos(ang), v * math.sin(ang), rng.uniform(-max_yaw_rate, max_yaw_rate)]
+        i = end
+    return t, twist @ model.robot.wheel_matrix().T
+
+
+def reference_runs(model: SimModel, hidden: dict | None, runs: int, duration: float, seed: int,
+                   noise_xy: float = NOISE_XY, noise_heading: float = NOISE_HEADING, noisy_start: bool = False,
+                   **twist) -> list[Run]:
+    """``runs`` runs of random twist steps integrated by the reference with ``hidden`` effects
+    (``{name: params}``, names from :data:`~omni_gym.analysis.reference.SUPPORTED_EFFECTS`; None: the
+    nominal model), tracker noise ``noise_xy`` [m] in x and y and ``noise_heading`` [rad] in heading,
+    encoders quantised to :data:`~omni_gym.discrepancy.synth.COUNTS_PER_REV`. ``noisy_start``: the first
+    row is measured with the same noise as the others, as a real tracker's is (default: exact, as in
+    ``omni-gym synth``; the workflow takes a run's first pose as its start). Seeded by ``seed``;
+    ``twist``: keywords of :func:`twist_steps` (``max_speed``, ``max_yaw_rate``)."""
+    true_model = model
+    for name, params in (hidden or {}).items():
+        if name not in SUPPORTED_EFFECTS:
+            raise ValueError(f"reference_runs: effect {name!r} is not supported by the reference integrator "
+                             f"(supported: {list(SUPPORTED_EFFECTS)})")
+        true_model = true_model.with_effect(name, params)
+    r_man, r_noise = np.random.default_rng(seed).spawn(2)
+    quantum = 2 * math.pi / COUNTS_PER_REV
+    out = []
+    for i in range(runs):
+        t, cmd = twist_steps(model, r_man, duration, **twist)
+        ref = reference_trajectory(true_model, t, cmd, t)  # the last row holds no time: the run ends there
+        pose = ref["pose"] + r_noise.normal(0.0, 1.0, (len(t), 3)) * np.array([noise_xy, noise_xy, noise_heading])
+        if not noisy_start:
+            pose[0] = 0.0  # every run starts at rest at the origin, known exactly
+        enc = np.floor(ref["wheel_angle"] / quantum) * quantum
+        out.append(Run(name=f"run{i:03d}", t=t, cmd=cmd, pose=pose, enc=enc))
+    return out
+
+
+def write_reference_dataset(folder: str | Path, model: SimModel, hidden: dict | None, runs: int = 8,
+                            duration: float = 5.0, seed: int = 0, noise_xy: float = NOISE_XY,
+                            noise_heading: float = NOISE_HEADING, noisy_start: bool = False, **twist) -> None:
+    """Write :func:`reference_runs` as a dataset folder with the nominal ``model`` (the hidden effects are
+    not recorded in it)."""
+    data = reference_runs(model, hidden, runs, duration, seed, noise_xy, noise_heading, noisy_start, **twist)
+    desc = (f"independent reference data: {runs} runs of {duration:g} s of random twist steps, tracker noise "
+            f"{noise_xy:g} m (x, y) and {noise_heading:g} rad (heading), seed {seed}")
+    write_dataset(folder, model.to_json(), desc, data)
