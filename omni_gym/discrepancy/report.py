@@ -64,7 +64,9 @@ def markdown(result: dict, figures: list[str]) -> str:
     lines += _how_to_read(result)
     noise = "not estimable (sparse observations)" if g["noise"] is None else f"{_mm(g['noise'])} mm"
     lines += ["## Gap on held-out runs", "",
-              f"Metric: {g['metric']}. Tracker noise estimate: {noise}.", "",
+              f"Metric: {g['metric']}. Tracker noise estimate: {noise}"
+              + (f"; noise floor subtracted (tracker noise and the fitting step's own integration error): "
+                 f"{_mm(g['noise_floor'])} mm." if g.get("noise_floor") is not None else "."), "",
               "| | nominal | reported model (model.json) |", "|---|---|---|",
               f"| gap beyond noise [mm] | {_mm(g['before'])} | {_mm(g['after'])} |",
               f"| RMS (geometric mean over runs) [mm] | {_mm(g['rms_before'])} | {_mm(g['rms_after'])} |", "",
