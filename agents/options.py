@@ -8,6 +8,7 @@ before any work starts, so a bad value never reaches training or an output direc
 from __future__ import annotations
 
 import argparse
+import json
 
 from omni_gym.bounds import Bound
 
@@ -46,6 +47,19 @@ def _check(table: dict[str, Bound], args: argparse.Namespace) -> None:
         value = getattr(args, name.lstrip("-").replace("-", "_"), None)
         if value is not None:
             bound.check(value, name)
+
+
+def parse_env_kwargs(text: str | None) -> dict | None:
+    """``--env-kwargs`` of train and evaluate: a JSON object of environment keywords (None if not given)."""
+    if text is None:
+        return None
+    try:
+        kwargs = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"--env-kwargs is not valid JSON: {exc}") from None
+    if not isinstance(kwargs, dict):
+        raise ValueError(f"--env-kwargs must be a JSON object, got {text!r}")
+    return kwargs
 
 
 def check_train_args(args: argparse.Namespace) -> None:

@@ -57,7 +57,7 @@ import numpy as np
 
 from agents import require_agents_extra
 from agents.algorithms import ALGOS, algorithm_class
-from agents.options import check_train_args
+from agents.options import check_train_args, parse_env_kwargs
 from agents.rollout import make_env, run_episode
 from agents.sb3_policy import SB3Policy
 from agents.wrappers import wrap_env
@@ -504,14 +504,7 @@ def run_from_args(args: argparse.Namespace, command: str | None = None) -> dict:
 
     check_train_args(args)  # before anything is locked, read or written
     require_agents_extra("omni-gym train")
-    kwargs = None
-    if args.env_kwargs is not None:
-        try:
-            kwargs = json.loads(args.env_kwargs)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"--env-kwargs is not valid JSON: {exc}") from None
-        if not isinstance(kwargs, dict):
-            raise ValueError(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
+    kwargs = parse_env_kwargs(args.env_kwargs)
     if args.tensorboard is not None:
         try:
             import tensorboard  # noqa: F401

@@ -220,19 +220,12 @@ def _simulate_into(args: argparse.Namespace, out) -> int:
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from agents.evaluate import evaluate, format_table
-    from agents.options import check_evaluate_args
+    from agents.options import check_evaluate_args, parse_env_kwargs
     from agents.sb3_policy import ModelOptions
 
     check_evaluate_args(args)
     options = ModelOptions(args.algo, args.wrapper, args.residual_scale, args.vecnormalize)
-    kwargs = {}
-    if args.env_kwargs is not None:
-        try:
-            kwargs = json.loads(args.env_kwargs)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"--env-kwargs is not valid JSON: {exc}") from None
-        if not isinstance(kwargs, dict):
-            raise ValueError(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
+    kwargs = parse_env_kwargs(args.env_kwargs) or {}
     try:
         result = evaluate(args.policy, args.env, args.episodes, args.seed, kwargs, model_options=options)
     except ImportError as exc:  # a missing extra: one line naming it (agents.require_agents_extra)
