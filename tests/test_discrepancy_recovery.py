@@ -35,6 +35,8 @@ def _check(effect: str, cells: list[tuple]) -> None:
     runs, duration = DATA.get(effect, (RUNS, DURATION))
     cases = [run_case(effect, SIZES[effect][size], noise, seed, runs, duration) for size, noise, seed in cells]
     named = [c["named"] for c in cases]
+    # run_case searches with max_effects=1: at most one effect comes back, whatever the answer.
+    assert all(len(c["effects"]) <= 1 for c in cases), [c["effects"] for c in cases]
     # A missed effect may be `unexplained` or `none`. Another effect's name is a wrong answer unless the
     # workflow itself says it cannot tell that effect from the hidden one on this data (the issue:
     # "say so when two candidates cannot be told apart"): then the truth must be in `ambiguous_with`.

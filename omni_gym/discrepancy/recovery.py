@@ -58,6 +58,7 @@ def run_case(hidden: str, params: dict | None, noise: float, seed: int, runs: in
            "reduction": result["gap"]["reduction"], "before": result["gap"]["before"],
            "after": result["gap"]["after"], "wall_s": wall, "truth": truth["params"],
            "fitted": result.get("params", {}), "ambiguous_with": result.get("ambiguous_with"),
+           "effects": result["effects"],
            "uncertainty": result.get("uncertainty")}
     if named == hidden and hidden in TOLERANCES:
         err = param_error(hidden, truth["params"], result["params"], model)
