@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import ClassVar
 
 import numpy as np
 
@@ -280,21 +281,43 @@ class SensorObs:
     prev_action: np.ndarray  # previous clipped action
 
 
-class SensorObsDecoder:
-    """Turns ``sensors`` observations of one layout and set of scales into :class:`SensorObs`."""
+class _ObsDecoder:
+    """What both decoders share: the layout of one observation mode, its scales, the number of
+    look-ahead points, the shape check and the construction from an environment."""
+
+    mode: ClassVar[str]  # the obs_mode this decoder reads
+    lookahead_prefix: ClassVar[str]  # field-name prefix of the look-ahead points in the layout
 
     def __init__(self, layout: ObservationLayout, scales: ObsScales) -> None:
-        if layout.mode != "sensors":
-            raise ValueError(f"decoding needs obs_mode='sensors', got {layout.mode!r}")
+        if layout.mode != self.mode:
+            raise ValueError(f"decoding needs obs_mode={self.mode!r}, got {layout.mode!r}")
         self.layout = layout
         self.scales = scales
         self.dim = layout.size
-        self.n_look = sum(f.name.startswith("reference_lookahead[") for f in layout.fields)
+        self.n_look = sum(f.name.startswith(self.lookahead_prefix) for f in layout.fields)
 
-    def __call__(self, obs: np.ndarray) -> SensorObs:
+    def _array(self, obs: np.ndarray) -> np.ndarray:
+        """``obs`` as a float array of the layout's size (ValueError otherwise)."""
         o = np.asarray(obs, dtype=float)
         if o.shape != (self.dim,):
-            raise ValueError(f"sensors observation must have shape ({self.dim},), got {o.shape}")
+            raise ValueError(f"{self.mode} observation must have shape ({self.dim},), got {o.shape}")
+        return o
+
+    @classmethod
+    def for_env(cls, env):
+        """Decoder for a (possibly wrapped) omni-gym environment (its ``observation_layout`` and ``obs_scales``)."""
+        u = env.unwrapped
+        return cls(u.observation_layout, u.obs_scales)
+
+
+class SensorObsDecoder(_ObsDecoder):
+    """Turns ``sensors`` observations of one layout and set of scales into :class:`SensorObs`."""
+
+    mode = "sensors"
+    lookahead_prefix = "reference_lookahead["
+
+    def __call__(self, obs: np.ndarray) -> SensorObs:
+        o = self._array(obs)
         L, sc = self.layout, self.scales
         h = sc.arena_half_size
         gyro = o[L["gyro"]][0] * sc.max_yaw_rate
@@ -310,12 +333,6 @@ class SensorObsDecoder:
                          o[L["accelerometer"]] * ACC_SCALE, camera, float(o[L["fix_age"]][0]), ref_pose, ref_vel,
                          lookahead, o[L["last_action"]])
 
-    @classmethod
-    def for_env(cls, env) -> SensorObsDecoder:
-        """Decoder for a (possibly wrapped) omni-gym environment (its ``observation_layout`` and ``obs_scales``)."""
-        u = env.unwrapped
-        return cls(u.observation_layout, u.obs_scales)
-
 
 @dataclass(frozen=True)
 class StateObs:
@@ -329,28 +346,17 @@ class StateObs:
     last_action: np.ndarray  # previous clipped action
 
 
-class StateObsDecoder:
+class StateObsDecoder(_ObsDecoder):
     """Turns ``state`` observations into :class:`StateObs` (values clipped at ±OBS_CLIP stay clipped)."""
 
-    def __init__(self, layout: ObservationLayout, scales: ObsScales) -> None:
-        if layout.mode != "state":
-            raise ValueError(f"decoding needs obs_mode='state', got {layout.mode!r}")
-        self.layout = layout
-        self.scales = scales
-        self.n_look = sum(f.name.startswith("lookahead[") for f in layout.fields)
+    mode = "state"
+    lookahead_prefix = "lookahead["
 
     def __call__(self, obs: np.ndarray) -> StateObs:
-        o = np.asarray(obs, dtype=float)
-        if o.shape != (self.layout.size,):
-            raise ValueError(f"state observation must have shape ({self.layout.size},), got {o.shape}")
+        o = self._array(obs)
         L, sc = self.layout, self.scales
         twist = np.array([sc.max_speed, sc.max_speed, sc.max_yaw_rate])
         look = np.array([o[L[f"lookahead[{i}]"]] for i in range(self.n_look)]).reshape(-1, 3)
         return StateObs(o[L["tracking_error_body"]] * POS_SCALE, float(o[L["heading_error"]][0] * math.pi),
                         o[L["body_velocity"]] * twist, o[L["reference_velocity"]] * twist,
                         look * np.array([LOOK_SCALE, LOOK_SCALE, math.pi]), o[L["last_action"]])
-
-    @classmethod
-    def for_env(cls, env) -> StateObsDecoder:
-        u = env.unwrapped
-        return cls(u.observation_layout, u.obs_scales)
