@@ -95,7 +95,7 @@ def test_effect_changes_the_simulation(name, nominal):
 def test_null_point_leaves_the_motion_nominal(name, nominal):
     """The fit's null point (where the search starts from 'no effect') simulates like the nominal model."""
     cand = next(c for c in candidates(nominal) if c.name == name)
-    u = null_point(cand, nominal)
+    u = null_point(cand)
     assert u is not None and np.all((u >= 0) & (u <= 1))
     model = nominal.with_effect(name, cand.params(u))
     t, cmd = _maneuver(nominal)

@@ -63,12 +63,9 @@ def candidates(model: SimModel) -> list[Candidate]:
     return [_candidate(effect, model) for effect in REGISTRY.values()]
 
 
-def null_point(cand: Candidate, nominal: SimModel | None = None) -> np.ndarray | None:
-    """Unit-cube point at which the effect changes nothing (None when the family has none).
-
-    ``nominal`` is accepted for callers that pass it; the point was computed for the model the
-    candidate was made for (:func:`candidates`).
-    """
+def null_point(cand: Candidate) -> np.ndarray | None:
+    """Unit-cube point at which the effect changes nothing for the model the candidate was made for
+    (:func:`candidates`); None when the family has none."""
     return None if cand.null is None else cand.point(cand.null)
 
 

@@ -221,7 +221,7 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
     R = len(folds)
     n0 = 16 if p <= 2 else 32 if p <= 4 else 64
     design = qmc.Sobol(p, scramble=True, seed=rng).random(n0)
-    null = null_point(cand, nominal)
+    null = null_point(cand)
     if null is not None:
         design = np.vstack([null, design])
     prior = prior_point(cand)
@@ -347,14 +347,14 @@ def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.nda
                         sigma=sigma, windows=ev.windows, counter=counter,
                         adequacy=1.0 + RULES["noise_margin"])  # "noise level" as the decision defines it
     ev.simulated += counter[0]
-    null = null_point(cand, nominal)
+    null = null_point(cand)
 
     def point(mask: np.ndarray | None) -> np.ndarray:
         rates = efit.rates(mask)
         if rates is None:
             return null
-        u = np.array([d.unit(v) for d, v in zip(cand.dims, rates, strict=True)])
-        return np.clip(u, 0.0, 1.0)  # the candidate's bounds (rates outside them are clipped)
+        # The candidate's bounds (rates outside them are clipped).
+        return cand.point({d.name: v for d, v in zip(cand.dims, rates, strict=True)})
 
     u_all = point(None)
     K = int(folds.max()) + 1
@@ -386,7 +386,7 @@ def _event_rate_intervals(fit: FitResult, idx: np.ndarray) -> dict:
     """5-95 % bootstrap range of the event-based rates (resamples without events: the null point)."""
     ef = fit.event_fit
     R = len(ef.events)
-    null = [fit.candidate.dims[0].lo, fit.candidate.dims[1].hi]
+    null = [fit.candidate.null[d.name] for d in fit.candidate.dims]  # the rates at the effect's null point
     v = np.array([ef.rates_weighted(np.bincount(row, minlength=R).astype(float)) or null for row in idx])
     return {d.name: [float(np.percentile(v[:, j], 5)), float(np.percentile(v[:, j], 95))]
             for j, d in enumerate(fit.candidate.dims)}

@@ -66,10 +66,8 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
 
 @dataclass
 class Step:
-    """One step of the search: the candidates fitted on top of ``base`` and the decision."""
+    """One step of the search: the candidates fitted on top of the current model and the decision."""
 
-    base: SimModel  # the model the candidates were added to
-    base_sse: np.ndarray  # (R,) its per-run SSE [m²] (the decision's baseline)
     fits: list[FitResult]
     decision: dict
 
@@ -110,7 +108,7 @@ def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: l
     say(f"{prefix}deciding")
     decision = decide(base_sse, fits, n_comp, sigma, rng, reference_excess=reference_excess)
     bar.update(1)
-    return Step(base=base, base_sse=base_sse, fits=fits, decision=decision)
+    return Step(fits=fits, decision=decision)
 
 
 def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress: bool | None, dt: float,
@@ -173,7 +171,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
             if sigma is not None and geo_mse(base_sse, n_comp) <= sigma**2 * (1 + RULES["noise_margin"]):
                 # Nothing left beyond tracker noise, even in-sample: no further effect can be warranted
                 # (the decision would call such a residual noise-level), so the search ends without a fit.
-                step = Step(base=model, base_sse=base_sse, fits=[], decision={
+                step = Step(fits=[], decision={
                     "effect": "none", "why": "the residual with " + " + ".join(s.effect for s in steps)
                     + " is at the noise floor", "ranking": []})
                 break
@@ -214,8 +212,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
             "tracker noise cannot be estimated (too few consecutive observed rows): gap values include noise, "
             "and a gap left by an effect cannot be told from noise")
     m0, m1 = geo_mse(sse0, n_comp), geo_mse(after_sse, n_comp)
-    before = math.sqrt(max(m0 - noise_var, 0.0))
-    after = math.sqrt(max(m1 - noise_var, 0.0))
+    before, after = excess0, _excess(after_sse, n_comp, noise_var)
     result["model"] = model.to_json()
     result["gap"] = {"metric": METRIC, "before": before, "after": after,
                      "reduction": 1.0 - after / before if before > 0 else 0.0,
@@ -281,15 +278,19 @@ def _steps_json(steps: list[Step], uncertainties: list[dict], final: Step | None
         out.append({"step": i, "effect": s.effect, "status": "partial" if s.partial else "named",
                     "why": s.decision["why"], "params": s.fit.params_all,
                     "gap_before": before, "gap_after": after, "params_5_95": u["params_5_95"],
-                    "ranking": [{"effect": r["effect"], "heldout_rms": r["heldout_rms"],
-                                 "beats_nominal": r["beats_nominal"]} for r in s.decision["ranking"]]})
+                    "ranking": _short_ranking(s)})
         before = after
     if final is not None:
         out.append({"step": len(steps) + 1, "effect": final.effect, "status": "end", "why": final.decision["why"],
                     "gap_before": before, "gap_after": before,
-                    "ranking": [{"effect": r["effect"], "heldout_rms": r["heldout_rms"],
-                                 "beats_nominal": r["beats_nominal"]} for r in final.decision["ranking"]]})
+                    "ranking": _short_ranking(final)})
     return out
+
+
+def _short_ranking(step: Step) -> list[dict]:
+    """A step's ranking as ``steps`` shows it: effect, held-out RMS [m], whether it beat its baseline."""
+    return [{"effect": r["effect"], "heldout_rms": r["heldout_rms"], "beats_nominal": r["beats_nominal"]}
+            for r in step.decision["ranking"]]
 
 
 def _rms(sse: float, n: int) -> float | None:

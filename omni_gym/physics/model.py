@@ -53,7 +53,6 @@ from omni_gym.physics.layout import (
     WP_GAPW,
     WP_MUT,
     WP_MUW,
-    WP_PHASE,
     WP_PX,
     WP_PY,
     WP_R,
@@ -151,12 +150,11 @@ class SimModel:
         wp = np.zeros((n, N_WP))
         wp[:, [WP_PX, WP_PY]] = r.positions()
         wp[:, [WP_DX, WP_DY]] = r.drives()
-        wp[:, WP_R] = r.wheel_radius * np.ones(n)
+        wp[:, WP_R] = r.wheel_radius
         wp[:, WP_MUW] = s.mu_drive
         wp[:, WP_MUT] = s.mu_transverse
         wp[:, WP_GAPW] = s.mu_gap
         wp[:, WP_GAPT] = s.mu_gap
-        wp[:, WP_PHASE] = np.zeros(n)
         for name, params in self.effects.items():
             effect_library.get(name).write_kernel(params, sp, wp, self)
         return sp, wp
