@@ -79,6 +79,10 @@ def build_parser() -> argparse.ArgumentParser:
     gp.add_argument("--max-effects", type=int, default=3,
                     help="most effects named one after another (each step searches the gap left by the last; "
                          "1: name one effect only)")
+    gp.add_argument("--fit-budget", type=float, default=None, metavar="SECONDS",
+                    help="most robot time fitted [s] (default 300); a longer dataset is fitted on an even sample "
+                         "of 10 s segments of its runs, each replayed from the tracked state at its start; "
+                         "inf: always whole runs")
     _add_force_option(gp, "an existing report folder")
     gp.set_defaults(handler=_cmd_gap)
     sy = sub.add_parser("synth", help="write a dataset with a hidden effect (truth to DATASET.truth.json)")
@@ -245,8 +249,11 @@ def _cmd_gap(args: argparse.Namespace) -> int:
     check_option("--seed", args.seed)
     if args.max_effects < 1:
         raise ValueError(f"--max-effects must be an integer >= 1, got {args.max_effects}")
+    budget = {} if args.fit_budget is None else {"fit_budget": args.fit_budget}
+    if args.fit_budget is not None and not args.fit_budget > 0:
+        raise ValueError(f"--fit-budget must be a positive number of seconds (inf: no limit), got {args.fit_budget}")
     result = gap(args.dataset, args.out, seed=args.seed, plots=not args.no_plots, force=args.force,
-                 max_effects=args.max_effects)
+                 max_effects=args.max_effects, **budget)
     if args.json:
         print(json.dumps(result, indent=2, allow_nan=False))  # standard JSON (non-finite values are null)
     else:

@@ -31,7 +31,13 @@ from omni_gym.physics.model import SimModel, read_json
 @dataclass
 class Run:
     """One run: times (K,) [s], commands (K, n) [rad/s], pose (K, 3) [m, m, rad] with NaN where not
-    observed, encoders (K, n) [rad] or None, gyro (K,) [rad/s] or None."""
+    observed, encoders (K, n) [rad] or None, gyro (K,) [rad/s] or None.
+
+    ``state0``: None for a run as the format defines it (starting at rest at ``start_pose``); the
+    segments the workflow cuts from long runs (:mod:`omni_gym.discrepancy.segments`) start moving, from
+    (pose (3,), geometric-centre world velocity (3,) [m/s, m/s, rad/s], wheel angles (n,) [rad], wheel
+    speeds (n,) [rad/s]). Not part of the file format.
+    """
 
     name: str
     t: np.ndarray
@@ -39,6 +45,7 @@ class Run:
     pose: np.ndarray
     enc: np.ndarray | None = None
     gyro: np.ndarray | None = None
+    state0: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
 
     @property
     def observed(self) -> np.ndarray:

@@ -171,8 +171,16 @@ class FitResult:
     event_fit: EventFit | None = None
 
 
-def make_folds(n_runs: int, rng: np.random.Generator, k: int = 3) -> np.ndarray:
-    """(R,) fold index of each run: K = min(k, R) folds of near-equal size, seeded order."""
+def make_folds(n_runs: int, rng: np.random.Generator, k: int = 3, groups: np.ndarray | None = None) -> np.ndarray:
+    """(R,) fold index of each run: K = min(k, R) folds of near-equal size, seeded order.
+
+    ``groups`` (R,) (optional): runs of one group (segments of one source run,
+    :mod:`omni_gym.discrepancy.segments`) share a fold, so no fold is scored on a piece of a run it
+    was fitted on; the folds are then near-equal in groups.
+    """
+    if groups is not None:
+        ids, inverse = np.unique(np.asarray(groups), return_inverse=True)
+        return make_folds(len(ids), rng, k)[inverse]
     k = min(k, n_runs)
     order = rng.permutation(n_runs)
     folds = np.empty(n_runs, dtype=int)

@@ -43,8 +43,11 @@ def markdown(result: dict, figures: list[str]) -> str:
     effect = result["effect"]
     lines = [f"# Model-discrepancy report: `{effect}`", "",
              f"Dataset `{result['dataset']['path']}`: {result['dataset']['runs']} runs. "
-             f"{result['dataset']['description']}", "",
-             f"**Outcome: `{effect}`**: {result['why']}.", ""]
+             f"{result['dataset']['description']}", ""]
+    fitted = result["dataset"].get("fitted", {})
+    if fitted.get("segmented"):
+        lines += [f"Fitted on {fitted['description']} (`--fit-budget`); every run below is such a segment.", ""]
+    lines += [f"**Outcome: `{effect}`**: {result['why']}.", ""]
     if result.get("params"):
         lines += ["Fitted parameters:", ""] + _param_lines(effect, result["params"]) + [""]
     flags = result.get("plausibility", {}).get("flags", [])

@@ -35,10 +35,13 @@ def shooting_windows(ds: Dataset, window: float = 1.0) -> list[tuple]:
                     and run.observed[k0 + 1:k1 + 1].sum() >= 2:
                 # Smoothed start pose: a heading error δθ at the start turns the whole window's path
                 # (δθ × distance travelled), so raw tracker noise would dominate the window's cost.
-                pose = run.start_pose if k0 == 0 else smooth[k0]
-                vel = np.zeros(3) if k0 == 0 else rate[k0]
-                speed = np.zeros(n) if k0 == 0 else run.cmd[k0 - 1]
-                out.append((ri, k0, k1, (pose, vel, ang[k0], speed)))
+                if k0 == 0 and run.state0 is not None:  # a segment: its own start state
+                    out.append((ri, k0, k1, run.state0))
+                else:
+                    pose = run.start_pose if k0 == 0 else smooth[k0]
+                    vel = np.zeros(3) if k0 == 0 else rate[k0]
+                    speed = np.zeros(n) if k0 == 0 else run.cmd[k0 - 1]
+                    out.append((ri, k0, k1, (pose, vel, ang[k0], speed)))
             k0 = k1
     return out
 

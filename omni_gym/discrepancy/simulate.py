@@ -26,7 +26,7 @@ class Job:
 
     ``state0`` (optional): pose (3,), geometric-centre world velocity (3,) [m/s, m/s, rad/s],
     wheel angles (n,) [rad] and wheel speeds (n,) [rad/s] at row k0; default: at rest at the run's
-    start pose with zero wheel angles. ``seed`` draws the wheel_liftoff contact process.
+    start pose with zero wheel angles (or the run's own ``state0``). ``seed`` draws the wheel_liftoff contact process.
     ``schedule`` (optional): lift events (t_start [s], t_end [s], case) on the job's clock (0 at row
     k0), replayed by :class:`~omni_gym.physics.liftoff.ScheduledContactProcess` instead of the
     random process (used to replay inferred events).
@@ -42,6 +42,11 @@ class Job:
     seed: int = 0
     drag: float = 0.0
     schedule: tuple | None = None
+
+    def __post_init__(self) -> None:
+        # A run that does not start at rest (a segment of a longer run) carries its start state.
+        if self.state0 is None and self.k0 == 0:
+            self.state0 = self.run.state0
 
 
 def simulate_jobs(jobs: list[Job], dt: float = FIT_DT) -> list[tuple[np.ndarray, np.ndarray]]:

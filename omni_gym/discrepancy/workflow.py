@@ -33,6 +33,7 @@ from omni_gym.discrepancy.fitting import Evaluator, FitResult, fit_candidate, ma
 from omni_gym.discrepancy.localise import localise
 from omni_gym.discrepancy.outliers import OUTLIER_RULE, drop_outliers, find_outliers
 from omni_gym.discrepancy.residuals import count_components, geo_mse
+from omni_gym.discrepancy.segments import FIT_BUDGET, fit_data
 from omni_gym.discrepancy.simulate import FIT_DT
 from omni_gym.discrepancy.synth import pose_lever
 from omni_gym.outputs import Output
@@ -47,21 +48,25 @@ METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2
 
 def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds: int = 3,
         progress: bool | None = None, dt: float = FIT_DT, plots: bool = True, force: bool = False,
-        max_effects: int = MAX_EFFECTS) -> dict:
+        max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET) -> dict:
     """Run the workflow on ``dataset``; write the report folder ``out`` (if given); return the result.
 
     ``progress``: tqdm bar on stderr (None: only when stderr is a terminal). Same seed, same result.
     ``max_effects`` (>= 1): most effects named one after another (module docstring).
+    ``fit_budget`` [s]: most robot time fitted; a longer dataset is fitted on an even sample of its
+    runs' segments (:mod:`omni_gym.discrepancy.segments`; ``math.inf``: always the whole runs).
     ``out`` is checked and locked before the work starts and appears complete or not at all
     (:class:`omni_gym.outputs.Output`): an existing report is refused unless ``force``; a report that
     is, contains or lies inside the dataset is refused.
     """
     if isinstance(max_effects, bool) or not isinstance(max_effects, int) or max_effects < 1:
         raise ValueError(f"max_effects must be an integer >= 1, got {max_effects!r}")
+    if isinstance(fit_budget, bool) or not isinstance(fit_budget, (int, float)) or not fit_budget > 0:
+        raise ValueError(f"fit_budget must be a positive number of seconds (inf: no limit), got {fit_budget!r}")
     if out is None:
-        return _gap(dataset, None, seed, folds, progress, dt, plots, max_effects)
+        return _gap(dataset, None, seed, folds, progress, dt, plots, max_effects, fit_budget)
     with Output(Path(out), "dir", force=force, inputs=[dataset], marker="result.json", what="gap report") as tx:
-        return _gap(dataset, tx.path, seed, folds, progress, dt, plots, max_effects)
+        return _gap(dataset, tx.path, seed, folds, progress, dt, plots, max_effects, fit_budget)
 
 
 @dataclass
@@ -112,7 +117,7 @@ def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: l
 
 
 def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress: bool | None, dt: float,
-         plots: bool, max_effects: int = MAX_EFFECTS) -> dict:
+         plots: bool, max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET) -> dict:
     """The workflow of :func:`gap`; the report is written into ``out`` as it is (no transaction)."""
     from tqdm import tqdm
 
@@ -122,8 +127,16 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     R = len(ds.runs)
     if R < 2:
         raise ValueError(f"{dataset}: needs at least 2 runs (held-out scoring splits by run), got {R}")
+    fitted = fit_data(ds, fit_budget)
+    if len(set(fitted.groups.tolist())) < 2:
+        raise ValueError(f"{dataset}: needs segments from at least 2 runs within the fit budget; "
+                         f"raise --fit-budget (now {fit_budget:g} s)")
     # Said after the checks: a dataset that is refused gives exactly one line (the error).
     say(f"loaded dataset {dataset} ({R} runs)")
+    if fitted.segmented:
+        say(f"fitting {fitted.describe()}")
+    ds = fitted.dataset
+    R = len(ds.runs)
     nominal = ds.model
     lever = pose_lever(nominal)
     say(f"checking {R} runs for tracker outliers")
@@ -140,7 +153,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     # exact model would leave in the residual too (Evaluator.noise_floor).
     sigma, noise_parts = ev.noise_floor(nominal)
     n_comp = count_components(ds)
-    fold_of = make_folds(R, rng, folds)
+    fold_of = make_folds(R, rng, folds, groups=fitted.groups if fitted.segmented else None)
     cands = candidates(nominal)
     total = 2 + sum(max_ticks(c) + 1 for c in cands)
     steps: list[Step] = []
@@ -244,7 +257,8 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     result["settings"] = {"seed": seed, "folds": int(fold_of.max()) + 1, "dt": dt, "lever": lever,
                           "max_effects": max_effects,
                           "liftoff": EVENT_METHOD, "rules": RULES, "robot_runs_simulated": ev.simulated}
-    result["dataset"] = {"path": str(dataset), "runs": R, "description": ds.description}
+    result["dataset"] = {"path": str(dataset), "runs": fitted.source_runs, "description": ds.description,
+                         "fitted": fitted.to_json()}
     result, bad = finite_json(result)  # standard JSON: a value that could not be computed is null
     if bad:
         result["non_finite"] = bad
