@@ -9,6 +9,8 @@ wall time of one 10-run x 5 s dataset per effect (the issue's 2-minute budget on
     # the committed table (also `make bench-discrepancy`):
     python benchmarks/discrepancy_recovery.py --seeds 2 --runs 6 --duration 3 --jobs 2 --out benchmarks/results
     python benchmarks/discrepancy_recovery.py --seeds 1 --runs 4 --duration 2.5   # quick look
+    # re-run the rows of some effects (e.g. a new one) and merge them into the committed table:
+    python benchmarks/discrepancy_recovery.py --seeds 2 --runs 6 --duration 3 --jobs 2 --effects wheel_geometry
 """
 
 from __future__ import annotations
@@ -43,24 +45,45 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=3.0)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--no-budget", action="store_true", help="skip the 10-run x 5 s timing rows")
+    ap.add_argument("--effects", default=None, metavar="NAME[,NAME...]",
+                    help="run only these library effects' rows (sweep and budget) and merge them into the "
+                         "committed OUT/discrepancy_recovery.json, replacing their old rows")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    effects = list(SIZES) if args.effects is None else args.effects.split(",")
+    unknown = [e for e in effects if e not in SIZES]
+    if unknown:
+        raise SystemExit(f"--effects: unknown effect(s) {', '.join(unknown)}; library: {', '.join(SIZES)}")
     cases = [(e, size, SIZES[e][size], noise, 100 + s, args.runs, args.duration)
-             for e in SIZES for size in ("small", "large") for noise in NOISES for s in range(args.seeds)]
-    cases += [("none", "-", None, noise, 100 + s, args.runs, args.duration) for noise in NOISES
-              for s in range(args.seeds)]
-    cases += [("viscous_drag", "c=4", {"c": 4.0}, noise, 100 + s, args.runs, args.duration) for noise in NOISES
-              for s in range(args.seeds)]
-    budget = [] if args.no_budget else [(e, "large", SIZES[e]["large"], 0.001, 7, 10, 5.0) for e in SIZES]
+             for e in effects for size in ("small", "large") for noise in NOISES for s in range(args.seeds)]
+    if args.effects is None:
+        cases += [("none", "-", None, noise, 100 + s, args.runs, args.duration) for noise in NOISES
+                  for s in range(args.seeds)]
+        cases += [("viscous_drag", "c=4", {"c": 4.0}, noise, 100 + s, args.runs, args.duration) for noise in NOISES
+                  for s in range(args.seeds)]
+    budget = [] if args.no_budget else [(e, "large", SIZES[e]["large"], 0.001, 7, 10, 5.0) for e in effects]
     t0 = time.perf_counter()
     with Pool(args.jobs) as pool:
         results = pool.map(_case, cases, chunksize=1)
     sweep_wall = time.perf_counter() - t0
     # Budget rows one at a time: each is timed alone on the machine (2 cores).
     timed = [_case(c) for c in budget]
-    (out / "discrepancy_recovery.json").write_text(json.dumps({"sweep": results, "budget": timed}, indent=1))
-    write_table(out, results, timed, args, sweep_wall)
+    runs_note = [f"full sweep: {sweep_wall / 60:.1f} min with {args.jobs} worker processes"]
+    if args.effects is not None:
+        old = json.loads((out / "discrepancy_recovery.json").read_text())
+        keep = [r for r in old["sweep"] if r["hidden"] not in effects]
+        # The library's order: the merged rows sit where their effect sits in SIZES; null and drag last.
+        order = {e: i for i, e in enumerate([*SIZES, "none", "viscous_drag"])}
+        results = sorted(keep + results, key=lambda r: order.get(r["hidden"], len(order)))
+        timed = sorted([r for r in old.get("budget", []) if r["hidden"] not in effects] + timed,
+                       key=lambda r: order.get(r["hidden"], len(order)))
+        runs_note = old.get("runs_note", ["full sweep: see the git history of this table"]) + [
+            f"rows of {', '.join(effects)} re-run with --effects: {sweep_wall / 60:.1f} min with {args.jobs} "
+            "worker processes"]
+    (out / "discrepancy_recovery.json").write_text(
+        json.dumps({"sweep": results, "budget": timed, "runs_note": runs_note}, indent=1))
+    write_table(out, results, timed, args, runs_note)
 
 
 def _fmt_err(effect: str, rows: list[dict]) -> str:
@@ -71,10 +94,12 @@ def _fmt_err(effect: str, rows: list[dict]) -> str:
     return ", ".join(f"{k} {np.median([e[k] for e in errs]):.3g} (tol {keys[k]:g})" for k in keys)
 
 
-def write_table(out: Path, results: list[dict], timed: list[dict], args, sweep_wall: float) -> None:
+def write_table(out: Path, results: list[dict], timed: list[dict], args, runs_note: list[str]) -> None:
     lines = ["# Discrepancy workflow: recovery of hidden effects", "",
              f"`python benchmarks/discrepancy_recovery.py --seeds {args.seeds} --runs {args.runs} "
-             f"--duration {args.duration:g} --jobs {args.jobs}` on {platform.machine()} ({os.cpu_count()} cores, "
+             f"--duration {args.duration:g} --jobs {args.jobs}"
+             + (f" --effects {args.effects}" if args.effects else "")
+             + f"` on {platform.machine()} ({os.cpu_count()} cores, "
              "shared with other work while it ran).", "",
              f"Nominal model: Williams robot, carpet, initial friction. Each case: {args.runs} runs of "
              f"{args.duration:g} s (random steps, ramps, rotations, diagonal moves at 50 Hz), tracker noise σ on x, y "
@@ -103,8 +128,7 @@ def write_table(out: Path, results: list[dict], timed: list[dict], args, sweep_w
               f"null: `none` in {sum(r['correct'] for r in results if r['hidden'] == 'none')}/"
               f"{sum(r['hidden'] == 'none' for r in results)}; viscous drag: `unexplained` in "
               f"{sum(r['named'] == 'unexplained' for r in results if r['hidden'] == 'viscous_drag')}/"
-              f"{sum(r['hidden'] == 'viscous_drag' for r in results)}. Sweep wall time {sweep_wall / 60:.1f} min "
-              f"with {args.jobs} worker processes."]
+              f"{sum(r['hidden'] == 'viscous_drag' for r in results)}. Wall time: {'; '.join(runs_note)}."]
     if timed:
         lines += ["", "## Budget: one dataset of 10 runs x 5 s (σ = 1 mm, large size), run alone", "",
                   "| effect | named | gap reduction | wall [s] |", "|---|---|---|---|"]

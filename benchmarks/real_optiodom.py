@@ -53,6 +53,7 @@ from omni_gym.discrepancy.kinematic_calibration import (  # noqa: E402
     dead_reckon,
     position_rms,
 )
+from omni_gym.discrepancy.segments import FIT_BUDGET  # noqa: E402
 from omni_gym.discrepancy.simulate import FIT_DT, Job, simulate_poses  # noqa: E402
 from omni_gym.physics.model import SimModel, read_json  # noqa: E402
 
@@ -127,7 +128,7 @@ def gap_subset(train: list[Run], runs: int | None, seconds: float | None) -> lis
     return out
 
 
-def run_gap(nominal: SimModel, metas: list, train: list[Run], seed: int) -> tuple[dict, float]:
+def run_gap(nominal: SimModel, metas: list, train: list[Run], seed: int, fit_budget: float) -> tuple[dict, float]:
     """``gap`` on the training runs (written to a temporary dataset); (result, wall time [s])."""
     from omni_gym.discrepancy.workflow import gap
 
@@ -136,7 +137,7 @@ def run_gap(nominal: SimModel, metas: list, train: list[Run], seed: int) -> tupl
         desc = describe(metas, len(train), nominal.robot.mass, nominal.robot.inertia, nominal.surface.name)
         write_dataset(ds, nominal.to_json(), desc, train)
         t0 = time.perf_counter()
-        result = gap(ds, None, seed=seed, progress=None)
+        result = gap(ds, None, seed=seed, progress=None, fit_budget=fit_budget)
         wall = time.perf_counter() - t0
     return result, wall
 
@@ -236,6 +237,8 @@ def main(argv: list[str] | None = None) -> int:
                          "calibration always uses every training run); for when gap on all 24 runs is too slow")
     ap.add_argument("--gap-seconds", type=float, default=None, metavar="S",
                     help="give gap only the first S seconds of each of its runs (default: whole runs)")
+    ap.add_argument("--fit-budget", type=float, default=FIT_BUDGET, metavar="S",
+                    help=f"gap's fit budget [s] of robot time (default {FIT_BUDGET:g}; omni-gym gap --fit-budget)")
     args = ap.parse_args(argv)
     command = "python benchmarks/real_optiodom.py" + "".join(f" {a}" for a in (argv or sys.argv[1:]))
     out = Path(args.out) if args.out else (Path(tempfile.mkdtemp(prefix="real_optiodom_quick_")) if args.quick
@@ -266,12 +269,14 @@ def main(argv: list[str] | None = None) -> int:
         gap_train = gap_subset(train, args.gap_runs, args.gap_seconds)
         say(f"running gap on {len(gap_train)} training runs ({sum(r.t[-1] for r in gap_train):.0f} s; its stage "
             "lines follow)")
-        result, wall = run_gap(nominal, metas, gap_train, args.seed)
+        result, wall = run_gap(nominal, metas, gap_train, args.seed, args.fit_budget)
         extended = SimModel.from_json(result["model"], where="gap result")
         subset = "" if len(gap_train) == len(train) and args.gap_seconds is None else (
             f" on a subset of the training runs: {len(gap_train)} runs, {sum(r.t[-1] for r in gap_train):.0f} s "
             f"({', '.join(r.name for r in gap_train)}); the kinematic calibration used all {len(train)}")
-        gap_info = {"source": f"omni_gym.discrepancy.workflow.gap(seed={args.seed}){subset}", "wall": wall,
+        subset += f"; gap fitted {result['dataset']['fitted']['description']}"
+        gap_info = {"source": f"omni_gym.discrepancy.workflow.gap(seed={args.seed}, "
+                              f"fit_budget={args.fit_budget:g}){subset}", "wall": wall,
                     "effect": result["effect"], "why": result["why"], "gap": result["gap"],
                     "effects": result.get("effects")}
         say(f"gap named {result['effect']!r} in {wall:.0f} s")

@@ -80,7 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="most effects named one after another (each step searches the gap left by the last; "
                          "1: name one effect only)")
     gp.add_argument("--fit-budget", type=float, default=None, metavar="SECONDS",
-                    help="most robot time fitted [s] (default 300); a longer dataset is fitted on an even sample "
+                    help="most robot time fitted [s] (default 120); a longer dataset is fitted on an even sample "
                          "of 10 s segments of its runs, each replayed from the tracked state at its start; "
                          "inf: always whole runs")
     _add_force_option(gp, "an existing report folder")

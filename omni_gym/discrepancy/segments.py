@@ -25,7 +25,7 @@ import numpy as np
 from omni_gym.discrepancy.dataset import Dataset, Run
 from omni_gym.discrepancy.localise import local_pose_fit, wheel_angles
 
-FIT_BUDGET = 300.0  # s of robot time fitted at most (``gap --fit-budget``)
+FIT_BUDGET = 120.0  # s of robot time fitted at most (``gap --fit-budget``): 12 segments of 10 s
 SEGMENT = 10.0  # s: segment length (long enough for geometry and slip errors to grow above tracker noise)
 MIN_SEGMENT = 0.5  # shortest tail piece kept, as a share of SEGMENT
 
