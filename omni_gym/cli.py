@@ -85,6 +85,14 @@ def build_parser() -> argparse.ArgumentParser:
                          "inf: always whole runs")
     _add_force_option(gp, "an existing report folder")
     gp.set_defaults(handler=_cmd_gap)
+    sc = sub.add_parser("score", help="replay a dataset's runs open loop with its nominal model and other models; "
+                                      "position RMS against the tracked poses (check a calibrated model on new runs)")
+    sc.add_argument("dataset", help="dataset folder (dataset.json + runs/*.csv, see docs/formats.md)")
+    sc.add_argument("--model", action="append", default=[], metavar="MODEL",
+                    help="a model to compare with the dataset's nominal model: preset name or model JSON file "
+                         "(e.g. a gap report's model.json); repeatable")
+    sc.add_argument("--json", action="store_true", help="print per-run scores and means as JSON")
+    sc.set_defaults(handler=_cmd_score)
     sy = sub.add_parser("synth", help="write a dataset with a hidden effect (truth to DATASET.truth.json)")
     sy.add_argument("--model", required=True, help="nominal model: preset name or model JSON file")
     _add_model_options(sy)
@@ -276,6 +284,35 @@ def _cmd_gap(args: argparse.Namespace) -> int:
         if rows:
             print(f"tracker outliers excluded: {len(rows)} row(s) (" + ", ".join(
                 f"{o['run']} row {o['row']}" for o in rows[:5]) + (", ..." if len(rows) > 5 else "") + ")")
+    return 0
+
+
+def _cmd_score(args: argparse.Namespace) -> int:
+    from dataclasses import asdict
+
+    from omni_gym.discrepancy.dataset import load_dataset
+    from omni_gym.discrepancy.score import score_models, summary
+    from omni_gym.physics.model import load_model
+
+    ds = load_dataset(args.dataset)
+    models = {"nominal": ds.model}
+    for path in args.model:
+        models[path] = load_model(path, None, None)
+    scores = score_models(ds, models)
+    means = summary(scores)
+    if args.json:
+        print(json.dumps({"runs": [asdict(s) for s in scores], "models": means,
+                          "note": "open-loop replay from each run's start pose; position_rms and final_error in m"},
+                         indent=2, allow_nan=False))
+        return 0
+    width = max(len(n) for n in models)
+    print(f"{'run':<28s} {'model':<{width}s} {'s':>6s} {'pos RMS [mm]':>13s} {'final [mm]':>11s}")
+    for sc in scores:
+        print(f"{sc.run:<28s} {sc.model:<{width}s} {sc.seconds:6.1f} {1e3 * sc.position_rms:13.1f} "
+              f"{1e3 * sc.final_error:11.1f}")
+    for name, m in means.items():
+        print(f"mean over {m['runs']} runs, {name}: position RMS {1e3 * m['mean_position_rms']:.1f} mm, "
+              f"final error {1e3 * m['mean_final_error']:.1f} mm")
     return 0
 
 
