@@ -176,6 +176,38 @@ def score(sessions: list[Session], models: dict[str, SimModel], cal: KinematicCa
     return rms, pred
 
 
+def residual_analysis(sessions: list[Session], pred: dict, nominal: SimModel, cal: KinematicCalibration) -> dict:
+    """What the best held-out prediction leaves, per held-out session (the issue's "where, when, which wheel").
+
+    * ``oracle``: a kinematic calibration fitted on the session itself (in-sample): its D, L and position
+      RMS [m]. If it differs from the training calibration by more than the training fit's precision,
+      the effective geometry changed between sessions, which no fixed model can follow; its RMS is a
+      floor for any kinematic model on that session.
+    * ``growth``: position error of the extended model at 25, 50, 75 and 100 % of each run's time [m]
+      (mean over runs): drift that grows steadily is a rate error (geometry, scale), error that jumps
+      at certain times is an event.
+    * ``heading``: RMS heading error [rad] of the extended model and the position error a heading error
+      of that size turns up over the mean distance travelled [m].
+    """
+    out = {}
+    for s in sessions:
+        oracle = calibrate(s.runs, nominal)
+        growth, head, dist = [], [], []
+        for r in s.runs:
+            p = pred[(s.name, r.name)]["extended"]
+            obs = np.flatnonzero(r.observed)
+            e = np.hypot(*(r.pose[obs, :2] - p[obs, :2]).T)
+            growth.append([e[min(len(e) - 1, int(q * (len(e) - 1)))] for q in (0.25, 0.5, 0.75, 1.0)])
+            dh = np.angle(np.exp(1j * (r.pose[obs, 2] - p[obs, 2])))
+            head.append(float(np.sqrt(np.mean(dh**2))))
+            dist.append(float(np.sum(np.hypot(*np.diff(r.pose[obs, :2], axis=0).T))))
+        out[s.name] = {"oracle_D": oracle.diameters.tolist(), "oracle_L": float(oracle.L),
+                       "oracle_rms": float(oracle.train_position_rms),
+                       "growth": np.mean(growth, axis=0).tolist(), "heading_rms": float(np.mean(head)),
+                       "distance": float(np.mean(dist))}
+    return out
+
+
 def model_geometry(model: SimModel) -> tuple[np.ndarray, float]:
     """Effective wheel diameters (n,) [m] and mean centre-to-wheel distance [m] of a model, its effects
     applied (what the force kernel reads)."""
@@ -229,8 +261,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="few short runs: a smoke test of about a minute")
     ap.add_argument("--out", default=None, help="output folder (default benchmarks/results; --quick: a temporary "
                                                  "folder, printed)")
-    ap.add_argument("--gap-model", default=None, help="reuse this model.json (or gap result.json) as the extended "
-                                                       "model instead of running gap")
+    ap.add_argument("--gap-model", default=None, help="reuse this model.json, gap result.json or the "
+                                                       "real_optiodom_gap.json an earlier run wrote (which keeps gap's "
+                                                       "decision and wall time) instead of running gap")
     ap.add_argument("--seed", type=int, default=0, help="gap's seed")
     ap.add_argument("--gap-runs", type=int, default=None, metavar="N",
                     help="give gap only N runs of each training session, spread evenly (default: all; the kinematic "
@@ -263,7 +296,11 @@ def main(argv: list[str] | None = None) -> int:
         data = read_json(Path(args.gap_model))
         model_json = data["model"] if isinstance(data, dict) and "model" in data and "wheels" not in data else data
         extended = SimModel.from_json(model_json, where=args.gap_model)
-        gap_info = {"source": f"reused {args.gap_model}", "wall": None, "effect": None, "why": None}
+        if isinstance(data, dict) and "gap_info" in data:  # a gap record this script wrote: keep its story
+            gap_info = data["gap_info"]
+            gap_info["source"] += f" (reused from {args.gap_model})"
+        else:
+            gap_info = {"source": f"reused {args.gap_model}", "wall": None, "effect": None, "why": None}
         say(f"extended model from {args.gap_model} (gap not run)")
     else:
         gap_train = gap_subset(train, args.gap_runs, args.gap_seconds)
@@ -281,6 +318,9 @@ def main(argv: list[str] | None = None) -> int:
                     "effects": result.get("effects")}
         say(f"gap named {result['effect']!r} in {wall:.0f} s")
         (out / "real_optiodom_model.json").write_text(json.dumps(result["model"], indent=1) + "\n")
+        # gap's whole result and the table's story of it: --gap-model FILE re-renders the table from it.
+        (out / "real_optiodom_gap.json").write_text(json.dumps(
+            {"model": result["model"], "gap_info": gap_info, "result": result}, indent=1) + "\n")
     named = named_effects(nominal, extended)
 
     models = {"nominal": nominal, "kinematic_sim": cal.model, "extended": extended}
@@ -298,10 +338,12 @@ def main(argv: list[str] | None = None) -> int:
         mass_rms[f] = score([mass_session], scaled, cal, dt)[0][mass_session.name]
     mass_rms[1.0] = rms[mass_session.name]
 
+    say("residual analysis (per-session kinematic calibrations)")
+    left = residual_analysis(sessions, pred, nominal, cal)
     say("writing the table and the plot")
     png = plot(out, sessions, pred, len(train))
     md = table(command, args.quick, nominal, cal, extended, named, gap_info, sessions, rms, mass_session, mass_rms,
-               train, dt)
+               train, dt, left)
     (out / "real_optiodom.md").write_text(md)
     (out / "real_optiodom.json").write_text(json.dumps({
         "command": command, "quick": args.quick, "dt": dt,
@@ -310,6 +352,7 @@ def main(argv: list[str] | None = None) -> int:
         "heldout": {s: {m: v for m, v in d.items()} for s, d in rms.items()},
         "runs": {s.name: [r.name for r in s.runs] for s in sessions},
         "mass_check": {"session": mass_session.name, "rms": {str(f): d for f, d in mass_rms.items()}},
+        "residual_analysis": left,
     }, indent=1) + "\n")
     say(f"wrote {out / 'real_optiodom.md'} and {png}")
     print(md)
@@ -318,7 +361,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def table(command: str, quick: bool, nominal: SimModel, cal: KinematicCalibration, extended: SimModel,
           named: dict, gap_info: dict, sessions: list[Session], rms: dict, mass_session: Session,
-          mass_rms: dict, train: list[Run], dt: float) -> str:
+          mass_rms: dict, train: list[Run], dt: float, left: dict) -> str:
     """The markdown of ``real_optiodom.md``."""
     lines = [f"<!-- made by: {command} -->", "# Real OptiOdom logs: extended model vs kinematic calibration", ""]
     if quick:
@@ -384,6 +427,21 @@ def table(command: str, quick: bool, nominal: SimModel, cal: KinematicCalibratio
         d = {m: float(np.mean(v)) for m, v in mass_rms[f].items()}
         lines.append(f"| ×{f:g} ({nominal.robot.mass * f:g} kg) | {mm(d['nominal'])} | {mm(d['kinematic'])} | "
                      f"{mm(d['kinematic_sim'])} | {mm(d['extended'])} | {d['extended'] / d['kinematic']:.2f} |")
+    lines += ["", "## What is left: where, when, which wheel", "",
+              "Per held-out session: a kinematic calibration fitted on that session itself (in-sample, an oracle no "
+              "model trained elsewhere can have) and its position RMS, the floor for any fixed kinematic model "
+              "there; the extended model's position error at 25/50/75/100 % of the run (mean over runs); its RMS "
+              "heading error and the mean distance driven.", "",
+              "| held-out session | oracle D [mm] | oracle L [mm] | oracle RMS | extended error at 25/50/75/100 % "
+              "[mm] | heading RMS [mrad] | distance [m] |", "|---|---|---|---|---|---|---|"]
+    for s in sessions:
+        a = left[s.name]
+        lines.append(f"| {s.name} | {', '.join(f'{1000 * d:.2f}' for d in a['oracle_D'])} | "
+                     f"{1000 * a['oracle_L']:.2f} | {mm(a['oracle_rms'])} | "
+                     f"{' / '.join(mm(g) for g in a['growth'])} | {1000 * a['heading_rms']:.1f} | "
+                     f"{a['distance']:.1f} |")
+    lines += ["", f"Training calibration for comparison: D = {', '.join(f'{1000 * d:.2f}' for d in cal.diameters)} mm, "
+                  f"L = {1000 * cal.L:.2f} mm.", ""]
     lines += ["", "![held-out runs](real_optiodom.png)", ""]
     return "\n".join(lines)
 

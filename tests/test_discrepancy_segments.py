@@ -43,7 +43,8 @@ def test_segments_fit_the_budget_and_cover_every_run(clean_runs):
     assert fd.segmented
     assert fd.seconds <= budget + 1e-9
     assert len(fd.dataset.runs) == int(budget // SEGMENT)
-    assert set(fd.groups.tolist()) == set(range(RUNS)) or len(set(fd.groups.tolist())) >= 2
+    # Every run is sampled (runs differ in kind: a fit that sees some runs only is wrong on the others).
+    assert set(fd.groups.tolist()) == set(range(RUNS))
     for seg, g in zip(fd.dataset.runs, fd.groups, strict=True):
         assert seg.t[0] == 0.0 and seg.t[-1] <= SEGMENT + 1e-9
         src = runs[g]
@@ -53,6 +54,17 @@ def test_segments_fit_the_budget_and_cover_every_run(clean_runs):
                   if np.array_equal(src.pose[k:k + K], seg.pose) and np.array_equal(src.cmd[k:k + K], seg.cmd)]
         assert starts, f"{seg.name}: not a slice of {src.name}"
         np.testing.assert_allclose(src.t[starts[0]:starts[0] + K] - src.t[starts[0]], seg.t, atol=1e-9)
+
+
+def test_many_runs_get_shorter_segments_one_from_each(clean_runs):
+    """Budget / runs sets the segment length: with a 12 s budget for 3 runs each run gives one 4 s piece,
+    and the pieces start at different times of their runs."""
+    model, runs = clean_runs
+    fd = fit_data(_dataset(model, runs), budget=12.0)
+    assert sorted(fd.groups.tolist()) == list(range(RUNS))
+    assert all(s.t[-1] <= 4.0 + 1e-9 for s in fd.dataset.runs)
+    assert fd.segment == 4.0 and fd.seconds <= 12.0 + 1e-9
+    assert len({s.name.split("@")[1] for s in fd.dataset.runs}) > 1, [s.name for s in fd.dataset.runs]
 
 
 def test_a_segment_replayed_from_its_start_state_follows_its_run(clean_runs):
