@@ -69,7 +69,7 @@ def main() -> None:
     sweep_wall = time.perf_counter() - t0
     # Budget rows one at a time: each is timed alone on the machine (2 cores).
     timed = [_case(c) for c in budget]
-    runs_note = [f"full sweep: {sweep_wall / 60:.1f} min with {args.jobs} worker processes"]
+    runs_note = [f"full sweep: {sweep_wall / 60:.1f} min with {args.jobs} worker process(es)"]
     if args.effects is not None:
         old = json.loads((out / "discrepancy_recovery.json").read_text())
         keep = [r for r in old["sweep"] if r["hidden"] not in effects]
@@ -80,7 +80,7 @@ def main() -> None:
                        key=lambda r: order.get(r["hidden"], len(order)))
         runs_note = old.get("runs_note", ["full sweep: see the git history of this table"]) + [
             f"rows of {', '.join(effects)} re-run with --effects: {sweep_wall / 60:.1f} min with {args.jobs} "
-            "worker processes"]
+            "worker process(es)"]
     (out / "discrepancy_recovery.json").write_text(
         json.dumps({"sweep": results, "budget": timed, "runs_note": runs_note}, indent=1))
     write_table(out, results, timed, args, runs_note)

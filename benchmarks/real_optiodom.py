@@ -1,12 +1,12 @@
 """Real OptiOdom logs: the workflow's extended model against kinematic odometry calibration (issue 15).
 
-    # the table as issue 15 defines it (gap on all 24 training runs; over 40 min with today's gap):
+    # the committed table (benchmarks/results/real_optiodom.md, .json, .png, _model.json, _gap.json): gap on
+    # all 24 training runs, fitted within its default budget of 120 s of robot time (about 20 min on 2 cores)
     python benchmarks/real_optiodom.py --out benchmarks/results
-    # the committed table (benchmarks/results/real_optiodom.md, .json, .png, _model.json): gap on 8 of
-    # the training runs (runs 1, 4, 7, 10 of each session: one per path kind) cut to 20 s, ~20 min
-    python benchmarks/real_optiodom.py --gap-runs 4 --gap-seconds 20 --out benchmarks/results
-    # reuse an extended model instead of running gap (e.g. the committed one):
-    python benchmarks/real_optiodom.py --gap-model benchmarks/results/real_optiodom_model.json --out DIR
+    # re-render the table from an earlier run's gap record (no gap run; a few seconds):
+    python benchmarks/real_optiodom.py --gap-model benchmarks/results/real_optiodom_gap.json --out DIR
+    # older, smaller variants: gap on N runs per training session cut to S seconds
+    python benchmarks/real_optiodom.py --gap-runs 4 --gap-seconds 20 --out DIR
     # smoke test: 4 training runs cut to 10 s, one 20 s run per held-out session (gap dominates the time)
     python benchmarks/real_optiodom.py --quick
 
