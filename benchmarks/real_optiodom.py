@@ -258,7 +258,8 @@ def plot(out: Path, sessions: list[Session], pred: dict, n_train: int) -> Path:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="few short runs: a smoke test of about a minute")
+    ap.add_argument("--quick", action="store_true",
+                    help="few short runs: a smoke test of the whole pipeline (a few minutes: gap dominates)")
     ap.add_argument("--out", default=None, help="output folder (default benchmarks/results; --quick: a temporary "
                                                  "folder, printed)")
     ap.add_argument("--gap-model", default=None, help="reuse this model.json, gap result.json or the "
