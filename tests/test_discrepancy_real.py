@@ -1,6 +1,6 @@
 """``gap`` end to end on real logs (issue 15 item 7): a small subset of the bundled OptiOdom runs.
 
-Four runs of the training sessions (a clockwise and a counter-clockwise circle, two squares; 220 s of
+Four runs of the training sessions (two clockwise circles, two squares; 220 s of
 robot time), fitted within a 20 s budget (one 5 s segment of each run, ``segments.py``), one search
 step (``max_effects=1``): about a minute on this machine. The full study is
 ``benchmarks/real_optiodom.py``.
