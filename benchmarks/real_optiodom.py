@@ -45,6 +45,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from omni_gym.checks import wrap_angle  # noqa: E402
 from omni_gym.discrepancy.dataset import Run, write_dataset  # noqa: E402
 from omni_gym.discrepancy.importers.optiodom import describe, nominal_model, read_sessions  # noqa: E402
 from omni_gym.discrepancy.kinematic_calibration import (  # noqa: E402
@@ -180,14 +181,13 @@ def residual_analysis(sessions: list[Session], pred: dict, nominal: SimModel, ca
     """What the best held-out prediction leaves, per held-out session (the issue's "where, when, which wheel").
 
     * ``oracle``: a kinematic calibration fitted on the session itself (in-sample): its D, L and position
-      RMS [m]. If it differs from the training calibration by more than the training fit's precision,
-      the effective geometry changed between sessions, which no fixed model can follow; its RMS is a
-      floor for any kinematic model on that session.
+      RMS [m]. Where it differs from the training calibration, the effective geometry changed between
+      sessions, which no fixed model can follow; its RMS is a floor for any kinematic model there.
     * ``growth``: position error of the extended model at 25, 50, 75 and 100 % of each run's time [m]
       (mean over runs): drift that grows steadily is a rate error (geometry, scale), error that jumps
       at certain times is an event.
-    * ``heading``: RMS heading error [rad] of the extended model and the position error a heading error
-      of that size turns up over the mean distance travelled [m].
+    * ``heading_rms``: RMS heading error [rad] of the extended model (mean over runs); ``distance``: the
+      mean distance driven per run [m] (a heading error turns into position error along it).
     """
     out = {}
     for s in sessions:
@@ -198,7 +198,7 @@ def residual_analysis(sessions: list[Session], pred: dict, nominal: SimModel, ca
             obs = np.flatnonzero(r.observed)
             e = np.hypot(*(r.pose[obs, :2] - p[obs, :2]).T)
             growth.append([e[min(len(e) - 1, int(q * (len(e) - 1)))] for q in (0.25, 0.5, 0.75, 1.0)])
-            dh = np.angle(np.exp(1j * (r.pose[obs, 2] - p[obs, 2])))
+            dh = wrap_angle(r.pose[obs, 2] - p[obs, 2])
             head.append(float(np.sqrt(np.mean(dh**2))))
             dist.append(float(np.sum(np.hypot(*np.diff(r.pose[obs, :2], axis=0).T))))
         out[s.name] = {"oracle_D": oracle.diameters.tolist(), "oracle_L": float(oracle.L),
@@ -442,7 +442,7 @@ def table(command: str, quick: bool, nominal: SimModel, cal: KinematicCalibratio
                      f"{' / '.join(mm(g) for g in a['growth'])} | {1000 * a['heading_rms']:.1f} | "
                      f"{a['distance']:.1f} |")
     lines += ["", f"Training calibration for comparison: D = {', '.join(f'{1000 * d:.2f}' for d in cal.diameters)} mm, "
-                  f"L = {1000 * cal.L:.2f} mm.", ""]
+                  f"L = {1000 * cal.L:.2f} mm."]
     lines += ["", "![held-out runs](real_optiodom.png)", ""]
     return "\n".join(lines)
 

@@ -90,8 +90,10 @@ def test_folds_keep_a_source_run_together():
     for g in np.unique(groups):
         assert len(set(folds[groups == g].tolist())) == 1, f"segments of run {g} split across folds"
     assert set(folds.tolist()) == {0, 1, 2}
-    # Without groups the draws are those of the plain per-run folds (datasets within budget are unchanged).
-    assert np.array_equal(make_folds(6, np.random.default_rng(0), 3), make_folds(6, np.random.default_rng(0), 3, None))
+    # One group per run gives exactly the plain per-run folds (the workflow passes groups 0..R-1 for a
+    # dataset within the budget, whose results must not change).
+    assert np.array_equal(make_folds(6, np.random.default_rng(0), 3),
+                          make_folds(6, np.random.default_rng(0), 3, groups=np.arange(6)))
 
 
 def test_gap_refuses_a_bad_fit_budget(clean_runs, tmp_path, capsys):

@@ -58,6 +58,13 @@ class Run:
         p = self.pose[0]
         return p.copy() if np.all(np.isfinite(p)) else np.zeros(3)
 
+    def start_state(self, angles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The replay state at row 0 (a :class:`~omni_gym.discrepancy.simulate.Job`'s ``state0``): the
+        run's own ``state0`` for a segment, else at rest at ``start_pose`` with wheel ``angles`` (n,) [rad]."""
+        if self.state0 is not None:
+            return self.state0
+        return self.start_pose, np.zeros(3), angles, np.zeros(self.cmd.shape[1])
+
 
 @dataclass
 class Dataset:

@@ -96,11 +96,8 @@ def localise(ds: Dataset, model: SimModel, lever: float, open_loop: list[np.ndar
             k1 = int(np.searchsorted(run.t, run.t[k0] + window - 1e-9))
             k1 = min(max(k1, k0 + 2), len(run.t) - 1)
             if run.observed[k0] and np.all(np.isfinite(rate[k0])) and run.observed[k0 + 1:k1 + 1].sum() >= 2:
-                speed = run.cmd[k0 - 1] if k0 > 0 else np.zeros(n)
-                vel = rate[k0] if k0 > 0 else np.zeros(3)
-                state = (run.pose[k0], vel, ang[k0], speed)
-                if k0 == 0 and run.state0 is not None:  # a segment of a longer run: its own start state
-                    state = run.state0
+                state = (run.start_state(ang[0]) if k0 == 0
+                         else (run.pose[k0], rate[k0], ang[k0], run.cmd[k0 - 1]))
                 jobs.append(Job(model, run, k0=k0, k1=k1, state0=state))
                 meta.append((ri, k0, k1))
             k0 = k1

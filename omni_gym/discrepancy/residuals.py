@@ -24,7 +24,6 @@ def shooting_windows(ds: Dataset, window: float = 1.0) -> list[tuple]:
     densely observed stretches qualify; runs observed sparsely contribute no window.
     """
     out = []
-    n = ds.n_wheels
     for ri, run in enumerate(ds.runs):
         smooth, rate = local_pose_fit(run, half=8)
         ang = wheel_angles(run)
@@ -35,13 +34,9 @@ def shooting_windows(ds: Dataset, window: float = 1.0) -> list[tuple]:
                     and run.observed[k0 + 1:k1 + 1].sum() >= 2:
                 # Smoothed start pose: a heading error δθ at the start turns the whole window's path
                 # (δθ × distance travelled), so raw tracker noise would dominate the window's cost.
-                if k0 == 0 and run.state0 is not None:  # a segment: its own start state
-                    out.append((ri, k0, k1, run.state0))
-                else:
-                    pose = run.start_pose if k0 == 0 else smooth[k0]
-                    vel = np.zeros(3) if k0 == 0 else rate[k0]
-                    speed = np.zeros(n) if k0 == 0 else run.cmd[k0 - 1]
-                    out.append((ri, k0, k1, (pose, vel, ang[k0], speed)))
+                state = (run.start_state(ang[0]) if k0 == 0
+                         else (smooth[k0], rate[k0], ang[k0], run.cmd[k0 - 1]))
+                out.append((ri, k0, k1, state))
             k0 = k1
     return out
 

@@ -88,10 +88,11 @@ def fit_data(ds: Dataset, budget: float = FIT_BUDGET, segment: float = SEGMENT) 
     seg = float(min(segment, max(MIN_SEGMENT, budget / R)))
     per_run = [_pieces(run, seg) for run in ds.runs]
     chosen: list[tuple[int, int]] = []  # (run, piece index)
+    taken: list[set[int]] = [set() for _ in per_run]  # piece indices chosen, per run
     seconds = 0.0
     for q in range(max((len(p) for p in per_run), default=0)):
         for ri, pieces in enumerate(per_run):
-            left = [j for j in range(len(pieces)) if (ri, j) not in chosen]
+            left = [j for j in range(len(pieces)) if j not in taken[ri]]
             if not left:
                 continue
             # Round q's offset in the run: golden-ratio start per run, then van der Corput steps.
@@ -101,6 +102,7 @@ def fit_data(ds: Dataset, budget: float = FIT_BUDGET, segment: float = SEGMENT) 
             if seconds + length > budget + 1e-9:
                 continue
             chosen.append((ri, j))
+            taken[ri].add(j)
             seconds += length
     if len({ri for ri, _ in chosen}) < 2:
         raise ValueError(f"{ds.path}: fewer than 2 runs give a segment of {seg:g} s with a tracked start "
