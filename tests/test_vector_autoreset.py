@@ -83,10 +83,10 @@ def test_same_step_gives_the_next_step_episodes(kwargs):
     nxt = events(make("next_step", **kwargs), n_steps, seed=3)
     same = events(make(AutoresetMode.SAME_STEP, **kwargs), n_steps, seed=3)
     ends = []
-    for i, (a, b) in enumerate(zip(nxt, same)):
+    for i, (a, b) in enumerate(zip(nxt, same, strict=True)):
         # The next_step stream spends one step per reset, so it covers fewer events in n_steps.
         assert len(b) > len(a)
-        for k, (ea, eb) in enumerate(zip(a, b)):
+        for k, (ea, eb) in enumerate(zip(a, b, strict=False)):  # b is longer (checked above)
             assert_event_equal(ea, eb, f"robot {i}, event {k}")
         robot_ends = [e for e in a if e[0] == "step" and (e[3] or e[4])]
         assert len(robot_ends) >= 3, f"robot {i}: {len(robot_ends)} episodes ended"
