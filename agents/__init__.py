@@ -5,8 +5,9 @@ The SB3 parts (training, loading a trained model) need the ``agents`` extra
 
 Modules import only downward (``tests/test_architecture.py``): :mod:`.algorithms` (the SB3 algorithm
 table) and :mod:`.rollout` (``make_env``, ``run_episode``, the ``Policy`` protocol) at the bottom;
-:mod:`.zoo_config` (RL Zoo wrapper/callback keys) on :mod:`.wrappers`; :mod:`.sb3_policy` (loading
-trained models) and :mod:`.evaluate` (statistics over episodes) above them; :mod:`.train` on top.
+:mod:`.zoo_config` (RL Zoo wrapper/callback keys) on :mod:`.wrappers`; :mod:`.sb3_vec_env` (SB3's
+``VecEnv`` over the native vector env) on the environments only; :mod:`.sb3_policy` (loading trained
+models) and :mod:`.evaluate` (statistics over episodes) above them; :mod:`.train` on top.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
     omni-gym train --algo ppo --env OmniPathFollow-Phunopas-v0 --timesteps 2000000 --seed 0 \\
                    --out agents/models/ppo-residual [--env-kwargs JSON] [--hyperparams FILE] [--n-envs N]
-                   [--vec-env dummy|subproc] [--eval-freq STEPS] [--eval-episodes K] [--checkpoint-freq STEPS]
+                   [--vec-env native|dummy|subproc] [--eval-freq STEPS] [--eval-episodes K] [--checkpoint-freq STEPS]
                    [--tensorboard DIR] [--progress | --no-progress] [--max-minutes M]
 
 Hyperparameters come from ``agents/hyperparams/<algo>.yml`` in the RL Zoo's format, which
@@ -33,6 +33,13 @@ when normalising), ``meta.json`` (how to rebuild the environment and wrapper, th
 git commit, timesteps, wall time), ``curve.csv`` / ``curve.png`` (training curve: validation tracking
 RMSE and reward against timesteps) and ``checkpoints/``.
 
+Training environments (``--vec-env``, :func:`make_training_vec_env`): ``native`` (default) steps the
+``n_envs`` robots in one native vector environment through :class:`agents.sb3_vec_env.NativeVecEnv`;
+``dummy`` / ``subproc`` run one Monitor-wrapped single environment per robot in SB3's ``DummyVecEnv`` /
+``SubprocVecEnv``. The per-environment wrappers (``SensorNoiseRandomizer``, ``EKFFeatures``) cannot sit
+on the native vector env yet: with one of them, ``native`` falls back to ``dummy`` (a notice on stderr;
+meta.json records the one used). Both give the same training episodes (same seeds, same transitions).
+
 Seeds: training environment i is reset first with ``seed + i`` (then unseeded, continuing its own
 generator); validation episodes use seeds ``VALIDATION_SEED``…; the benchmarks use 10 000 and up, so
 the three never share an episode.
@@ -61,7 +68,7 @@ from agents.options import check_train_args, parse_env_kwargs
 from agents.rollout import make_env, run_episode
 from agents.sb3_policy import SB3Policy
 from agents.wrappers import wrap_env
-from agents.zoo_config import residual_init, wrapper_spec
+from agents.zoo_config import WrapperSpec, residual_init, wrapper_spec
 from omni_gym.envs.config import parse_model
 
 HYPERPARAM_DIR = Path(__file__).resolve().parent / "hyperparams"
@@ -169,6 +176,42 @@ class _EnvFactory:
         return Monitor(make_train_env(*self.args))
 
 
+VEC_ENVS = ("native", "dummy", "subproc")
+
+
+def make_training_vec_env(kind: str, env_id: str, env_kwargs: dict, spec: WrapperSpec, n: int, seed: int):
+    """The SB3 vector env of ``n`` training environments, seeded (robot i: ``seed + i`` at the first reset).
+
+    ``kind``: one of :data:`VEC_ENVS`; ``spec``: the wrapper stack of the hyperparameters. Returns
+    ``(venv, kind used)``: ``native`` falls back to ``dummy``, with a one-line notice on stderr, when the
+    stack has a per-environment wrapper (sensor-noise randomiser or EKF features), which only single
+    environments take. The one place that builds training environments.
+    """
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    if kind not in VEC_ENVS:
+        raise ValueError(f"unknown vec_env {kind!r}; choose one of {', '.join(VEC_ENVS)}")
+    wrapped = spec.name != "none" or spec.sensor_noise_range is not None
+    if kind == "native" and wrapped:
+        print(f"agents.train: notice: --vec-env native does not take the {spec.name} wrapper or the sensor-noise "
+              "randomiser yet; training on --vec-env dummy", file=sys.stderr)
+        kind = "dummy"
+    if kind == "native":
+        from agents.sb3_vec_env import make_native_vec_env
+
+        kw = dict(env_kwargs)
+        obs_mode = kw.pop("obs_mode", "sensors")  # as make_train_env: "state" is the privileged upper bound
+        # max_episode_steps=None: episodes end with the reference, as make_env matches the registered TimeLimit.
+        venv = make_native_vec_env(env_id.rpartition(":")[2], n, obs_mode=obs_mode, action_mode="twist",
+                                   max_episode_steps=None, **kw)
+    else:
+        factories = [_EnvFactory(env_id, env_kwargs, spec.name, spec.residual_scale, spec.sensor_noise_range,
+                                 spec.reward) for _ in range(n)]
+        venv = SubprocVecEnv(factories, start_method="spawn") if kind == "subproc" else DummyVecEnv(factories)
+    venv.seed(seed)
+    return venv, kind
+
+
 def git_commit() -> str | None:
     try:
         out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).resolve().parents[1],
@@ -201,7 +244,7 @@ def train(*args, force: bool = False, **kwargs) -> dict:
 
 def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: str | Path,
                env_kwargs: dict | None = None, hyperparams: str | Path | None = None, n_envs: int | None = None,
-               vec_env: str = "dummy", eval_freq: int = 50_000, eval_episodes: int = 5, checkpoint_freq: int = 0,
+               vec_env: str = "native", eval_freq: int = 50_000, eval_episodes: int = 5, checkpoint_freq: int = 0,
                tensorboard: str | None = None, progress: bool | None = None, max_minutes: float | None = None,
                command: str | None = None, threads: int = 1) -> dict:
     """Train and save into ``out`` directly (no transaction: :func:`train` gives one); returns the meta
@@ -213,14 +256,14 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
     require_agents_extra("training")
     import torch
     from stable_baselines3.common.noise import NormalActionNoise
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+    from stable_baselines3.common.vec_env import VecNormalize
 
     from agents.callbacks import init_residual
 
     if algo not in ALGOS:
         raise ValueError(f"unknown algo {algo!r}; choose one of {', '.join(ALGOS)}")
-    if vec_env not in ("dummy", "subproc"):
-        raise ValueError(f"unknown vec_env {vec_env!r}; choose dummy or subproc")
+    if vec_env not in VEC_ENVS:
+        raise ValueError(f"unknown vec_env {vec_env!r}; choose one of {', '.join(VEC_ENVS)}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     if env_kwargs is not None and not isinstance(env_kwargs, dict):
@@ -257,9 +300,7 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
     probe.close()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    factories = [_EnvFactory(env_id, kw, wrapper, residual_scale, noise, reward) for _ in range(n)]
-    venv = SubprocVecEnv(factories, start_method="spawn") if vec_env == "subproc" else DummyVecEnv(factories)
-    venv.seed(seed)
+    venv, vec_env = make_training_vec_env(vec_env, env_id, kw, spec, n, seed)
     if norm is not None:
         venv = VecNormalize(venv, gamma=float(hp.get("gamma", 0.99)), **norm)
 
@@ -466,7 +507,9 @@ def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.
     p.add_argument("--env-kwargs", default=None, help="gym.make keywords as a JSON object (merged over the YAML's)")
     p.add_argument("--hyperparams", default=None, help="YAML file (default agents/hyperparams/<algo>.yml)")
     p.add_argument("--n-envs", type=int, default=None, help="parallel environments (default: n_envs in YAML)")
-    p.add_argument("--vec-env", choices=("dummy", "subproc"), default="dummy", help="vectorisation (default dummy)")
+    p.add_argument("--vec-env", choices=VEC_ENVS, default="native",
+                   help="vectorisation: native (one vector env of all robots; default), dummy or subproc (one "
+                        "single env per robot); native falls back to dummy for the EKF and noise wrappers")
     p.add_argument("--eval-freq", type=int, default=50_000, help="validation every N steps (0: none; default 50000)")
     p.add_argument("--eval-episodes", type=int, default=5, help="validation episodes (default 5)")
     p.add_argument("--checkpoint-freq", type=int, default=0, help="checkpoint every N steps (0: none)")

@@ -347,3 +347,32 @@ def test_training_on_a_model_file_keeps_the_model_itself(tmp_path, capsys):
     env = gym.make(ENV, **meta["train_env_kwargs"])  # no file needed any more
     assert env.unwrapped.cfg.base_model().effects["wheel_radius"]["scale"] == [1.02, 0.98, 1.0, 1.01]
     env.close()
+
+
+# --- training vector env --------------------------------------------------------------------------
+
+
+def test_native_vec_env_trains_the_same_agent_as_dummy(tmp_path, capsys):
+    """--vec-env native (the default) and dummy see the same transitions (same seeds, episodes that end by
+    truncation within the rollout, VecNormalize on top): bit-identical weights. With an EKF wrapper, native
+    falls back to dummy with a one-line notice."""
+    f = tmp_path / "hp.yml"
+    f.write_text(yaml.safe_dump({ENV: {"policy": "MlpPolicy", "n_envs": 3, "n_steps": 64, "batch_size": 48,
+                                       "n_epochs": 2, "normalize": True, "env_kwargs": {"obs_mode": "state"}}}))
+    weights, metas = [], []
+    for kind in ("native", "dummy"):
+        meta = train("ppo", ENV, 384, 4, tmp_path / kind, {"episode_seconds": 0.5}, f, vec_env=kind, eval_freq=0,
+                     progress=False)
+        metas.append(meta)
+        weights.append(PPO.load(tmp_path / kind / "final_model.zip", device="cpu").policy.state_dict())
+    assert [m["vec_env"] for m in metas] == ["native", "dummy"]
+    assert "notice" not in capsys.readouterr().err
+    for key in weights[0]:
+        assert torch.equal(weights[0][key], weights[1][key]), key
+
+    hp = {**_shrink(load_hyperparams("ppo", ENV)), "n_steps": 16, "batch_size": 16}
+    f.write_text(yaml.safe_dump({ENV: hp}))
+    meta = train("ppo", ENV, 16, 0, tmp_path / "ekf", SHORT, f, eval_freq=0, progress=False)
+    err = capsys.readouterr().err
+    assert meta["vec_env"] == "dummy" and meta["wrapper"] == "residual-ekf-pid"
+    assert err.count("\n") == 1 and "notice: --vec-env native does not take the residual-ekf-pid wrapper" in err

@@ -256,10 +256,13 @@ class TaskCore:
         self.step_count += 1
         self.prev_action[:] = self._clipped
 
-    def observe(self) -> None:
+    def observe(self, robots: np.ndarray | None = None) -> None:
         """Fill ``obs``, ``err`` and ``true`` for every robot from the current world state.
 
-        Call exactly once per robot per reset or step: sensor readings draw noise.
+        Call exactly once per robot per reset or step: sensor readings draw noise. ``robots`` (indices)
+        limits the sensor readings to those robots (a same-step autoreset observes only the robots it
+        just reset); ``err``, ``true``, the reward and the ``state`` rows are recomputed for all, which
+        is deterministic and leaves the other robots' values unchanged.
         """
         world = self.world
         world._read_state()
@@ -269,7 +272,7 @@ class TaskCore:
         if self.cfg.obs_mode == "state":
             self.obs[:] = self._state_obs
         else:
-            for j in range(self.B):
+            for j in range(self.B) if robots is None else robots:
                 self._observe_sensors(j)
         if not (np.isfinite(self.obs).all() and np.isfinite(self.reward).all()):
             # Never hand NaN to a learner: within the keyword and model bounds this should not happen.

@@ -1,10 +1,19 @@
 """Native vectorised environment: N robots in one pymunk space, wheel forces computed for all at once.
 
-Reached through ``gym.make_vec(ID, num_envs=N, vectorization_mode="vector_entry_point")``. Follows
-Gymnasium 1.x's default autoreset mode (``NEXT_STEP``): the step after an episode ends resets that
-sub-environment, ignores its action and returns its first observation with reward 0 and both flags
-False. ``reset(seed=s)`` seeds sub-environment i with s + i, so the vector reproduces N single
-environments reset with seeds s, s + 1, …, bit for bit.
+Reached through ``gym.make_vec(ID, num_envs=N, vectorization_mode="vector_entry_point")``. Two
+Gymnasium 1.x autoreset modes (keyword ``autoreset_mode``):
+
+* ``"next_step"`` (default, ``AutoresetMode.NEXT_STEP``): the step after an episode ends resets that
+  sub-environment, ignores its action and returns its first observation with reward 0 and both flags
+  False.
+* ``"same_step"`` (``AutoresetMode.SAME_STEP``): the step in which an episode ends resets that
+  sub-environment at once and returns its first observation (with the ended step's reward and flags);
+  ``info["final_obs"]`` and ``info["final_info"]`` hold the ended step's observation and infos. This is
+  what Stable-Baselines3 needs (:mod:`agents.sb3_vec_env`).
+
+``reset(seed=s)`` seeds sub-environment i with s + i, so the vector reproduces N single environments
+reset with seeds s, s + 1, …, bit for bit, in either mode (same seeds: the same episodes; the
+``same_step`` stream only skips the ``next_step`` stream's autoreset steps).
 
 Keywords are those of the single environment (``model=`` included: every robot is built from the same
 model). Actions must have shape (num_envs, A) and hold real numbers; ``reset`` takes no options.
@@ -92,7 +101,7 @@ class OmniPathVectorEnv(RobotEnvAttributes, VectorEnv):
     ## Rewards
 
     Per robot, as the single environment: ``r = 0.7·exp(−e / 0.1 m) + 0.3·exp(−|e_θ| / 0.3 rad)
-    − 0.05·mean(a²)``; 0 on the autoreset step.
+    − 0.05·mean(a²)``; 0 on the autoreset step (``next_step`` mode).
 
     ## Starting State
 
@@ -102,28 +111,42 @@ class OmniPathVectorEnv(RobotEnvAttributes, VectorEnv):
     ## Episode End
 
     Per robot: terminated when its tracking error exceeds ``lost_distance`` or it touches a wall or
-    an obstacle; truncated at ``max_episode_steps`` (default: the reference's length). The next step
-    resets that robot (``NEXT_STEP`` autoreset).
+    an obstacle; truncated at ``max_episode_steps`` (default: the reference's length).
+
+    ``autoreset_mode="next_step"`` (default): the next step resets that robot, ignores its action row
+    and returns its first observation, reward 0 and both flags False.
+
+    ``autoreset_mode="same_step"``: the step in which robot i's episode ends resets it at once.
+    ``obs[i]`` is then its new episode's first observation, while ``rewards[i]``, ``terminated[i]`` and
+    ``truncated[i]`` are those of the ended step, and the returned infos are the reset's for robot i.
+    The ended step is in the infos: ``info["final_obs"]`` (float32, (N, D)) holds the last observation
+    of each ended episode, ``info["final_info"]`` the ended step's infos (a dict of arrays over robots,
+    with Gymnasium's ``_key`` masks), valid in the rows where ``info["_final_obs"]`` and
+    ``info["_final_info"]`` (bool, (N,)) are True; the other rows are zero. Both keys are present only
+    on steps in which some episode ends.
 
     ## Arguments
 
     ``num_envs`` (N, a positive integer, at most :data:`MAX_NUM_ENVS` and at most what
     :func:`max_robots` allows for the arena size), ``max_episode_steps`` (a positive integer, capped
-    at the reference's length), ``render_mode`` (only None), and every keyword of the single
+    at the reference's length), ``autoreset_mode`` ("next_step" or "same_step", or the
+    ``gymnasium.vector.AutoresetMode`` member; sets ``metadata["autoreset_mode"]``), ``render_mode``
+    (only None), and every keyword of the single
     environment (``model=`` included: every robot is built from the same model). The public
     attributes of the single environment (``robot``, ``wheel_matrix``, ``wheel_scale``,
     ``observation_layout``, ``obs_scales``, ``sensor_config``) are available here too.
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version; ``autoreset_mode="same_step"`` added later (the default is unchanged).
     """  # noqa: E501 (observation tables: one row per line)
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, render_mode: str | None = None,
-                 **kwargs: Any) -> None:
+                 autoreset_mode: str | AutoresetMode = "next_step", **kwargs: Any) -> None:
         num_envs = _positive_int("num_envs", num_envs)
+        mode = _autoreset_mode(autoreset_mode)
         if num_envs > MAX_NUM_ENVS:  # checked before anything is allocated per robot
             raise ValueError(f"invalid num_envs={num_envs}; at most {MAX_NUM_ENVS} robots fit in one space")
         if max_episode_steps is not None:
@@ -137,6 +160,8 @@ class OmniPathVectorEnv(RobotEnvAttributes, VectorEnv):
             raise ValueError(f"invalid num_envs={num_envs} with arena_half_size={self.cfg.arena_half_size:g}: at most "
                              f"{limit} such arenas fit in one space")
         self.num_envs = num_envs
+        self.autoreset_mode = mode
+        self.metadata = dict(type(self).metadata, autoreset_mode=mode)  # per instance; the class dict stays
         self.core = TaskCore(self.cfg, self.num_envs)
         steps = self.cfg.episode_steps
         self.max_episode_steps = steps if max_episode_steps is None else min(int(max_episode_steps), steps)
@@ -175,6 +200,8 @@ class OmniPathVectorEnv(RobotEnvAttributes, VectorEnv):
             raise RuntimeError("call reset() before step()")
         core = self.core
         core.advance(as_actions(actions, self.action_space.shape))
+        if self.autoreset_mode is AutoresetMode.SAME_STEP:
+            return self._step_same()
         restart = np.flatnonzero(self._autoreset)
         for i in restart:
             core.reset_robot(i, self._rngs[i])  # replaces whatever the shared step did to it
@@ -189,11 +216,51 @@ class OmniPathVectorEnv(RobotEnvAttributes, VectorEnv):
         self._autoreset = terminated | truncated
         return core.obs.astype(np.float32), rewards, terminated, truncated, self._infos()
 
+    def _step_same(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+        """The rest of a ``same_step`` step, after ``advance``: observe, then reset the robots whose episode ended."""
+        core = self.core
+        core.observe()
+        rewards = core.rewards()
+        terminated = core.terminated()
+        truncated = (core.step_count >= self.max_episode_steps) & ~terminated
+        ended = terminated | truncated
+        if not ended.any():
+            return core.obs.astype(np.float32), rewards, terminated, truncated, self._infos()
+        idx = np.flatnonzero(ended)
+        # Snapshot the ended step before the reset overwrites those rows; observing only the reset robots
+        # keeps every robot at one sensor reading per step or reset (the same draws as next_step mode).
+        final_obs = np.zeros((self.num_envs, core.obs_dim), dtype=np.float32)
+        final_obs[idx] = core.obs[idx]
+        final_info = core.infos()
+        for key in list(final_info):
+            final_info[key][~ended] = 0  # core.infos() returns copies
+            final_info["_" + key] = ended.copy()
+        for i in idx:
+            core.reset_robot(i, self._rngs[i])
+        core.observe(robots=idx)
+        infos = self._infos()
+        infos["final_obs"] = final_obs
+        infos["_final_obs"] = ended.copy()
+        infos["final_info"] = final_info
+        infos["_final_info"] = ended
+        return core.obs.astype(np.float32), rewards, terminated, truncated, infos
+
     def _infos(self) -> dict:
         infos: dict[str, Any] = self.core.infos()
         for key in list(infos):
             infos["_" + key] = np.ones(self.num_envs, dtype=bool)
         return infos
+
+
+def _autoreset_mode(value: Any) -> AutoresetMode:
+    """``autoreset_mode`` as an :class:`AutoresetMode`: "next_step", "same_step" or those two members."""
+    modes = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP}
+    if isinstance(value, AutoresetMode) and value in modes.values():
+        return value
+    if isinstance(value, str) and value in modes:
+        return modes[value]
+    raise ValueError(f"invalid autoreset_mode={value!r}; allowed: 'next_step', 'same_step' "
+                     "(or AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)")
 
 
 def _positive_int(name: str, value: Any) -> int:
