@@ -185,7 +185,7 @@ def _joseph(x, P, nu, H, R, S, ws, wv):
     m = nu.shape[0]
     PHt = ws[0, :nx, :m]
     K = ws[1, :nx, :m]
-    _mmt(P, H, PHt)
+    _mm_sparse_bt(P, H, PHt)
     if m == 1:
         for i in range(nx):
             K[i, 0] = PHt[i, 0] / S[0, 0]
@@ -209,7 +209,7 @@ def _joseph(x, P, nu, H, R, S, ws, wv):
                 s -= K[i, k] * HP[k, j]
             AP[i, j] = s
     APHt = ws[5, :nx, :m]
-    _mmt(AP, H, APHt)
+    _mm_sparse_bt(AP, H, APHt)
     KR = ws[6, :nx, :m]
     _mm(K, R, KR)
     for k in range(m):  # APHt − KR
@@ -227,7 +227,9 @@ def _joseph(x, P, nu, H, R, S, ws, wv):
 
 @numba.njit(cache=True)
 def _mm_sparse_bt(A, B, out):
-    """out = A @ B.T, skipping the zeros of B (F is mostly identity)."""
+    """out = A @ B.T, skipping the zeros of B (F is mostly identity, measurement matrices are sparse).
+
+    Each entry is still summed over k in increasing order; a skipped term is an exact zero."""
     for i in range(A.shape[0]):
         for j in range(B.shape[0]):
             out[i, j] = 0.0
@@ -355,7 +357,7 @@ def _predict_accel(x, P, a0, a1, fp, ws, wv, Pa, xa, F, H2, R2, S2, nu2):
     nu2[1] = a1 - (xa[VY] - rv1) / dt
     HP = ws[3, :2, :NX + 3]
     _mm(H2, Pa, HP)
-    _mmt(HP, H2, S2)
+    _mm_sparse_bt(HP, H2, S2)
     S2[0, 0] += R2[0, 0]
     S2[1, 1] += R2[1, 1]
     nis = _nis(nu2, S2, ws, wv)
@@ -377,7 +379,7 @@ def _scalar_gated(x, P, nu1, col_a, col_b, r, gate, rej, k, reacquire, ws, wv, H
     R1[0, 0] = r
     HP = ws[8, :1, :NX]
     _mm(H1, P, HP)
-    _mmt(HP, H1, S1)
+    _mm_sparse_bt(HP, H1, S1)
     S1[0, 0] += r
     nis = nu1[0] * nu1[0] / S1[0, 0]
     if nis > gate:
@@ -386,7 +388,7 @@ def _scalar_gated(x, P, nu1, col_a, col_b, r, gate, rej, k, reacquire, ws, wv, H
             return nis
         P[col_a, col_a] += nu1[0] * nu1[0]
         _mm(H1, P, HP)
-        _mmt(HP, H1, S1)
+        _mm_sparse_bt(HP, H1, S1)
         S1[0, 0] += r
     rej[k] = 0
     _joseph(x, P, nu1, H1, R1, S1, ws, wv)
@@ -566,7 +568,7 @@ def _process_range(lo, hi, xs, Ps, rej, since_cam, belief, ok, agree, wheel_ok, 
                 s += W[j, k] * x[VX + k]
             nu[j] = enc[i, j] - s
         _mm(Hw, P, HwP)
-        _mmt(HwP, Hw, S)
+        _mm_sparse_bt(HwP, Hw, S)
         for j in range(n):
             S[j, j] += fp[F_R_WHEEL]
         if ip[I_USE_DETECTOR]:
@@ -602,7 +604,7 @@ def _process_range(lo, hi, xs, Ps, rej, since_cam, belief, ok, agree, wheel_ok, 
             nuc[1] = camera[i, 1] - x[Y]
             nuc[2] = _wrap(camera[i, 2] - x[TH])
             _mm(Hcam, P, HcP)
-            _mmt(HcP, Hcam, S3)
+            _mm_sparse_bt(HcP, Hcam, S3)
             for j in range(3):
                 S3[j, j] += Rcam[j, j]
             nis = _nis(nuc, S3, ws, wv)
@@ -626,7 +628,7 @@ def _process_range(lo, hi, xs, Ps, rej, since_cam, belief, ok, agree, wheel_ok, 
                     P[VY, VX] += dv1 * dv0
                     P[VY, VY] += dv1 * dv1
                     _mm(Hcam, P, HcP)
-                    _mmt(HcP, Hcam, S3)
+                    _mm_sparse_bt(HcP, Hcam, S3)
                     for j in range(3):
                         S3[j, j] += Rcam[j, j]
             if apply:
