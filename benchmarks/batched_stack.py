@@ -19,6 +19,7 @@ is shared). Target: batched ≥ 100k robot-steps/s at N = 256.
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import time
 from pathlib import Path
@@ -56,32 +57,34 @@ def record(n: int, steps: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, o
     return np.stack(out), np.stack(resets), venv
 
 
-def batched_rate(obs: np.ndarray, resets: np.ndarray, venv, threads: bool) -> float:
-    """Robot-steps/s of the vector ekf-pid policy over the recorded batch."""
+def batched_rate(obs: np.ndarray, resets: np.ndarray, venv, threads: bool) -> tuple[float, float]:
+    """Robot-steps per wall-clock second and per CPU second (this process) of the vector ekf-pid policy."""
     policy = make_vector_policy("ekf-pid", venv, threads=threads)
     steps, n = resets.shape
     policy.reset(obs[0])
     policy.act(obs[0])  # compile / warm up
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     for t in range(1, steps):
         if resets[t].any():
             policy.reset(obs[t], resets[t])
         policy.act(obs[t])
-    return (steps - 1) * n / (time.perf_counter() - start)
+    work = (steps - 1) * n
+    return work / (time.perf_counter() - start), work / (time.process_time() - cpu)
 
 
-def single_rate(obs: np.ndarray, resets: np.ndarray, robots: int) -> float:
-    """Robot-steps/s of the single ekf-pid policy, robot by robot, over the first ``robots`` robots."""
+def single_rate(obs: np.ndarray, resets: np.ndarray, robots: int) -> tuple[float, float]:
+    """Robot-steps per wall-clock and per CPU second of the single ekf-pid policy, robot by robot."""
     env = gym.make(ENV_ID, obs_mode="sensors")
     steps = resets.shape[0]
     policies = [make_policy("ekf-pid", env) for _ in range(robots)]
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     for i, p in enumerate(policies):
         for t in range(steps):
             if resets[t, i]:
                 p.reset(obs[t, i])
             p.act(obs[t, i])
-    return steps * robots / (time.perf_counter() - start)
+    work = steps * robots
+    return work / (time.perf_counter() - start), work / (time.process_time() - cpu)
 
 
 def main() -> None:
@@ -94,34 +97,38 @@ def main() -> None:
     for name in ("steps", "repeats", "single_robots"):
         if getattr(args, name) < 2 and name == "steps" or getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be a positive integer (--steps at least 2)")
-    obs, resets, venv_big = record(max(SIZES), args.steps)
-    single = max(single_rate(obs, resets, args.single_robots) for _ in range(args.repeats))
+    obs, resets, _ = record(max(SIZES), args.steps)
+    best = lambda runs: tuple(max(r[k] for r in runs) for k in range(2))  # noqa: E731 (best wall, best CPU)
+    single = best([single_rate(obs, resets, args.single_robots) for _ in range(args.repeats)])
     rows = []
     for n in SIZES:
         venv = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", obs_mode="sensors")
-        serial = max(batched_rate(obs[:, :n], resets[:, :n], venv, False) for _ in range(args.repeats))
-        threaded = max(batched_rate(obs[:, :n], resets[:, :n], venv, True) for _ in range(args.repeats))
+        serial = best([batched_rate(obs[:, :n], resets[:, :n], venv, False) for _ in range(args.repeats)])
+        threaded = best([batched_rate(obs[:, :n], resets[:, :n], venv, True) for _ in range(args.repeats)])
         rows.append((n, serial, threaded))
-        print(f"N={n}: single {single:,.0f}, batched {serial:,.0f} ({serial / single:.0f}x), "
-              f"threaded {threaded:,.0f} ({threaded / single:.0f}x) robot-steps/s")
+        print(f"N={n}: single {single[0]:,.0f}, batched {serial[0]:,.0f} ({serial[0] / single[0]:.0f}x), "
+              f"threaded {threaded[0]:,.0f} robot-steps/s; per CPU second {single[1]:,.0f} vs {serial[1]:,.0f}")
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     lines = [
         "# Estimation + control stack (decode, EKF + slip detector, PID): robot-steps per second",
         "",
         "`python benchmarks/batched_stack.py --out benchmarks/results`",
         "",
-        f"Machine: {platform.machine()}, Python {platform.python_version()}, numba {numba.__version__} "
-        f"({numba.get_num_threads()} threads); {ENV_ID} sensors observations recorded beforehand "
-        f"({args.steps} steps per robot, noisy ekf-pid actions, resets included); environment not timed; "
-        f"wall clock, best of {args.repeats}. Single: agents.policies.EKFPIDPolicy robot by robot "
-        f"({args.single_robots} robots). Batched: agents.batched VectorEKFPIDPolicy on the (N, D) batch.",
+        f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, numba "
+        f"{numba.__version__} ({numba.get_num_threads()} threads); load average {load:.1f} when the run ended "
+        f"(shared machine). {ENV_ID} sensors observations recorded beforehand ({args.steps} steps per robot, "
+        f"noisy ekf-pid actions, resets included); environment not timed; best of {args.repeats}. Single: "
+        f"agents.policies.EKFPIDPolicy robot by robot ({args.single_robots} robots). Batched: agents.batched "
+        "VectorEKFPIDPolicy on the (N, D) batch. Wall: robot-steps per wall-clock second; CPU: per CPU second "
+        "of this process (less sensitive to other jobs on the machine; not meaningful for threads).",
         "",
-        "| N | single | batched (serial) | × single | batched (threads) | × single | target |",
-        "|---|---|---|---|---|---|---|",
+        "| N | single wall | single CPU | batched wall | batched CPU | × single (CPU) | threads wall | target |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for n, serial, threaded in rows:
         target = f"≥ {TARGET:,}" if n == 256 else ""
-        lines.append(f"| {n} | {single:,.0f} | {serial:,.0f} | {serial / single:.0f} | {threaded:,.0f} | "
-                     f"{threaded / single:.0f} | {target} |")
+        lines.append(f"| {n} | {single[0]:,.0f} | {single[1]:,.0f} | {serial[0]:,.0f} | {serial[1]:,.0f} | "
+                     f"{serial[1] / single[1]:.0f} | {threaded[0]:,.0f} | {target} |")
     text = "\n".join(lines) + "\n"
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
