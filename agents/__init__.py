@@ -7,6 +7,8 @@ Modules import only downward (``tests/test_architecture.py``): :mod:`.algorithms
 table) and :mod:`.rollout` (``make_env``, ``run_episode``, the ``Policy`` protocol) at the bottom;
 :mod:`.zoo_config` (RL Zoo wrapper/callback keys) on :mod:`.wrappers`; :mod:`.sb3_policy` (loading
 trained models) and :mod:`.evaluate` (statistics over episodes) above them; :mod:`.train` on top.
+:mod:`.batched` (the EKF, slip detector, PID and scripted policies for N robots at once) builds on
+:mod:`.ekf`, :mod:`.slip_detector` and :mod:`.pid`; :mod:`.wrappers` uses it for ``VectorEKFFeatures``.
 """
 
 from __future__ import annotations
