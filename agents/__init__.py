@@ -8,6 +8,8 @@ table) and :mod:`.rollout` (``make_env``, ``run_episode``, the ``Policy`` protoc
 :mod:`.zoo_config` (RL Zoo wrapper/callback keys) on :mod:`.wrappers`; :mod:`.sb3_vec_env` (SB3's
 ``VecEnv`` over the native vector env) on the environments only; :mod:`.sb3_policy` (loading trained
 models) and :mod:`.evaluate` (statistics over episodes) above them; :mod:`.train` on top.
+:mod:`.batched` (the EKF, slip detector, PID and scripted policies for N robots at once) builds on
+:mod:`.ekf`, :mod:`.slip_detector` and :mod:`.pid`; :mod:`.wrappers` uses it for ``VectorEKFFeatures``.
 """
 
 from __future__ import annotations

@@ -45,6 +45,9 @@
   residual at zero where it does not help. The reward is a training signal only: the policy never
   sees e.
 
+* :class:`VectorEKFFeatures`: the same features, residual action and rewards for a native vector
+  environment (N robots at once, the batched EKF of :mod:`agents.batched`); both autoreset modes.
+
 * :class:`SensorNoiseRandomizer`: draws a sensor-noise scale from U(lo, hi) at every reset (the
   environments fix ``sensor_noise`` at construction; this domain randomisation sits outside them).
   The draw comes from a generator seeded by the reset seed (and continued by unseeded resets), so a
@@ -61,6 +64,8 @@ from dataclasses import fields, replace
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorWrapper
+from gymnasium.vector.utils import batch_space
 
 from omni_gym.checks import wrap_angle
 
@@ -179,6 +184,165 @@ class EKFFeatures(gym.Wrapper):
             ekf.wheel_belief, ekf.wheels_used.astype(float), innov,
             base.twist / self.twist_scale,
             [ix / ilim[0], iy / ilim[1], pid.integral[2] / ilim[2]],
+            self.prev_action,
+        ])
+        return np.clip(f, -CLIP, CLIP).astype(np.float32)
+
+
+class VectorEKFFeatures(VectorWrapper):
+    """:class:`EKFFeatures` for a native vector environment: the same features, residual action and rewards
+    per robot, with the batched ekf-pid baseline (:class:`agents.batched.policies.VectorEKFPIDPolicy`).
+
+    Row i of every step equals what ``EKFFeatures`` over robot i's single environment gives inside a
+    Gymnasium vector env of the same autoreset mode (``tests/test_batched_estimation.py``). Both
+    autoreset modes of the wrapped env (``env.metadata["autoreset_mode"]``) are handled:
+
+    * ``NEXT_STEP``: on the step after robot i ended, the env ignores its action and returns its first
+      observation: the wrapper restarts robot i's filter and PID on it, its previous action is zero and
+      its reward 0 (what a Gymnasium vector env does on the autoreset step), flags False.
+    * ``SAME_STEP``: when robot i ends, ``obs[i]`` is its reset observation and ``info["final_obs"][i]``
+      the last one of the ended episode: the wrapper advances robot i's filter with the latter, returns
+      those features in its own ``info["final_obs"]`` (float32 (N, dim), valid where
+      ``info["_final_obs"]``), then restarts the filter on ``obs[i]`` and returns its features. The reward
+      uses the ended episode's tracking error (``info["final_info"]["tracking_error"]``).
+
+    Args: as :class:`EKFFeatures`; ``env`` a vector environment with ``obs_mode="sensors"``,
+    ``action_mode="twist"``; ``threads`` runs the batched EKF on numba's threads.
+    """
+
+    def __init__(self, env, residual_scale: float = 0.3, reward: str = "env", threads: bool = False) -> None:
+        super().__init__(env)
+        _check_env(env, "VectorEKFFeatures")
+        if not (isinstance(residual_scale, (int, float)) and 0.0 <= residual_scale <= 1.0):
+            raise ValueError(f"residual_scale must be a number in [0, 1], got {residual_scale!r}")
+        if reward not in REWARDS:
+            raise ValueError(f"unknown reward {reward!r}; choose one of {', '.join(REWARDS)}")
+        from agents.batched.policies import make_vector_policy
+
+        self.reward_mode = reward
+        self.residual_scale = float(residual_scale)
+        self.base = make_vector_policy("ekf-pid", env, threads=threads)
+        self.num = int(env.num_envs)
+        cfg = env.unwrapped.cfg
+        self.lost_distance = float(cfg.lost_distance)
+        self.n = self.base.robot.n_wheels
+        self.twist_scale = np.array([cfg.max_speed, cfg.max_speed, cfg.max_yaw_rate])
+        self.wheel_scale = float(env.unwrapped.wheel_scale)
+        self.dim = 30 + 3 * self.n
+        self.single_observation_space = spaces.Box(-CLIP, CLIP, shape=(self.dim,), dtype=np.float32)
+        self.observation_space = batch_space(self.single_observation_space, self.num)
+        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+        self.action_space = batch_space(self.single_action_space, self.num)
+        self.same_step = env.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP) == AutoresetMode.SAME_STEP
+        self.base_action = np.zeros((self.num, 3))
+        self.prev_action = np.zeros((self.num, 3))
+        self._autoreset = np.zeros(self.num, dtype=bool)
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """(N, 3) EKF pose estimates (x, y, θ) [m, m, rad], world frame."""
+        return self.base.estimate
+
+    def reset(self, *, seed=None, options: dict | None = None):
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.prev_action[:] = 0.0
+        self._autoreset[:] = False
+        self.base.reset(obs)
+        return self._observe(obs), info
+
+    def step(self, actions):
+        a = np.clip(np.asarray(actions, dtype=float).reshape(self.num, 3), -1.0, 1.0)
+        if not np.all(np.isfinite(a)):
+            raise ValueError("actions contain NaN or infinity")
+        if self.residual_scale > 0:
+            total = np.clip(self.base_action + self.residual_scale * a, -1.0, 1.0)
+        else:
+            total = a
+        obs, reward, terminated, truncated, info = self.env.step(total.astype(np.float32))
+        reward = np.asarray(reward, dtype=float).copy()
+        e = np.asarray(info["tracking_error"], dtype=float).copy()
+        if self.same_step:
+            done = np.asarray(terminated | truncated, dtype=bool)
+            restart = np.zeros(self.num, dtype=bool)
+            if done.any():
+                e[done] = np.asarray(info["final_info"]["tracking_error"], dtype=float)[done]
+        else:
+            done = np.zeros(self.num, dtype=bool)
+            restart = self._autoreset.copy()
+            self._autoreset = np.asarray(terminated | truncated, dtype=bool)
+        live = ~restart
+        self.prev_action[live] = a[live]
+        reward = self._reward(reward, e, a, terminated)
+        if restart.any():  # NEXT_STEP: obs[restart] are first observations, the actions were ignored
+            self.prev_action[restart] = 0.0
+            reward[restart] = 0.0
+            self.base.reset(obs, restart)
+        if done.any():  # SAME_STEP: finish the ended episodes on their final observations, then restart
+            last = np.asarray(obs, dtype=np.float32).copy()
+            final_obs = np.asarray(info["final_obs"])  # (N, D); a Gymnasium vector env's is an object array
+            last[done] = np.stack(list(final_obs[done])) if final_obs.dtype == object else final_obs[done]
+            features = self._observe(last)
+            final = features.copy()
+            self.prev_action[done] = 0.0
+            self.base.reset(obs, done)
+            features[done] = self._observe(obs, done)[done]
+            info = dict(info)
+            info["final_obs"] = final
+            info["_final_obs"] = done.copy()
+        else:
+            features = self._observe(obs)
+        return features, reward, terminated, truncated, info
+
+    def _reward(self, env_reward: np.ndarray, e: np.ndarray, a: np.ndarray, terminated: np.ndarray) -> np.ndarray:
+        """Per-robot reward of :class:`EKFFeatures` (``reward`` mode) from true tracking errors ``e`` [m]."""
+        if self.reward_mode == "tracking":
+            return 0.5 * np.exp(-((e / 0.05) ** 2)) + 0.5 * np.exp(-e / 0.1) - 0.02 * np.mean(a * a, axis=1)
+        if self.reward_mode == "squared":
+            r = -((e / 0.1) ** 2) - 0.01 * np.mean(a * a, axis=1)
+            return np.where(terminated, r - LOST_HORIZON * (self.lost_distance / 0.1) ** 2, r)
+        return env_reward
+
+    def _observe(self, obs: np.ndarray, robots=None) -> np.ndarray:
+        """Advance the baseline of ``robots`` (None: all) with ``obs`` (N, D) and build the (N, dim) features."""
+        base = self.base
+        act = np.asarray(base.act(obs, robots), dtype=float)
+        m = np.ones(self.num, dtype=bool) if robots is None else np.asarray(robots, dtype=bool)
+        self.base_action[m] = act[m]
+        s = base.decode(obs)
+        ekf, pid = base.ekf, base.pid
+        pose = ekf.pose
+        x, y, th = pose[:, 0], pose[:, 1], pose[:, 2]
+        c, si = np.cos(th), np.sin(th)
+
+        def body(dx: np.ndarray, dy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return c * dx + si * dy, -si * dx + c * dy
+
+        ex, ey = body(s.ref_pose[:, 0] - x, s.ref_pose[:, 1] - y)
+        eth = wrap_angle(s.ref_pose[:, 2] - th)
+        rvx, rvy = body(s.ref_velocity[:, 0], s.ref_velocity[:, 1])
+        look = []
+        for j in range(s.lookahead.shape[1]):
+            lx, ly, lth = s.lookahead[:, j, 0], s.lookahead[:, j, 1], s.lookahead[:, j, 2]
+            bx, by = body(lx - x, ly - y)
+            look += [bx / LOOK_SCALE, by / LOOK_SCALE, wrap_angle(lth - th) / math.pi]
+        std = np.sqrt(np.maximum(np.diagonal(ekf.P, axis1=1, axis2=2)[:, 0:3], 0.0))
+        twist = ekf.body_twist
+        W = base.W
+        predicted = np.stack([W[j, 0] * twist[:, 0] + W[j, 1] * twist[:, 1] + W[j, 2] * twist[:, 2]
+                              for j in range(self.n)], axis=1)
+        innov = (s.encoder_rates - predicted) / self.wheel_scale
+        ix, iy = body(pid.integral[:, 0], pid.integral[:, 1])
+        ilim = pid._ilim
+        ts = self.twist_scale
+        f = np.column_stack([
+            ex / POS_SCALE, ey / POS_SCALE, eth / HEAD_SCALE,
+            twist / ts,
+            rvx / ts[0], rvy / ts[1], s.ref_velocity[:, 2] / ts[2],
+            *look,
+            std[:, 0] / STD_POS_SCALE, std[:, 1] / STD_POS_SCALE, std[:, 2] / STD_HEAD_SCALE,
+            ekf.wheel_belief, ekf.wheels_used.astype(float), innov,
+            base.twist / ts,
+            ix / ilim[0], iy / ilim[1], pid.integral[:, 2] / ilim[2],
             self.prev_action,
         ])
         return np.clip(f, -CLIP, CLIP).astype(np.float32)

@@ -335,6 +335,55 @@ class SensorObsDecoder(_ObsDecoder):
 
 
 @dataclass(frozen=True)
+class BatchSensorObs:
+    """Decoded ``sensors`` observations of N robots: the fields of :class:`SensorObs` with a leading robot axis."""
+
+    encoder_rates: np.ndarray  # (N, n) rad/s
+    gyro: np.ndarray  # (N,) rad/s
+    compass: np.ndarray  # (N,) rad, in (−π, π]
+    accel: np.ndarray  # (N, 2) m/s², body frame
+    camera: np.ndarray  # (N, 3) last camera fix x, y [m], θ [rad]
+    camera_age: np.ndarray  # (N,) s since that fix
+    ref_pose: np.ndarray  # (N, 3) reference x, y, θ now
+    ref_velocity: np.ndarray  # (N, 3) reference world velocity ẋ, ẏ, θ̇ now
+    lookahead: np.ndarray  # (N, K, 3) reference x, y, θ at LOOKAHEAD_SECONDS ahead
+    prev_action: np.ndarray  # (N, A) previous clipped action
+
+
+class BatchSensorObsDecoder(SensorObsDecoder):
+    """:class:`SensorObsDecoder` for a batch: (N, D) observations (a vector environment's) → :class:`BatchSensorObs`.
+
+    Row i decodes to what :class:`SensorObsDecoder` gives for row i, with the same arithmetic element by
+    element (angles through ``numpy.arctan2`` instead of ``math.atan2``).
+    """
+
+    def _batch(self, obs: np.ndarray) -> np.ndarray:
+        o = np.asarray(obs, dtype=float)
+        if o.ndim != 2 or o.shape[1] != self.dim:
+            raise ValueError(f"batched sensors observations must have shape (N, {self.dim}), got {o.shape}")
+        return o
+
+    def __call__(self, obs: np.ndarray) -> BatchSensorObs:  # type: ignore[override]
+        o = self._batch(obs)
+        L, sc = self.layout, self.scales
+        h = sc.arena_half_size
+        st = L.starts
+
+        def pose(i: int) -> np.ndarray:
+            return np.column_stack([o[:, i] * h, o[:, i + 1] * h, np.arctan2(o[:, i + 2], o[:, i + 3])])
+
+        c = st["compass_sin_cos"]
+        rv = st["reference_velocity"]
+        look = np.stack([pose(st[f"reference_lookahead[{j}]"]) for j in range(self.n_look)], axis=1)
+        ref_vel = np.column_stack([o[:, rv] * sc.max_speed, o[:, rv + 1] * sc.max_speed,
+                                   o[:, rv + 2] * sc.max_yaw_rate])
+        return BatchSensorObs(o[:, L["encoder_rates"]] * sc.wheel_scale, o[:, st["gyro"]] * sc.max_yaw_rate,
+                              np.arctan2(o[:, c], o[:, c + 1]), o[:, L["accelerometer"]] * ACC_SCALE,
+                              pose(st["camera_fix"]), o[:, st["fix_age"]].copy(), pose(st["reference_now"]),
+                              ref_vel, look, o[:, L["last_action"]])
+
+
+@dataclass(frozen=True)
 class StateObs:
     """One decoded ``state`` observation (SI units; body frame of the robot now)."""
 
