@@ -33,7 +33,7 @@ from omni_gym.envs.observations import (  # noqa: F401  (LOOKAHEAD_SECONDS, ACC_
 )
 from omni_gym.envs.references import draw_reference
 from omni_gym.physics.layout import SP_CX, SP_CY, WH_CMD
-from omni_gym.physics.liftoff import ContactProcess
+from omni_gym.physics.liftoff import ContactProcess, contact_cases
 from omni_gym.physics.model import Actuation
 from omni_gym.physics.world import Arena, World
 from omni_gym.sensor_bank import SensorBank
@@ -295,6 +295,8 @@ class TaskCore:
         self.obs = np.zeros((n_robots, self.obs_dim))
         self._state_obs = np.zeros((n_robots, self.state_dim))
         self.models = [self.base_model] * n_robots
+        self._contact_cases = contact_cases(self.n_wheels)  # shared by every robot's contact process: read-only
+        self._contact_cases.setflags(write=False)
 
     # --- reset -------------------------------------------------------------------------------
 
@@ -312,7 +314,8 @@ class TaskCore:
         self.sensor_noise_scale[j] = sensor_noise_scale(cfg, rng)  # draws only if randomize_sensor_noise is set
         if lift_rate > 0:
             recover_rate = cfg.contact_rates()[1]  # the model's wheel_liftoff effect, if any, else the keyword
-            proc = ContactProcess(self.n_wheels, lift_rate, recover_rate, np.random.default_rng(contact_seed))
+            proc = ContactProcess(self.n_wheels, lift_rate, recover_rate, np.random.default_rng(contact_seed),
+                                  cases=self._contact_cases)
             self.world.set_contact_process(j, proc)
         elif self.world.contact_processes[j] is not None:
             self.world.set_contact_process(j, None)
