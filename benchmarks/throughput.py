@@ -22,6 +22,7 @@ Each measurement is repeated (best of ``--repeats``) because this machine is sha
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import time
 from pathlib import Path
@@ -92,6 +93,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
     rows = []
+    load_before = os.getloadavg()[0]
     lunar, lunar_eps = best(single_rate, args.repeats, "LunarLander-v3", args.seconds)
     rows.append(("LunarLander-v3 (gym.make)", 1, lunar, lunar_eps))
     rate, eps = best(single_rate, args.repeats, ENV_ID, args.seconds)
@@ -109,7 +111,9 @@ def main() -> None:
         "",
         f"Machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}; random actions, "
         f"resets included, best of {args.repeats} runs of {args.seconds:g} s. Default physics (0.5 ms substeps, "
-        "20 per 10 ms control step).",
+        "20 per 10 ms control step). Load average (1 min) of the machine, other jobs included: "
+        f"{load_before:.1f} at the start, {os.getloadavg()[0]:.1f} at the end of the run ({os.cpu_count()} cores: "
+        "a higher load slows every row, the threaded N = 1024 row most).",
         "",
         "| environment | N | env steps/s | × LunarLander-v3 | episodes ended | target |",
         "|---|---|---|---|---|---|",
