@@ -61,6 +61,7 @@ CHOICES = {
     "randomize_friction": ([None, (0.5, 1.5), [0.0, 0.0]], [(2.0, 1.0), (math.nan, 1.0), "12", (0.0, 1e308)]),
     "randomize_mass": ([None, (0.8, 1.2), np.array([0.05, 20.0])], [(0.0, 1.0), (1.0,)]),
     "randomize_lift_rate": ([None, (0.0, 2.0), (0.0, 1e-30)], [(0.0, 1e6), (-1.0, 1.0)]),
+    "randomize_sensor_noise": ([None, (0.5, 2.0), (0.0, 0.0), np.array([0.0, 10.0])], [(0.0, 11.0), (2.0, 1.0), 1.5]),
     "model": ([None, load_model("williams2002").to_json(), LIFT.to_json(),
                load_model("phunopas2018").with_effect("com_offset", {"com": [0.01, 0.0]}).to_json()],
               [{"name": "x"}, "missing.json", 5]),

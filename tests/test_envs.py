@@ -29,7 +29,8 @@ WILLIAMS = "OmniPathFollow-Williams-v0"
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"
 GOTO = "OmniGoToPose-v0"
 IDS = (WILLIAMS, PHUNOPAS, GOTO)
-RANDOMIZE = {"randomize_friction": (0.7, 1.3), "randomize_mass": (0.8, 1.2), "randomize_lift_rate": (0.0, 2.0)}
+RANDOMIZE = {"randomize_friction": (0.7, 1.3), "randomize_mass": (0.8, 1.2), "randomize_lift_rate": (0.0, 2.0),
+             "randomize_sensor_noise": (0.5, 2.0)}
 INFO_KEYS = {"pose", "velocity", "reference_pose", "tracking_error", "heading_error", "slip", "contact", "collided",
              "is_success"}
 
@@ -307,6 +308,8 @@ BAD_KWARGS = [
     ({"randomize_mass": (2, 1)}, "randomize_mass=(2, 1)", ["low <= high"]),
     ({"randomize_friction": (0.5,)}, "randomize_friction=(0.5,)", ["(low, high)"]),
     ({"randomize_lift_rate": (-1.0, 1.0)}, "randomize_lift_rate=(-1.0, 1.0)", ["low <= high"]),
+    ({"randomize_sensor_noise": (1.0, 11.0)}, "randomize_sensor_noise=(1.0, 11.0)", ["high <= 10"]),
+    ({"randomize_sensor_noise": 2.0}, "randomize_sensor_noise=2.0", ["(low, high)"]),
     ({"sufrace": "paper"}, "'sufrace'", ["surface", "obs_mode"]),
     # issue 13, items 8-11: values that hung, overflowed, gave NaN or raised other exceptions.
     ({"control_hz": 1e-300}, "control_hz=1e-300", ["[1, 10000] Hz"]),
@@ -674,6 +677,36 @@ def test_randomisation_draws_new_model_each_reset():
     for k in range(3):
         plain.reset(seed=k)
         assert plain.unwrapped.core.models[0].surface == nominal
+
+
+def test_sensor_noise_randomisation_scales_each_robots_noise():
+    kwargs = {"obs_mode": "sensors", "episode_seconds": 0.5}
+    env = gym.make(PHUNOPAS, randomize_sensor_noise=(0.5, 2.0), **kwargs)
+    core = env.unwrapped.core
+    nominal = core.sensor_config
+    factors = []
+    for k in range(8):
+        env.reset(seed=4 if k == 0 else None)
+        s = core.sensor_noise_scale[0]
+        assert 0.5 <= s <= 2.0
+        # Every noise std of the robot's sensors, and nothing else, is scaled (the products as the bank forms them).
+        assert core.sensors.std[0, 0] == nominal.gyro_noise_std * s
+        assert core.sensors.std[0, 5] == nominal.camera_heading_std * s
+        assert core.sensors.quantum[0] == 2 * math.pi / nominal.counts_per_rev
+        factors.append(s)
+    assert len(set(factors)) == 8
+    # A factor of 0 gives the noiseless observations; the draw comes after every other draw of the reset,
+    # so the first episode's physics is that of the env without the keyword.
+    actions = random_actions(env, 60, seed=8)
+    quiet = rollout(gym.make(PHUNOPAS, sensor_noise=0.0, **kwargs), actions, seed=21)
+    zeroed = rollout(gym.make(PHUNOPAS, randomize_sensor_noise=(0.0, 0.0), **kwargs), actions, seed=21)
+    ends = [i for i, r in enumerate(quiet) if r[2] or r[3]]
+    first = (ends[0] + 1) if ends else len(quiet)
+    assert_rollouts_equal(zeroed[:first], quiet[:first], "noise factor 0 vs sensor_noise=0")
+    # In state mode the keyword draws the same factor, so observations and physics agree across modes.
+    state_a = rollout(gym.make(PHUNOPAS, randomize_sensor_noise=(0.5, 2.0), episode_seconds=0.5), actions, seed=21)
+    state_b = rollout(gym.make(PHUNOPAS, randomize_sensor_noise=(0.5, 2.0), **kwargs), actions, seed=21)
+    assert [r[4]["pose"].tolist() for r in state_a] == [r[4]["pose"].tolist() for r in state_b]
 
 
 @pytest.mark.parametrize(("env_id", "extra"), [(WILLIAMS, {"surface": "paper"}), (PHUNOPAS, {})])

@@ -155,13 +155,13 @@ def test_odometry_tracks_the_gyro_offset_at_rest_points():
     for seed in range(12):
         obs, _ = env.reset(seed=seed)
         policy.reset(obs)
-        bias = env.unwrapped.core.sensors[0].gyro.bias  # ground truth, read by the test only
+        bias = env.unwrapped.core.sensors.gyro_bias[0]  # ground truth, read by the test only
         at_reset.append(policy.gyro_offset - bias)
         while True:
             obs, _, terminated, truncated, _ = env.step(policy.act(obs))
             if terminated or truncated:
                 break
-        at_end.append(policy.gyro_offset - env.unwrapped.core.sensors[0].gyro.bias)
+        at_end.append(policy.gyro_offset - env.unwrapped.core.sensors.gyro_bias[0])
     rms = lambda e: math.sqrt(np.mean(np.square(e)))  # noqa: E731
     assert rms(at_end) < 0.5 * rms(at_reset)
     assert rms(at_end) < 0.0015  # below one count per wheel over the shortest rest window

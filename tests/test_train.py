@@ -22,6 +22,7 @@ from agents.train import HYPERPARAM_DIR, load_hyperparams, train, train_into
 from agents.wrappers import EKFFeatures, SensorNoiseRandomizer, wrap_env
 from agents.zoo_config import LEGACY_KEYS, residual_init, wrapper_spec
 from omni_gym.cli import main
+from omni_gym.sensor_bank import STD_GYRO
 
 ENV = "OmniPathFollow-Phunopas-v0"
 ROOT = Path(__file__).resolve().parents[1]
@@ -85,7 +86,7 @@ def test_sensor_noise_randomizer_draws_per_seed_and_scales_the_sensors():
     for seed in (1, 2, 1):
         env.reset(seed=seed)
         scales.append(env.scale)
-        gyro_std = env.unwrapped.core.sensors[0].config.gyro_noise_std
+        gyro_std = env.unwrapped.core.sensors.std[0, STD_GYRO]  # the std robot 0's sensors draw with
         assert gyro_std == pytest.approx(0.005 * env.scale, rel=1e-12)  # SensorConfig default 0.005 rad/s
     assert scales[0] == scales[2] != scales[1]
     assert all(0.5 <= s <= 1.5 for s in scales)

@@ -65,7 +65,7 @@ BOUNDS: dict[str, Bound] = {b.name: b for b in (
     Bound("success_heading", 0.0, math.pi, "rad", lo_open=True),
 )}
 RANDOM_BOUNDS = {"randomize_friction": (0.0, 10.0), "randomize_mass": (0.05, 20.0),
-                 "randomize_lift_rate": (0.0, MAX_RATE)}
+                 "randomize_lift_rate": (0.0, MAX_RATE), "randomize_sensor_noise": (0.0, 10.0)}
 
 
 @dataclass(frozen=True)
@@ -100,6 +100,7 @@ class EnvConfig:
     randomize_friction: tuple[float, float] | None = None  # scale range on every friction coefficient
     randomize_mass: tuple[float, float] | None = None  # scale range on mass and inertia
     randomize_lift_rate: tuple[float, float] | None = None  # range [1/s] of lift_rate
+    randomize_sensor_noise: tuple[float, float] | None = None  # scale range on every sensor noise std
     render_mode: str | None = None
 
     @property
@@ -395,3 +396,15 @@ def randomized_model(cfg: EnvConfig, base: SimModel, rng: np.random.Generator) -
     if cfg.randomize_lift_rate is not None:
         lift = float(rng.uniform(*cfg.randomize_lift_rate))
     return model, lift
+
+
+def sensor_noise_scale(cfg: EnvConfig, rng: np.random.Generator) -> float:
+    """The factor on every sensor noise std of one episode: U(lo, hi) of ``randomize_sensor_noise``
+    drawn from ``rng``, else 1 with no draw (so seeded episodes without the keyword are unchanged).
+
+    It multiplies the levels of ``sensor_config`` (already scaled by ``sensor_noise``); it is drawn in
+    both observation modes, so the same seed gives the same physics whatever ``obs_mode``.
+    """
+    if cfg.randomize_sensor_noise is None:
+        return 1.0
+    return float(rng.uniform(*cfg.randomize_sensor_noise))

@@ -7,7 +7,8 @@ exactly: every per-robot quantity is computed by the same code on the same numbe
 draw of robot j comes from robot j's own generator, and each robot keeps its own clock.
 
 Observation layouts (``state``, ``sensors``): owned by :mod:`omni_gym.envs.observations`, which the
-numba kernel below takes its offsets from and :meth:`TaskCore._observe_sensors` encodes through.
+numba kernels below take their offsets from. In ``sensors`` mode one :class:`~omni_gym.sensor_bank.SensorBank`
+measures every robot in one compiled call and :func:`encode_sensor_obs` writes every observation.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import numba
 import numpy as np
 
 from omni_gym.checks import wrap_angle_nb as _wrap  # (−π, π], compiled for the njit kernels below
-from omni_gym.envs.config import EnvConfig, randomized_model
+from omni_gym.envs.config import EnvConfig, randomized_model, sensor_noise_scale
 from omni_gym.envs.observations import (  # noqa: F401  (LOOKAHEAD_SECONDS, ACC_SCALE: re-exported)
     ACC_SCALE,
     LOOK_SCALE,
@@ -27,15 +28,15 @@ from omni_gym.envs.observations import (  # noqa: F401  (LOOKAHEAD_SECONDS, ACC_
     POS_SCALE,
     ObsScales,
     build_layout,
-    encode_sensors,
+    sensor_offsets,
     state_offsets,
 )
 from omni_gym.envs.references import draw_reference
 from omni_gym.physics.layout import SP_CX, SP_CY, WH_CMD
-from omni_gym.physics.liftoff import ContactProcess
+from omni_gym.physics.liftoff import ContactProcess, contact_cases
 from omni_gym.physics.model import Actuation
 from omni_gym.physics.world import Arena, World
-from omni_gym.sensors import SensorSuite
+from omni_gym.sensor_bank import SensorBank
 
 # Reward weights (docs/environments.md): r = W_POS·exp(−e/E_POS) + W_HEAD·exp(−|eθ|/E_HEAD) − W_EFFORT·mean(a²)
 W_POS, E_POS, W_HEAD, E_HEAD, W_EFFORT = 0.7, 0.1, 0.3, 0.3, 0.05
@@ -140,6 +141,85 @@ def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action
                 o[j] = -OBS_CLIP
 
 
+@numba.njit(cache=True)
+def body_acceleration(robots, true, prev_true, step, dt, out):
+    """Body-frame acceleration [m/s²] of the geometric centres of ``robots`` (indices) over the last
+    control period, into out (B, 2).
+
+    true, prev_true (B, 6): local pose and world velocity now and one period ago (``TaskCore.true``);
+    zero for a robot at its first sample after a reset (step 0).
+    """
+    for b in robots:
+        if step[b] == 0:
+            out[b, 0] = 0.0
+            out[b, 1] = 0.0
+            continue
+        ax = (true[b, 3] - prev_true[b, 3]) / dt
+        ay = (true[b, 4] - prev_true[b, 4]) / dt
+        c = math.cos(true[b, 2])
+        s = math.sin(true[b, 2])
+        out[b, 0] = c * ax + s * ay
+        out[b, 1] = -s * ax + c * ay
+
+
+@numba.njit(cache=True)
+def encode_sensor_obs(robots, enc, gyro, compass, accel, fix, has_fix, step, dt, prev_enc, last_fix, fix_age,
+                      ref_pose, ref_vel, look, prev_action, scales, offsets, out_obs):
+    """Sensors observations of ``robots`` (indices) from the bank's readings (the arithmetic of ``encode_sensors``).
+
+    enc (B, n) quantised wheel angles [rad]; gyro, compass (B,); accel (B, 2); fix (B, 3), valid where
+    has_fix. Updated per robot: prev_enc (the previous encoder angles), last_fix and fix_age (the held
+    camera fix and its age [s], capped at 1 s; the age does not grow at step 0). scales: wheel_scale,
+    max_yaw_rate, max_speed, arena_half_size, ACC_SCALE. offsets: ``sensor_offsets`` of the layout.
+    """
+    wscale, wmax, vmax, h, acc_scale = scales[0], scales[1], scales[2], scales[3], scales[4]
+    o_enc, o_gyro, o_comp, o_acc, o_fix, o_age = offsets[0], offsets[1], offsets[2], offsets[3], offsets[4], offsets[5]
+    o_now, o_vel, o_look, stride, o_act = offsets[6], offsets[7], offsets[8], offsets[9], offsets[10]
+    for b in robots:
+        o = out_obs[b]
+        for i in range(enc.shape[1]):
+            o[o_enc + i] = ((enc[b, i] - prev_enc[b, i]) / dt) / wscale
+            prev_enc[b, i] = enc[b, i]
+        if has_fix[b]:
+            last_fix[b, 0] = fix[b, 0]
+            last_fix[b, 1] = fix[b, 1]
+            last_fix[b, 2] = fix[b, 2]
+            fix_age[b] = 0.0
+        elif step[b] > 0:
+            fix_age[b] = min(fix_age[b] + dt, 1.0)
+        o[o_gyro] = gyro[b] / wmax
+        o[o_comp] = math.sin(compass[b])
+        o[o_comp + 1] = math.cos(compass[b])
+        o[o_acc] = accel[b, 0] / acc_scale
+        o[o_acc + 1] = accel[b, 1] / acc_scale
+        _put_pose(o, o_fix, last_fix[b, 0], last_fix[b, 1], last_fix[b, 2], h)
+        o[o_age] = fix_age[b]
+        k = step[b]
+        _put_pose(o, o_now, ref_pose[b, k, 0], ref_pose[b, k, 1], ref_pose[b, k, 2], h)
+        o[o_vel] = ref_vel[b, k, 0] / vmax
+        o[o_vel + 1] = ref_vel[b, k, 1] / vmax
+        o[o_vel + 2] = ref_vel[b, k, 2] / wmax
+        for j in range(look.shape[0]):
+            kk = k + look[j]
+            _put_pose(o, o_look + stride * j, ref_pose[b, kk, 0], ref_pose[b, kk, 1], ref_pose[b, kk, 2], h)
+        for j in range(prev_action.shape[1]):
+            o[o_act + j] = prev_action[b, j]
+        for j in range(o.shape[0]):
+            if o[j] > OBS_CLIP:
+                o[j] = OBS_CLIP
+            elif o[j] < -OBS_CLIP:
+                o[j] = -OBS_CLIP
+
+
+@numba.njit(cache=True, inline="always")
+def _put_pose(o, i, x, y, theta, h):
+    """o[i:i + 4] = x/h, y/h, sin θ, cos θ (``observations._put_pose_sin_cos``)."""
+    o[i] = x / h
+    o[i + 1] = y / h
+    o[i + 2] = math.sin(theta)
+    o[i + 3] = math.cos(theta)
+
+
 def _brief(value) -> str:
     """repr on one line (numpy wraps long arrays), cut to 80 characters."""
     text = " ".join(repr(value).split())
@@ -194,20 +274,29 @@ class TaskCore:
         self._clipped = np.zeros((n_robots, self.action_dim))
         self.true = np.zeros((n_robots, 6))
         self.prev_true = np.zeros((n_robots, 6))
-        self.sensors: list[SensorSuite | None] = [None] * n_robots
+        self.sensors = SensorBank(n_robots, self.n_wheels)
         self.sensor_config = cfg.sensor_config()
+        self.sensor_noise_scale = np.ones(n_robots)  # per robot, drawn at reset (randomize_sensor_noise)
         self.prev_encoders = np.zeros((n_robots, self.n_wheels))
         self.last_fix = np.zeros((n_robots, 3))
         self.fix_age = np.ones(n_robots)
+        self._acc_body = np.zeros((n_robots, 2))
+        self._all = np.arange(n_robots)
         state = build_layout("state", self.n_wheels, self.action_dim)  # computed in both modes (errors, reward)
         self.state_dim = state.size
         self._state_offsets = state_offsets(state)
         self.layout = build_layout(cfg.obs_mode, self.n_wheels, self.action_dim)
         self.obs_scales = ObsScales(self.wheel_scale, cfg.max_speed, cfg.max_yaw_rate, cfg.arena_half_size)
         self.obs_dim = self.layout.size
+        if cfg.obs_mode == "sensors":
+            self._sensor_offsets = sensor_offsets(self.layout)
+            self._sensor_scales = np.array([self.wheel_scale, cfg.max_yaw_rate, cfg.max_speed, cfg.arena_half_size,
+                                            ACC_SCALE])
         self.obs = np.zeros((n_robots, self.obs_dim))
         self._state_obs = np.zeros((n_robots, self.state_dim))
         self.models = [self.base_model] * n_robots
+        self._contact_cases = contact_cases(self.n_wheels)  # shared by every robot's contact process: read-only
+        self._contact_cases.setflags(write=False)
 
     # --- reset -------------------------------------------------------------------------------
 
@@ -222,9 +311,11 @@ class TaskCore:
         self.ref_pose[j] = pose
         self.ref_vel[j] = vel
         contact_seed, sensor_seed = rng.integers(0, 2**63 - 1, size=2)
+        self.sensor_noise_scale[j] = sensor_noise_scale(cfg, rng)  # draws only if randomize_sensor_noise is set
         if lift_rate > 0:
             recover_rate = cfg.contact_rates()[1]  # the model's wheel_liftoff effect, if any, else the keyword
-            proc = ContactProcess(self.n_wheels, lift_rate, recover_rate, np.random.default_rng(contact_seed))
+            proc = ContactProcess(self.n_wheels, lift_rate, recover_rate, np.random.default_rng(contact_seed),
+                                  cases=self._contact_cases)
             self.world.set_contact_process(j, proc)
         elif self.world.contact_processes[j] is not None:
             self.world.set_contact_process(j, None)
@@ -232,9 +323,9 @@ class TaskCore:
         self.step_count[j] = 0
         self.prev_action[j] = 0.0
         if cfg.obs_mode == "sensors":
-            suite = SensorSuite(self.n_wheels, np.random.default_rng(sensor_seed), self.sensor_config)
-            self.sensors[j] = suite
-            self.prev_encoders[j] = suite.encoders.measure(self.world.wheel_angle[j])
+            bank = self.sensors
+            bank.reset(j, np.random.default_rng(sensor_seed), self.sensor_config, self.sensor_noise_scale[j])
+            self.prev_encoders[j] = np.floor(self.world.wheel_angle[j] / bank.quantum[j]) * bank.quantum[j]
             self.last_fix[j] = 0.0
             self.fix_age[j] = 1.0
 
@@ -272,38 +363,26 @@ class TaskCore:
         if self.cfg.obs_mode == "state":
             self.obs[:] = self._state_obs
         else:
-            for j in range(self.B) if robots is None else robots:
-                self._observe_sensors(j)
+            self._observe_sensors(self._all if robots is None else np.asarray(robots, dtype=np.int64))
         if not (np.isfinite(self.obs).all() and np.isfinite(self.reward).all()):
             # Never hand NaN to a learner: within the keyword and model bounds this should not happen.
             bad = np.flatnonzero(~(np.isfinite(self.obs).all(axis=1) & np.isfinite(self.reward)))
             raise FloatingPointError(f"the simulation diverged (non-finite observation or reward) for robot(s) "
                                      f"{bad.tolist()}; please report the keywords and model that caused it")
 
-    def _observe_sensors(self, j: int) -> None:
-        cfg = self.cfg
-        dt = cfg.control_dt
-        suite = self.sensors[j]
-        t = self.step_count[j] * dt
-        true = self.true[j]
-        theta = true[2]
-        c, s = math.cos(theta), math.sin(theta)
-        acc_w = (true[3:5] - self.prev_true[j, 3:5]) / dt if self.step_count[j] > 0 else np.zeros(2)
-        acc_b = np.array([c * acc_w[0] + s * acc_w[1], -s * acc_w[0] + c * acc_w[1]])
-        r = suite.measure(t, dt, self.world.wheel_angle[j], true[0:3], true[5], acc_b)
-        enc_rate = (r.wheel_angles - self.prev_encoders[j]) / dt
-        self.prev_encoders[j] = r.wheel_angles
-        if r.camera is not None:
-            self.last_fix[j] = r.camera
-            self.fix_age[j] = 0.0
-        elif self.step_count[j] > 0:
-            self.fix_age[j] = min(self.fix_age[j] + dt, 1.0)
-        k = self.step_count[j]
-        ref = self.ref_pose[j]
-        encode_sensors(self.layout, self.obs_scales, self.obs[j], encoder_rates=enc_rate, gyro=r.gyro,
-                       compass=r.compass, accel=r.accel, fix=self.last_fix[j], fix_age=self.fix_age[j],
-                       ref_now=ref[k], ref_velocity=self.ref_vel[j, k], ref_lookahead=ref[k + self.look],
-                       last_action=self.prev_action[j])
+    def _observe_sensors(self, robots: np.ndarray) -> None:
+        """Sample the sensors of ``robots`` (indices; one draw block each, see ``omni_gym.sensor_bank``) and
+        encode their observations, in one compiled call each."""
+        dt = self.cfg.control_dt
+        true = self.true
+        body_acceleration(robots, true, self.prev_true, self.step_count, dt, self._acc_body)
+        bank = self.sensors
+        bank.measure(self.step_count * dt, dt, self.world.wheel_angle, true[:, 0:3], true[:, 5], self._acc_body,
+                     robots)
+        encode_sensor_obs(robots, bank.wheel_angles, bank.gyro, bank.compass, bank.accel, bank.fix, bank.has_fix,
+                          self.step_count, dt, self.prev_encoders, self.last_fix, self.fix_age, self.ref_pose,
+                          self.ref_vel, self.look, self.prev_action, self._sensor_scales, self._sensor_offsets,
+                          self.obs)
 
     def rewards(self) -> np.ndarray:
         """Per-robot reward for the last control period (see the module constants), after :meth:`observe`."""

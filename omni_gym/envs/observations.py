@@ -7,10 +7,11 @@ Two layouts (float32 ``Box(-OBS_CLIP, OBS_CLIP)``; ``docs/environments.md``):
 * ``sensors``: what a real robot has: encoder rates, gyro, compass, accelerometer, the last camera fix
   and its age, the reference (world frame) now and at the look-ahead times, last action.
 
-Everything that writes or reads an observation goes through the names here: the numba kernel
-``observe_state`` (``omni_gym.envs.core``) takes its offsets as an argument, from
-:func:`state_offsets` (not as module globals: numba's on-disk cache would keep stale values of
-another module's constants), :func:`encode_sensors` writes the sensors layout by name, and
+Everything that writes or reads an observation goes through the names here: the numba kernels
+``observe_state`` and ``encode_sensor_obs`` (``omni_gym.envs.core``) take their offsets as an argument,
+from :func:`state_offsets` and :func:`sensor_offsets` (not as module globals: numba's on-disk cache
+would keep stale values of another module's constants), :func:`encode_sensors` writes one sensors
+observation by name (the reference the batched kernel is tested against), and
 :class:`StateObsDecoder` / :class:`SensorObsDecoder` read by name.
 :meth:`ObservationLayout.table` renders the layout as the Markdown table the environment docstrings
 and ``docs/environments.md`` show (``tests/test_env_docs.py`` keeps them equal).
@@ -194,6 +195,19 @@ def sensor_layout(n_wheels: int, action_dim: int, n_look: int = len(LOOKAHEAD_SE
     fields.append(ObsField("last_action", base, base + action_dim, "previous (clipped) action", "", "",
                            "±1"))
     return ObservationLayout("sensors", tuple(fields))
+
+
+def sensor_offsets(layout: ObservationLayout) -> np.ndarray:
+    """int64 offsets for the numba kernel ``encode_sensor_obs`` (``omni_gym.envs.core``): encoder rates,
+    gyro, compass, accelerometer, camera fix, fix age, reference now, reference velocity, first
+    look-ahead block, look-ahead stride, last action (from the layout's named slices)."""
+    if layout.mode != "sensors":
+        raise ValueError(f"sensor_offsets needs the sensors layout, got {layout.mode!r}")
+    start = layout.starts
+    look0 = layout.field("reference_lookahead[0]")
+    return np.array([start["encoder_rates"], start["gyro"], start["compass_sin_cos"], start["accelerometer"],
+                     start["camera_fix"], start["fix_age"], start["reference_now"], start["reference_velocity"],
+                     look0.start, look0.stop - look0.start, start["last_action"]], dtype=np.int64)
 
 
 def build_layout(obs_mode: str, n_wheels: int, action_dim: int) -> ObservationLayout:

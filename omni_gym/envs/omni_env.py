@@ -99,7 +99,8 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
     ``episode_seconds``, ``task``, ``trajectory``, ``ref_heading``, ``ref_speed``,
     ``arena_half_size``, ``walls``, ``obstacles``, ``max_speed``, ``max_yaw_rate``,
     ``lost_distance``, ``success_distance``, ``success_heading``, ``randomize_friction``,
-    ``randomize_mass``, ``randomize_lift_rate``, ``render_mode`` ("rgb_array" | "human"). A bad one
+    ``randomize_mass``, ``randomize_lift_rate``, ``randomize_sensor_noise`` (one factor U(lo, hi) per
+    episode on every sensor noise std, sensors mode), ``render_mode`` ("rgb_array" | "human"). A bad one
     raises a one-line ValueError naming it. ``model=`` takes a calibrated model (a model JSON file
     path or the dict ``omni-gym model show --json`` prints, effects included): it then defines the
     robot, surface, friction model and effects, ``robot``/``surface``/``friction`` are ignored, and a
@@ -113,7 +114,8 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
     ## Version History
 
     * v0: initial version (ids ``OmniPathFollow-Williams-v0``, ``OmniPathFollow-Phunopas-v0``,
-      ``OmniGoToPose-v0``).
+      ``OmniGoToPose-v0``). Later, within v0: batched sensors (a seed's sensor noise values changed,
+      same distributions) and ``randomize_sensor_noise`` (``docs/environments.md``, Version history).
     """  # noqa: E501 (observation tables: one row per line)
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 100}

@@ -155,6 +155,10 @@ class World:
         self._switch_tick = np.full(B, _NEVER, dtype=np.int64)  # global tick of each robot's next contact switch
         self._next_switch_tick = _NEVER
         self.models: list[SimModel] = list(model_list)
+        # Wheel loads [N] of robot j per contact mask (mask bytes → loads), cleared by set_model: a lift-off
+        # process switches among a few masks, and recomputing the static balance at every switch and reset
+        # cost more than the switch itself.
+        self._load_cache: list[dict[bytes, np.ndarray]] = [{} for _ in range(B)]
         self._build_space(model_list)
         for j, m in enumerate(model_list):
             self.set_model(j, m)
@@ -261,6 +265,7 @@ class World:
         body.moment = sp[SP_INERTIA]
         body.center_of_gravity = tuple(sp[[SP_CX, SP_CY]])  # after the effects (com_offset)
         self.models[j] = model
+        self._load_cache[j] = {}
         self._update_loads(j)
 
     # --- state access --------------------------------------------------------------------------
@@ -327,10 +332,15 @@ class World:
         self._next_switch_tick = int(self._switch_tick.min())
 
     def _update_loads(self, j: int) -> None:
-        # Wheel positions and centre of mass as the kernel sees them (after the model's effects).
-        positions = self.wp[j][:, [WP_PX, WP_PY]]
-        com = self.sp[j, [SP_CX, SP_CY]]
-        self.loads[j] = wheel_loads(positions, com, self.sp[j, SP_MASS], self.models[j].gravity, self.contact[j])
+        key = self.contact[j].tobytes()
+        loads = self._load_cache[j].get(key)
+        if loads is None:
+            # Wheel positions and centre of mass as the kernel sees them (after the model's effects).
+            positions = self.wp[j][:, [WP_PX, WP_PY]]
+            com = self.sp[j, [SP_CX, SP_CY]]
+            loads = wheel_loads(positions, com, self.sp[j, SP_MASS], self.models[j].gravity, self.contact[j])
+            self._load_cache[j][key] = loads
+        self.loads[j] = loads
 
     @property
     def time(self) -> float:
