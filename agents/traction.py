@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from agents.pid import PathPID, PIDGains
+from omni_gym.envs.config import EnvConfig
 from omni_gym.physics.friction import Surface
 from omni_gym.physics.loads import wheel_loads
 from omni_gym.physics.robot import GRAVITY, RobotSpec
@@ -298,7 +299,7 @@ class ReferenceDemand:
     steady_utilisation: float
 
 
-def reference_demand(cfg, limiter: TractionLimiter, seed: int) -> ReferenceDemand:
+def reference_demand(cfg: EnvConfig, limiter: TractionLimiter, seed: int) -> ReferenceDemand:
     """:class:`ReferenceDemand` of the reference an environment with config ``cfg`` draws from ``seed``.
 
     The reference is drawn by :func:`omni_gym.envs.references.draw_reference` from
