@@ -27,6 +27,8 @@ never ``info``, and is deterministic given the observations:
   (``benchmarks/results/baselines.md``).
 * ``ekf-pid``: :class:`agents.ekf.OmniEKF` (encoders, gyro, compass, accelerometer, camera fixes) and
   the same PID on its pose.
+* ``ekf-pid-traction``: ``ekf-pid`` whose twist changes stay within what the wheels' friction can
+  transmit (:mod:`agents.traction`, Williams et al. 2002, Sec. IV-B).
 
 A constant body twist held for one control period moves the robot along an arc; rotating the world
 velocity by the heading at mid-period (θ + ω·dt/2) makes the straight-line chord match it to second
@@ -45,7 +47,7 @@ import numpy as np
 from agents.pid import PathPID, PIDGains
 from omni_gym.envs.decode import SensorObs, SensorObsDecoder
 
-POLICY_NAMES = ("open-loop", "odometry-pid", "ekf-pid")
+POLICY_NAMES = ("open-loop", "odometry-pid", "ekf-pid", "ekf-pid-traction")
 
 
 class ScriptedPolicy:
@@ -227,7 +229,31 @@ class EKFPIDPolicy(PIDPolicy):
         self.estimate = np.array(self.ekf.pose, dtype=float)
 
 
-_POLICIES = {"open-loop": OpenLoopPolicy, "odometry-pid": OdometryPIDPolicy, "ekf-pid": EKFPIDPolicy}
+class EKFPIDTractionPolicy(EKFPIDPolicy):
+    """``ekf-pid`` with :class:`agents.traction.TractionLimiter` on the PID's output.
+
+    The limiter is built from the environment's nominal model (robot, surface, centre of mass; not the
+    per-episode randomisation, which a policy cannot observe) and, for a model that lifts wheels, the
+    intersection over the lift-off process's contact cases. A limited axis counts as saturated for the
+    PID's anti-windup (:class:`agents.traction.LimitedPathPID`).
+    """
+
+    name = "ekf-pid-traction"
+    MODE = "static"  # the LP bound; "moving" measured worse on Williams (holds the twist while a gap wheel drags)
+    MARGIN = 1.0
+
+    def __init__(self, env, gains: PIDGains | None = None) -> None:
+        super().__init__(env, gains)
+        from agents.traction import LimitedPathPID, TractionLimiter
+
+        model = self.cfg.base_model()
+        self.limiter = TractionLimiter(model.robot, model.surface, mode=self.MODE, margin=self.MARGIN,
+                                       com=model.com)
+        self.pid = LimitedPathPID(self.limiter, self.cfg.max_speed, self.cfg.max_yaw_rate, self.dt, gains)
+
+
+_POLICIES = {"open-loop": OpenLoopPolicy, "odometry-pid": OdometryPIDPolicy, "ekf-pid": EKFPIDPolicy,
+             "ekf-pid-traction": EKFPIDTractionPolicy}
 
 
 def make_policy(name: str, env, gains: PIDGains | None = None) -> ScriptedPolicy:

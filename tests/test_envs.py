@@ -619,7 +619,7 @@ def test_terminates_on_wall_collision(env_id):
 
 def test_registered_ids_from_fresh_interpreter(tmp_path):
     steps = {env_id: kwargs_steps[1] for env_id, kwargs_steps in omni_gym.ENV_IDS.items()}
-    assert steps == {WILLIAMS: 2000, PHUNOPAS: 2000, GOTO: 800}
+    assert steps == {WILLIAMS: 2000, "OmniPathFollow-Williams-v1": 2000, PHUNOPAS: 2000, GOTO: 800}
     code = (
         "import sys\n"
         "import gymnasium as gym\n"

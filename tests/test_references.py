@@ -70,3 +70,18 @@ def test_sensor_observation_decodes_to_physical_units():
     quantum = 2 * np.pi / 2048
     true_rates = core.world.wheel_speed[0]
     assert np.all(np.abs(s.encoder_rates - true_rates) <= quantum / 0.01 + 1e-3)
+
+
+def test_turn_before_separates_turns_from_translations():
+    """ref_turn="before": the heading never changes while the reference translates."""
+    during, before = make_config(ref_turn="during"), make_config(ref_turn="before")
+    for seed in range(5):
+        n = before.episode_steps + 1
+        pose_d, _ = draw_reference(during, np.random.default_rng(seed), n)
+        pose_b, vel_b = draw_reference(before, np.random.default_rng(seed), n)
+        speed = np.hypot(vel_b[:, 0], vel_b[:, 1])
+        assert np.all((speed == 0.0) | (vel_b[:, 2] == 0.0))  # rest-to-rest pieces: exactly one moves at a time
+        assert np.max(np.abs(vel_b[:, 2])) <= 1.0 + 1e-9  # peak yaw rate as in "during" (rounding)
+        assert pose_b[0, 2] == pose_d[0, 2]  # same draws: both start facing the same first segment
+    with pytest.raises(ValueError, match="ref_turn"):
+        make_config(ref_turn="after")

@@ -2,6 +2,8 @@
 
 * ``OmniPathFollow-Williams-v0``: williams2002 (3 wheels) on carpet, roller-gap friction, no lift-off,
   random-waypoint paths, 20 s.
+* ``OmniPathFollow-Williams-v1``: as v0, but every waypoint's heading change is a turn in place before
+  the translation (``ref_turn="before"``): references the robot's friction can follow (docs/agents.md).
 * ``OmniPathFollow-Phunopas-v0``: phunopas2018 (4 wheels) on carpet, roller-gap friction, random lift-off,
   random-waypoint paths, 20 s.
 * ``OmniGoToPose-v0``: phunopas2018, reach a random pose along a quintic while wheels slip and lift off
@@ -22,6 +24,8 @@ LIFT_OFF = {"lift_rate": 0.5, "recover_rate": 5.0}
 ENV_IDS = {
     "OmniPathFollow-Williams-v0": ({"robot": "williams2002", "surface": "carpet", "friction": "roller_gap",
                                     "episode_seconds": 20.0}, 2000),
+    "OmniPathFollow-Williams-v1": ({"robot": "williams2002", "surface": "carpet", "friction": "roller_gap",
+                                    "episode_seconds": 20.0, "ref_turn": "before"}, 2000),
     "OmniPathFollow-Phunopas-v0": ({"robot": "phunopas2018", "surface": "carpet", "friction": "roller_gap",
                                     "episode_seconds": 20.0, **LIFT_OFF}, 2000),
     "OmniGoToPose-v0": ({"robot": "phunopas2018", "surface": "carpet", "friction": "roller_gap", "task": "goto",

@@ -35,6 +35,7 @@ from omni_gym.sensors import SensorConfig
 TASKS = ("path", "goto")
 TRAJECTORIES = ("waypoints", "circle", "figure_eight", "line", "goto")
 REF_HEADINGS = ("forward", "tangent", "random")
+REF_TURNS = ("during", "before")  # waypoints: turn while translating, or in place before each translation
 OBS_MODES = ("state", "sensors")
 ACTION_MODES = ("wheels", "twist")
 RENDER_MODES = (None, "rgb_array", "human")
@@ -79,6 +80,7 @@ class EnvConfig:
     task: str = "path"
     trajectory: str = "waypoints"
     ref_heading: str = "forward"  # reference heading along the path: forward (+y along it), tangent, random
+    ref_turn: str = "during"  # waypoints: heading turns during each segment, or in place "before" it
     obs_mode: str = "state"
     action_mode: str = "twist"
     actuation: str = "ideal"
@@ -303,6 +305,7 @@ def make_config(**kwargs) -> EnvConfig:
         "task": _choice("task", get("task", d.task), TASKS),
         "trajectory": _choice("trajectory", get("trajectory", d.trajectory), TRAJECTORIES),
         "ref_heading": _choice("ref_heading", get("ref_heading", d.ref_heading), REF_HEADINGS),
+        "ref_turn": _choice("ref_turn", get("ref_turn", d.ref_turn), REF_TURNS),
         "obs_mode": _choice("obs_mode", get("obs_mode", d.obs_mode), OBS_MODES),
         "action_mode": _choice("action_mode", get("action_mode", d.action_mode), ACTION_MODES),
         "actuation": _choice("actuation", get("actuation", d.actuation), ACTUATIONS),

@@ -116,6 +116,10 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
     * v0: initial version (ids ``OmniPathFollow-Williams-v0``, ``OmniPathFollow-Phunopas-v0``,
       ``OmniGoToPose-v0``). Later, within v0: batched sensors (a seed's sensor noise values changed,
       same distributions) and ``randomize_sensor_noise`` (``docs/environments.md``, Version history).
+    * v1 (``OmniPathFollow-Williams-v1`` only; v0 stays registered unchanged): references turn in place
+      before each translation (``ref_turn="before"``). On v0 the heading turns while the robot translates,
+      sweeping the motion through body x, where the robot's friction cannot sustain it
+      (``benchmarks/results/feasibility.md``, moving mode); the new keyword ``ref_turn``.
     """  # noqa: E501 (observation tables: one row per line)
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 100}

@@ -83,7 +83,9 @@ def _waypoint_reference(cfg: EnvConfig, rng: np.random.Generator, t: np.ndarray,
     """Rest-to-rest quintics through random waypoints until the segments fill the episode.
 
     Waypoints lie 0.4–0.9 arena half-sizes apart, inside the arena's inner 70 %; each segment lasts
-    as long as QuinticWaypoints would make it (peak speed 1.875·ref_speed, yaw rate ≤ 1 rad/s). Candidate
+    as long as QuinticWaypoints would make it (peak speed 1.875·ref_speed, yaw rate ≤ 1 rad/s). With
+    ``ref_turn="before"`` each heading change is a rest-to-rest turn in place of its own before the
+    translation (same peak yaw rate), which then keeps its heading. Candidate
     steps are drawn in blocks and the loop runs on Python floats: resets are frequent in training
     (thousands per second in a large vector) and building arrays per waypoint cost more than a step.
     """
@@ -114,6 +116,17 @@ def _waypoint_reference(cfg: EnvConfig, rng: np.random.Generator, t: np.ndarray,
                 heading = target
                 pts[0][2] = target
             turn = wrap_angle(target - heading)
+        if cfg.ref_turn == "before" and turn != 0.0:
+            # Turn in place first, then translate at the new heading: a three-wheeled robot on carpet can
+            # hold straight motion along its strong axis but not the sweep of body directions a turn
+            # during translation asks for (docs/agents.md, "Traction-aware baseline").
+            # Peak yaw rate 1 rad/s, and peak yaw acceleration (10/√3)·|turn|/T² ≤ 1 rad/s² (v0's largest):
+            # a small turn would otherwise be a jerk.
+            durations.append(max(15.0 / 8.0 * abs(turn) / yaw_rate, math.sqrt(10.0 / math.sqrt(3.0) * abs(turn))))
+            heading += turn
+            pts.append([x, y, heading])
+            total += durations[-1]
+            turn = 0.0
         durations.append(15.0 / 8.0 * max(math.hypot(nx - x, ny - y) / peak, abs(turn) / yaw_rate))
         total += durations[-1]
         x, y, heading = nx, ny, heading + turn
