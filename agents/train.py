@@ -36,9 +36,10 @@ RMSE and reward against timesteps) and ``checkpoints/``.
 Training environments (``--vec-env``, :func:`make_training_vec_env`): ``native`` (default) steps the
 ``n_envs`` robots in one native vector environment through :class:`agents.sb3_vec_env.NativeVecEnv`;
 ``dummy`` / ``subproc`` run one Monitor-wrapped single environment per robot in SB3's ``DummyVecEnv`` /
-``SubprocVecEnv``. The per-environment wrappers (``SensorNoiseRandomizer``, ``EKFFeatures``) cannot sit
-on the native vector env yet: with one of them, ``native`` falls back to ``dummy`` (a notice on stderr;
-meta.json records the one used). Both give the same training episodes (same seeds, same transitions).
+``SubprocVecEnv``. On ``native`` the EKF wrappers are :class:`agents.wrappers.VectorEKFFeatures` (the
+batched EKF + PID) and the sensor-noise randomiser is the environment keyword ``randomize_sensor_noise``.
+Without those two, native and dummy give the same training episodes (same seeds, same transitions, bit
+for bit); with them, the same features within float rounding (batched EKF) but other noise draws.
 
 Seeds: training environment i is reset first with ``seed + i`` (then unseeded, continuing its own
 generator); validation episodes use seeds ``VALIDATION_SEED``…; the benchmarks use 10 000 and up, so
@@ -60,6 +61,7 @@ import sys
 import time
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 
 from agents import require_agents_extra
@@ -183,27 +185,35 @@ def make_training_vec_env(kind: str, env_id: str, env_kwargs: dict, spec: Wrappe
     """The SB3 vector env of ``n`` training environments, seeded (robot i: ``seed + i`` at the first reset).
 
     ``kind``: one of :data:`VEC_ENVS`; ``spec``: the wrapper stack of the hyperparameters. Returns
-    ``(venv, kind used)``: ``native`` falls back to ``dummy``, with a one-line notice on stderr, when the
-    stack has a per-environment wrapper (sensor-noise randomiser or EKF features), which only single
-    environments take. The one place that builds training environments.
+    ``(venv, kind used)``. The one place that builds training environments.
+
+    ``native``: one native vector env in same_step autoreset mode; the EKF wrappers become
+    :class:`agents.wrappers.VectorEKFFeatures` (the batched EKF + PID) and the sensor-noise randomiser
+    the environment keyword ``randomize_sensor_noise`` (the same U(lo, hi) factor on every noise std per
+    episode, drawn from the robot's generator instead of the wrapper's own, so a seed gives other
+    episodes than on ``dummy``). ``dummy`` / ``subproc``: single environments, each wrapped as
+    :func:`agents.wrappers.wrap_env` does.
     """
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     if kind not in VEC_ENVS:
         raise ValueError(f"unknown vec_env {kind!r}; choose one of {', '.join(VEC_ENVS)}")
-    wrapped = spec.name != "none" or spec.sensor_noise_range is not None
-    if kind == "native" and wrapped:
-        print(f"agents.train: notice: --vec-env native does not take the {spec.name} wrapper or the sensor-noise "
-              "randomiser yet; training on --vec-env dummy", file=sys.stderr)
-        kind = "dummy"
     if kind == "native":
-        from agents.sb3_vec_env import make_native_vec_env
+        from agents.sb3_vec_env import NativeVecEnv
+        from agents.wrappers import VectorEKFFeatures
 
         kw = dict(env_kwargs)
         obs_mode = kw.pop("obs_mode", "sensors")  # as make_train_env: "state" is the privileged upper bound
+        if spec.sensor_noise_range is not None:
+            kw.setdefault("randomize_sensor_noise", tuple(spec.sensor_noise_range))
         # max_episode_steps=None: episodes end with the reference, as make_env matches the registered TimeLimit.
-        venv = make_native_vec_env(env_id.rpartition(":")[2], n, obs_mode=obs_mode, action_mode="twist",
-                                   max_episode_steps=None, **kw)
+        raw = gym.make_vec(env_id.rpartition(":")[2], num_envs=n, vectorization_mode="vector_entry_point",
+                           autoreset_mode="same_step", obs_mode=obs_mode, action_mode="twist",
+                           max_episode_steps=None, **kw)
+        if spec.name != "none":
+            scale = spec.residual_scale if spec.name == "residual-ekf-pid" else 0.0
+            raw = VectorEKFFeatures(raw, scale, spec.reward)
+        venv = NativeVecEnv(raw)
     else:
         factories = [_EnvFactory(env_id, env_kwargs, spec.name, spec.residual_scale, spec.sensor_noise_range,
                                  spec.reward) for _ in range(n)]
@@ -509,7 +519,7 @@ def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.
     p.add_argument("--n-envs", type=int, default=None, help="parallel environments (default: n_envs in YAML)")
     p.add_argument("--vec-env", choices=VEC_ENVS, default="native",
                    help="vectorisation: native (one vector env of all robots; default), dummy or subproc (one "
-                        "single env per robot); native falls back to dummy for the EKF and noise wrappers")
+                        "single env per robot)")
     p.add_argument("--eval-freq", type=int, default=50_000, help="validation every N steps (0: none; default 50000)")
     p.add_argument("--eval-episodes", type=int, default=5, help="validation episodes (default 5)")
     p.add_argument("--checkpoint-freq", type=int, default=0, help="checkpoint every N steps (0: none)")
