@@ -34,9 +34,12 @@ bench: $(STAMP)
 
 # Long runs (about an hour each on 2 cores): scripted baselines and the committed agents; the
 # discrepancy workflow's recovery table.
+# Model directories for bench-agents (each is evaluated on the id its meta.json names): make bench-agents AGENT_MODELS="dir1 dir2"
+AGENT_MODELS ?= agents/models/ppo-residual
+
 bench-agents: $(STAMP)
 	$(PY) benchmarks/baselines.py --episodes 50 --out benchmarks/results
-	$(PY) benchmarks/rl_vs_baselines.py --models agents/models/ppo-residual --episodes 50 --workers 2 --out benchmarks/results
+	$(PY) benchmarks/rl_vs_baselines.py --models $(AGENT_MODELS) --episodes 50 --workers 2 --out benchmarks/results
 
 bench-discrepancy: $(STAMP)
 	$(PY) benchmarks/discrepancy_recovery.py --seeds 2 --runs 6 --duration 3 --jobs 2 --out benchmarks/results

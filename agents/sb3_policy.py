@@ -288,3 +288,67 @@ def build(path: str | Path, env_id: str | None = None, env_kwargs: dict | None =
                          f"environment {env_id} with wrapper {meta['wrapper']!r} gives {env.observation_space.shape}"
                          f"{hint}")
     return env, SB3Policy(model, vn, env)
+
+
+class VectorSB3Policy:
+    """An SB3 model (+ optional VecNormalize statistics) acting for N robots at once (the
+    :class:`agents.vector_rollout.VectorActor` protocol): one batched deterministic ``predict`` per step.
+
+    Args: as :class:`SB3Policy`, ``env`` the (wrapped) vector env it acts on.
+    """
+
+    name = "sb3"
+
+    def __init__(self, model, vecnormalize, env) -> None:
+        self.model = model
+        self.vecnormalize = vecnormalize
+        self.env = env
+
+    @property
+    def estimate(self) -> np.ndarray | None:
+        """(N, 3) pose estimates of an EKF wrapper, else None."""
+        return getattr(self.env, "estimate", None)
+
+    def reset(self, obs: np.ndarray, mask=None) -> None:
+        """Nothing to reset: the model acts on each observation alone (the wrapper restarts its filters)."""
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """(N, A) float32 actions for the observations (N, D)."""
+        o = np.asarray(obs, dtype=np.float32)
+        if self.vecnormalize is not None:
+            o = np.asarray(self.vecnormalize.normalize_obs(o), dtype=np.float32)
+        action, _ = self.model.predict(o, deterministic=True)
+        return np.asarray(action, dtype=np.float32).reshape(o.shape[0], -1)
+
+
+def build_vector(path: str | Path, num: int, env_id: str | None = None, env_kwargs: dict | None = None,
+                 options: ModelOptions | None = None):
+    """(vector env, :class:`VectorSB3Policy`): :func:`build` for ``num`` robots at once.
+
+    The env is :func:`agents.vector_rollout.make_vector_env` (``next_step`` autoreset, the model's
+    observation mode) wrapped, for the EKF-feature models, by :class:`agents.wrappers.VectorEKFFeatures`
+    (``residual-ekf-pid``: the model's residual bound; ``ekf-features``: 0). Each robot's episode equals the
+    single :func:`build` environment's within float rounding (the batched EKF; ``tests/test_vector_rollout.py``).
+    """
+    from agents.vector_rollout import make_vector_env
+    from agents.wrappers import VectorEKFFeatures
+
+    meta, model, vn = load(path, options)
+    env_id = env_id or meta.get("env_id")
+    if env_id is None:
+        raise ValueError(f"{path}: the model does not record its environment: give the environment id")
+    kw = dict(env_kwargs or {})
+    obs_mode = meta.get("obs_mode", "sensors") or kw.get("obs_mode", "sensors")
+    if kw.get("obs_mode", obs_mode) != obs_mode:
+        raise ValueError(f"model {path} was trained with obs_mode={obs_mode!r}; got obs_mode={kw['obs_mode']!r}")
+    kw.pop("obs_mode", None)
+    venv = make_vector_env(env_id, num, kw, obs_mode=obs_mode)
+    if meta["wrapper"] != "none":
+        scale = float(meta.get("residual_scale", 0.3)) if meta["wrapper"] == "residual-ekf-pid" else 0.0
+        venv = VectorEKFFeatures(venv, scale)
+    if venv.single_observation_space.shape != model.observation_space.shape:
+        venv.close()
+        raise ValueError(f"model {path} expects observations of shape {model.observation_space.shape}, the "
+                         f"environment {env_id} with wrapper {meta['wrapper']!r} gives "
+                         f"{venv.single_observation_space.shape}")
+    return venv, VectorSB3Policy(model, vn, venv)

@@ -1,4 +1,4 @@
-"""Baseline table: open-loop, odometry-pid and ekf-pid on the two path-following ids under three conditions.
+"""Baseline table: every scripted policy (open-loop, odometry-pid, ekf-pid, ekf-pid-traction) on two path-following ids.
 
 The ids: ``OmniPathFollow-Phunopas-v0`` (phunopas2018, 4 wheels) and ``OmniPathFollow-Williams-v0``
 (williams2002, 3 wheels); ``--env`` picks a subset. The same conditions, seeds and code path run on both,
@@ -235,8 +235,8 @@ def plot(path: Path, env_ids: list[str], summaries: dict) -> None:
     """Bars with 95 % CI whiskers: one row of four metric panels per id."""
     fig, axes = plt.subplots(len(env_ids), 4, figsize=(17, 4.2 * len(env_ids)), squeeze=False)
     conds = list(CONDITIONS)
-    width = 0.26
-    colors = {"open-loop": "#d95f02", "odometry-pid": "#7570b3", "ekf-pid": "#1b9e77"}
+    width = 0.8 / len(POLICY_NAMES)
+    colors = {"open-loop": "#d95f02", "odometry-pid": "#7570b3", "ekf-pid": "#1b9e77", "ekf-pid-traction": "#e7298a"}
     for row, env_id in zip(axes, env_ids, strict=True):
         for ax, metric in zip(row, [*METRICS, "success_rate"], strict=True):
             for j, p in enumerate(POLICY_NAMES):
@@ -245,8 +245,8 @@ def plot(path: Path, env_ids: list[str], summaries: dict) -> None:
                 lo = means - cis[:, 0]
                 if metric != "success_rate":
                     lo = np.minimum(lo, means * 0.999)  # log axis: a t-interval below 0 is drawn down to the axis
-                x = np.arange(len(conds)) + (j - 1) * width
-                ax.bar(x, means, width, color=colors[p], label=p)
+                x = np.arange(len(conds)) + (j - (len(POLICY_NAMES) - 1) / 2) * width
+                ax.bar(x, means, width, color=colors.get(p, f"C{j}"), label=p)
                 # clip: the Wilson bound for 0 successes is 7e-18, not 0, and errorbar refuses negative lengths
                 yerr = np.clip([lo, cis[:, 1] - means], 0.0, None)
                 ax.errorbar(x, means, yerr=yerr, fmt="none", ecolor="k", capsize=3, lw=1)

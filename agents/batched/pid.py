@@ -113,3 +113,45 @@ class BatchPathPID:
         vx = np.where(sat_t, vx * self.max_speed / safe, vx)
         vy = np.where(sat_t, vy * self.max_speed / safe, vy)
         return np.column_stack([vx, vy, om]), sat_t, sat_r
+
+
+class BatchLimitedPathPID(BatchPathPID):
+    """:class:`agents.traction.LimitedPathPID` for ``num`` robots: the saturated twists go through a limiter.
+
+    ``limiter(twist (K, 3), previous twist (K, 3), estimate (K, 3), dt) -> twist (K, 3)`` (the hook of
+    :class:`agents.traction.TractionLimiter`) sees the rows of the robots being updated: their saturated body
+    twists, the twists they were commanded in their previous period (zero after :meth:`reset`) and their pose
+    estimates. An axis the hook changes counts as saturated for the anti-windup (translation: vx or vy;
+    rotation: ω), exactly as the single class, so an integrator does not wind up against a limit it cannot
+    push through. ``prev_twist`` (N, 3) [m/s, m/s, rad/s], body frame.
+    """
+
+    def __init__(self, limiter, num: int, max_speed: float, max_yaw_rate: float, dt: float,
+                 gains: PIDGains | None = None) -> None:
+        if not callable(limiter):
+            raise ValueError(f"limiter must be a callable (twist, prev_twist, estimate, dt) -> twist, got {limiter!r}")
+        super().__init__(num, max_speed, max_yaw_rate, dt, gains)
+        self.limiter = limiter
+        self.prev_twist = np.zeros((self.num, 3))
+        self._rows = np.zeros(self.num, dtype=bool)
+        self._pose = np.zeros((0, 3))
+
+    def reset(self, robots=None) -> None:
+        super().reset(robots)
+        self.prev_twist[robot_mask(robots, self.num)] = 0.0
+
+    def update(self, pose: np.ndarray, ref_pose: np.ndarray, ref_velocity: np.ndarray, robots=None) -> np.ndarray:
+        m = robot_mask(robots, self.num)
+        self._rows = m
+        self._pose = np.asarray(pose, dtype=float)[m]
+        out = super().update(pose, ref_pose, ref_velocity, robots=m)
+        self.prev_twist[m] = out[m]
+        return out
+
+    def _saturate(self, u: np.ndarray, th: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        body, sat_t, sat_r = super()._saturate(u, th)
+        limited = np.asarray(self.limiter(body, self.prev_twist[self._rows], self._pose, self.dt), dtype=float)
+        if limited.shape != body.shape:
+            raise ValueError(f"limiter must return shape {body.shape}, got {limited.shape}")
+        changed = np.abs(limited - body) > 1e-12 * (1.0 + np.abs(body))  # rounding of an untouched row
+        return limited, sat_t | changed[:, 0] | changed[:, 1], sat_r | changed[:, 2]

@@ -1,6 +1,7 @@
 """Scripted baselines for N robots at once over a native vector environment's (N, D) sensor observations.
 
-The batched counterparts of :mod:`agents.policies` (``open-loop``, ``odometry-pid``, ``ekf-pid``): the
+The batched counterparts of :mod:`agents.policies` (``open-loop``, ``odometry-pid``, ``ekf-pid``,
+``ekf-pid-traction``): the
 same estimates, twists and actions robot by robot (``tests/test_batched_estimation.py``), with the
 EKF, detector and PID of :mod:`agents.batched`. Protocol, for a vector environment ``venv`` built by
 ``gym.make_vec(ID, num_envs=N, vectorization_mode="vector_entry_point", obs_mode="sensors")``::
@@ -38,7 +39,7 @@ from agents.batched.pid import BatchPathPID
 from agents.pid import PIDGains
 from omni_gym.envs.decode import BatchSensorObs, BatchSensorObsDecoder
 
-VECTOR_POLICY_NAMES = ("open-loop", "odometry-pid", "ekf-pid")
+VECTOR_POLICY_NAMES = ("open-loop", "odometry-pid", "ekf-pid", "ekf-pid-traction")
 
 Limiter = Callable[[np.ndarray, np.ndarray, "VectorPolicy"], np.ndarray]
 
@@ -256,8 +257,32 @@ class VectorEKFPIDPolicy(VectorPIDPolicy):
         self.estimate = self.ekf.pose
 
 
+class VectorEKFPIDTractionPolicy(VectorEKFPIDPolicy):
+    """``ekf-pid`` with the traction limiter inside the PID (agents.policies.EKFPIDTractionPolicy) for N robots.
+
+    The same :class:`agents.traction.TractionLimiter` (nominal model, the single policy's MODE and MARGIN)
+    in :class:`~agents.batched.pid.BatchLimitedPathPID`: a limited axis counts as saturated for the
+    anti-windup. The ``limiter`` hook of :class:`VectorPolicy`, if given, still acts after it.
+    """
+
+    name = "ekf-pid-traction"
+
+    def __init__(self, env, gains: PIDGains | None = None, limiter: Limiter | None = None,
+                 threads: bool = False) -> None:
+        super().__init__(env, gains, limiter, threads)
+        from agents.batched.pid import BatchLimitedPathPID
+        from agents.policies import EKFPIDTractionPolicy as Single  # MODE and MARGIN
+        from agents.traction import TractionLimiter
+
+        model = self.cfg.base_model()
+        self.traction = TractionLimiter(model.robot, model.surface, mode=Single.MODE, margin=Single.MARGIN,
+                                        com=model.com)
+        self.pid = BatchLimitedPathPID(self.traction, self.num, self.cfg.max_speed, self.cfg.max_yaw_rate, self.dt,
+                                       gains)
+
+
 _POLICIES = {"open-loop": VectorOpenLoopPolicy, "odometry-pid": VectorOdometryPIDPolicy,
-             "ekf-pid": VectorEKFPIDPolicy}
+             "ekf-pid": VectorEKFPIDPolicy, "ekf-pid-traction": VectorEKFPIDTractionPolicy}
 
 
 def make_vector_policy(name: str, env, gains: PIDGains | None = None, limiter: Limiter | None = None,
