@@ -5,7 +5,7 @@ STAMP := .venv/.installed
 export SDL_VIDEODRIVER := dummy
 export MPLBACKEND := Agg
 
-.PHONY: venv test test-slow demo lint bench bench-agents bench-discrepancy clean install-check
+.PHONY: venv test test-slow demo lint bench bench-agents train-agents bench-discrepancy clean install-check
 
 venv: $(STAMP)
 
@@ -35,11 +35,25 @@ bench: $(STAMP)
 # Long runs (about an hour each on 2 cores): scripted baselines and the committed agents; the
 # discrepancy workflow's recovery table.
 # Model directories for bench-agents (each is evaluated on the id its meta.json names): make bench-agents AGENT_MODELS="dir1 dir2"
-AGENT_MODELS ?= agents/models/ppo-residual
+AGENT_MODELS ?= agents/models/ppo-privileged-phunopas agents/models/ppo-residual-phunopas \
+	agents/models/ppo-features-phunopas agents/models/ppo-privileged-williams agents/models/ppo-residual-williams \
+	agents/models/ppo-features-williams agents/models/ppo-residual
 
 bench-agents: $(STAMP)
 	$(PY) benchmarks/baselines.py --episodes 50 --out benchmarks/results
 	$(PY) benchmarks/rl_vs_baselines.py --models $(AGENT_MODELS) --episodes 50 --workers 2 --out benchmarks/results
+	$(PY) benchmarks/learning_curves.py --runs benchmarks/results/training_runs/* --out benchmarks/results
+
+# The agents of issue 16: PPO, three agents (privileged, residual, EKF features) x two ids x seeds, 3 M steps
+# each into runs/ (about 5 min for a privileged run, 10-12 min for an EKF one, on one core).
+SEEDS ?= 0 1 2
+train-agents: $(STAMP)
+	for seed in $(SEEDS); do for agent in privileged residual features; do \
+	  for id in OmniPathFollow-Phunopas-v0 OmniPathFollow-Williams-v1; do \
+	    $(PY) -m agents.train --algo ppo --env $$id --hyperparams agents/hyperparams/ppo_$$agent.yml --seed $$seed \
+	      --timesteps 3000000 --out runs/$$id-$$agent-ppo-s$$seed --eval-freq 250000 --eval-episodes 5 \
+	      --max-minutes 12 --no-progress || exit 1; \
+	done; done; done
 
 bench-discrepancy: $(STAMP)
 	$(PY) benchmarks/discrepancy_recovery.py --seeds 2 --runs 6 --duration 3 --jobs 2 --out benchmarks/results
