@@ -44,20 +44,22 @@ def test_committed_model_records_how_it_was_made(model):
 
 @pytest.mark.parametrize("model", MODELS, ids=lambda p: p.name)
 def test_committed_model_evaluates_and_is_deterministic(model):
-    """Same seeds twice: identical metrics (deterministic actions, seeded environments)."""
-    a = evaluate(str(model), ENV, 2, 321, SHORT, progress=False)
-    b = evaluate(str(model), ENV, 2, 321, SHORT, progress=False)
+    """Same seeds twice, on the id the model was trained on: identical metrics (deterministic actions, seeded
+    environments)."""
+    env_id = read_meta(model)["env_id"]
+    a = evaluate(str(model), env_id, 2, 321, SHORT, progress=False)
+    b = evaluate(str(model), env_id, 2, 321, SHORT, progress=False)
     assert a["per_episode"] == b["per_episode"]
     assert all(math.isfinite(v) for v in a["per_episode"]["tracking_rmse"])
     # Different seeds give different episodes (the comparison above is not vacuous).
-    c = evaluate(str(model), ENV, 1, 322, SHORT, progress=False)
+    c = evaluate(str(model), env_id, 1, 322, SHORT, progress=False)
     assert c["per_episode"]["tracking_rmse"][0] != a["per_episode"]["tracking_rmse"][0]
     json.dumps(a)  # the summary is JSON-serialisable (the CLI prints it with --json)
 
 
 @pytest.mark.parametrize("model", MODELS, ids=lambda p: p.name)
 def test_committed_model_acts_within_the_action_space(model):
-    env, policy = build(model, ENV, SHORT)
+    env, policy = build(model, read_meta(model)["env_id"], SHORT)
     obs, _ = env.reset(seed=5)
     policy.reset(obs)
     for _ in range(20):
