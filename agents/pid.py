@@ -75,6 +75,25 @@ class PIDGains:
                 raise ValueError(f"PIDGains.{name} must be a finite number >= 0, got {value!r}")
 
 
+def configure_pid(pid, max_speed: float, max_yaw_rate: float, dt: float, gains: PIDGains | None,
+                  anti_windup: bool) -> None:
+    """Check the limits and set the limits, gains and per-axis gain vectors (x, y, θ) of a path PID
+    (:class:`PathPID` and the batched one share them)."""
+    for name, value in (("max_speed", max_speed), ("max_yaw_rate", max_yaw_rate), ("dt", dt)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    pid.max_speed = float(max_speed)
+    pid.max_yaw_rate = float(max_yaw_rate)
+    pid.dt = float(dt)
+    pid.gains = PIDGains() if gains is None else gains
+    pid.anti_windup = anti_windup
+    g = pid.gains
+    pid._kp = np.array([g.kp_pos, g.kp_pos, g.kp_head])
+    pid._ki = np.array([g.ki_pos, g.ki_pos, g.ki_head])
+    pid._kd = np.array([g.kd_pos, g.kd_pos, g.kd_head])
+    pid._ilim = np.array([g.i_limit_pos, g.i_limit_pos, g.i_limit_head])
+
+
 class PathPID:
     """World-frame position + heading PID with feed-forward; outputs a saturated body twist (vx, vy, ω).
 
@@ -92,19 +111,7 @@ class PathPID:
 
     def __init__(self, max_speed: float, max_yaw_rate: float, dt: float, gains: PIDGains | None = None,
                  anti_windup: bool = True) -> None:
-        for name, value in (("max_speed", max_speed), ("max_yaw_rate", max_yaw_rate), ("dt", dt)):
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-        self.max_speed = float(max_speed)
-        self.max_yaw_rate = float(max_yaw_rate)
-        self.dt = float(dt)
-        self.gains = PIDGains() if gains is None else gains
-        self.anti_windup = anti_windup
-        g = self.gains
-        self._kp = np.array([g.kp_pos, g.kp_pos, g.kp_head])
-        self._ki = np.array([g.ki_pos, g.ki_pos, g.ki_head])
-        self._kd = np.array([g.kd_pos, g.kd_pos, g.kd_head])
-        self._ilim = np.array([g.i_limit_pos, g.i_limit_pos, g.i_limit_head])
+        configure_pid(self, max_speed, max_yaw_rate, dt, gains, anti_windup)
         self.reset()
 
     def reset(self) -> None:

@@ -90,6 +90,14 @@ def _check_env(env: gym.Env, who: str) -> None:
                          f"action_mode={cfg.action_mode!r}")
 
 
+def _check_wrapper_args(residual_scale, reward: str) -> None:
+    """The EKF wrappers' keywords: a residual bound in [0, 1] and one of :data:`REWARDS`."""
+    if not (isinstance(residual_scale, (int, float)) and 0.0 <= residual_scale <= 1.0):
+        raise ValueError(f"residual_scale must be a number in [0, 1], got {residual_scale!r}")
+    if reward not in REWARDS:
+        raise ValueError(f"unknown reward {reward!r}; choose one of {', '.join(REWARDS)}")
+
+
 class EKFFeatures(gym.Wrapper):
     """EKF-estimate observation and (optionally) a bounded residual on the ekf-pid action; see the module doc.
 
@@ -102,10 +110,7 @@ class EKFFeatures(gym.Wrapper):
     def __init__(self, env: gym.Env, residual_scale: float = 0.3, reward: str = "env") -> None:
         super().__init__(env)
         _check_env(env, "EKFFeatures")
-        if not (isinstance(residual_scale, (int, float)) and 0.0 <= residual_scale <= 1.0):
-            raise ValueError(f"residual_scale must be a number in [0, 1], got {residual_scale!r}")
-        if reward not in REWARDS:
-            raise ValueError(f"unknown reward {reward!r}; choose one of {', '.join(REWARDS)}")
+        _check_wrapper_args(residual_scale, reward)
         self.reward_mode = reward
         from agents.policies import make_policy
 
@@ -213,10 +218,7 @@ class VectorEKFFeatures(VectorWrapper):
     def __init__(self, env, residual_scale: float = 0.3, reward: str = "env", threads: bool = False) -> None:
         super().__init__(env)
         _check_env(env, "VectorEKFFeatures")
-        if not (isinstance(residual_scale, (int, float)) and 0.0 <= residual_scale <= 1.0):
-            raise ValueError(f"residual_scale must be a number in [0, 1], got {residual_scale!r}")
-        if reward not in REWARDS:
-            raise ValueError(f"unknown reward {reward!r}; choose one of {', '.join(REWARDS)}")
+        _check_wrapper_args(residual_scale, reward)
         from agents.batched.policies import make_vector_policy
 
         self.reward_mode = reward

@@ -8,12 +8,10 @@ on (N, 3) arrays, cheap next to the EKF, so plain numpy is enough here.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from agents.batched.estimation import robot_mask
-from agents.pid import PIDGains
+from agents.pid import PIDGains, configure_pid
 from omni_gym.checks import wrap_angle
 
 
@@ -26,20 +24,8 @@ class BatchPathPID:
 
     def __init__(self, num: int, max_speed: float, max_yaw_rate: float, dt: float, gains: PIDGains | None = None,
                  anti_windup: bool = True) -> None:
-        for name, value in (("max_speed", max_speed), ("max_yaw_rate", max_yaw_rate), ("dt", dt)):
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+        configure_pid(self, max_speed, max_yaw_rate, dt, gains, anti_windup)
         self.num = int(num)
-        self.max_speed = float(max_speed)
-        self.max_yaw_rate = float(max_yaw_rate)
-        self.dt = float(dt)
-        self.gains = PIDGains() if gains is None else gains
-        self.anti_windup = anti_windup
-        g = self.gains
-        self._kp = np.array([g.kp_pos, g.kp_pos, g.kp_head])
-        self._ki = np.array([g.ki_pos, g.ki_pos, g.ki_head])
-        self._kd = np.array([g.kd_pos, g.kd_pos, g.kd_head])
-        self._ilim = np.array([g.i_limit_pos, g.i_limit_pos, g.i_limit_head])
         N = self.num
         self.integral = np.zeros((N, 3))
         self.derivative = np.zeros((N, 3))
