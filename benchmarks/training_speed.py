@@ -1,6 +1,7 @@
 """PPO training throughput (environment steps per second, learning included) on our stacks and a reference env.
 
     python benchmarks/training_speed.py --out benchmarks/results [--seconds 60]
+    python benchmarks/training_speed.py --out benchmarks/results --plot-only   # re-draw the plot from the table
 
 The same PPO configuration (SB3 defaults, MlpPolicy, ``n_steps=256``, ``batch_size=4096``,
 ``n_epochs=4``, 64 environments, CPU, one torch thread) trains, one after the other in this process, on:
@@ -104,6 +105,43 @@ def configurations() -> dict:
     }
 
 
+def plot(path: Path, rows: list[tuple[str, float]]) -> None:
+    """Horizontal bars: env steps/s with learning per configuration, the 10 000/s target as a line."""
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = [name.replace(", NativeVecEnv", "").replace(" (reference)", "") for name, _ in rows]
+    rates = [rate for _, rate in rows]
+    colors = ["C7" if "Pendulum" in n else "C1" if "DummyVecEnv" in n else "C0" for n, _ in rows]
+    fig, ax = plt.subplots(figsize=(11, 0.5 * len(rows) + 1.5))
+    ax.barh(range(len(rows)), rates, color=colors)
+    ax.axvline(10_000, color="k", ls="--", lw=1, label="10 000 steps/s target (EKF stacks)")
+    ax.set_yticks(range(len(rows)), names, fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xlabel("PPO env steps/s with learning, 64 envs (grey: reference; orange: one env per robot)")
+    ax.set_title("training_speed.md", fontsize=9)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.grid(axis="x", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def rows_from_table(path: Path) -> list[tuple[str, float]]:
+    """(configuration, steps/s) rows of a table this script wrote."""
+    rows = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 7 and cells[1].replace(",", "").isdigit():
+            rows.append((cells[0], float(cells[1].replace(",", ""))))
+    if not rows:
+        raise SystemExit(f"training_speed: error: {path} holds no table rows")
+    return rows
+
+
 def target(name: str) -> str:
     if "privileged" in name and "NativeVecEnv" in name:
         return "≥ 0.8× Pendulum"
@@ -116,7 +154,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="benchmarks/results")
     parser.add_argument("--seconds", type=float, default=60.0, help="training wall time per configuration [s]")
+    parser.add_argument("--plot-only", action="store_true", help="re-draw training_speed.png from the table")
     args = parser.parse_args()
+    out = Path(args.out)
+    if args.plot_only:
+        plot(out / "training_speed.png", rows_from_table(out / "training_speed.md"))
+        return
     torch.set_num_threads(1)
     rows = []
     load = [os.getloadavg()[0]]
@@ -147,9 +190,9 @@ def main() -> None:
         lines.append(f"| {name} | {rate:,.0f} | {rate / reference:.2f} | {rate / per_robot:.1f} | {steps} | "
                      f"{episodes} | {target(name)} |")
     text = "\n".join(lines) + "\n"
-    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "training_speed.md").write_text(text)
+    plot(out / "training_speed.png", [(name, rate) for name, rate, _, _ in rows])
     print(text)
 
 
