@@ -290,35 +290,19 @@ def build(path: str | Path, env_id: str | None = None, env_kwargs: dict | None =
     return env, SB3Policy(model, vn, env)
 
 
-class VectorSB3Policy:
+class VectorSB3Policy(SB3Policy):
     """An SB3 model (+ optional VecNormalize statistics) acting for N robots at once (the
     :class:`agents.vector_rollout.VectorActor` protocol): one batched deterministic ``predict`` per step.
 
-    Args: as :class:`SB3Policy`, ``env`` the (wrapped) vector env it acts on.
+    Args: as :class:`SB3Policy`, ``env`` the (wrapped) vector env it acts on; ``estimate`` is then (N, 3).
     """
-
-    name = "sb3"
-
-    def __init__(self, model, vecnormalize, env) -> None:
-        self.model = model
-        self.vecnormalize = vecnormalize
-        self.env = env
-
-    @property
-    def estimate(self) -> np.ndarray | None:
-        """(N, 3) pose estimates of an EKF wrapper, else None."""
-        return getattr(self.env, "estimate", None)
 
     def reset(self, obs: np.ndarray, mask=None) -> None:
         """Nothing to reset: the model acts on each observation alone (the wrapper restarts its filters)."""
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """(N, A) float32 actions for the observations (N, D)."""
-        o = np.asarray(obs, dtype=np.float32)
-        if self.vecnormalize is not None:
-            o = np.asarray(self.vecnormalize.normalize_obs(o), dtype=np.float32)
-        action, _ = self.model.predict(o, deterministic=True)
-        return np.asarray(action, dtype=np.float32).reshape(o.shape[0], -1)
+        return super().act(obs).reshape(np.shape(obs)[0], -1)
 
 
 def build_vector(path: str | Path, num: int, env_id: str | None = None, env_kwargs: dict | None = None,

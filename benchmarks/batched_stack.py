@@ -31,6 +31,7 @@ import numpy as np
 import omni_gym  # noqa: F401  (registers the environments)
 from agents.batched.policies import make_vector_policy
 from agents.policies import make_policy
+from omni_gym.outputs import write_text_atomic
 
 ENV_ID = "OmniPathFollow-Phunopas-v0"
 SIZES = (1, 64, 256)
@@ -130,9 +131,7 @@ def main() -> None:
         lines.append(f"| {n} | {single[0]:,.0f} | {single[1]:,.0f} | {serial[0]:,.0f} | {serial[1]:,.0f} | "
                      f"{serial[1] / single[1]:.0f} | {threaded[0]:,.0f} | {target} |")
     text = "\n".join(lines) + "\n"
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "batched_stack.md").write_text(text)
+    write_text_atomic(Path(args.out) / "batched_stack.md", text)
     print(text)
 
 

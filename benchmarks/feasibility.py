@@ -27,6 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from agents.traction import MODES, TractionLimiter, reference_demand  # noqa: E402
 from omni_gym.envs import ENV_IDS  # noqa: E402
 from omni_gym.envs.config import make_config  # noqa: E402
+from omni_gym.outputs import write_text_atomic  # noqa: E402
 
 COLUMNS = ("peak_speed", "peak_accel", "peak_yaw_rate", "peak_yaw_accel", "utilisation", "steady_utilisation")
 
@@ -74,7 +75,7 @@ def main(argv: list[str] | None = None) -> None:
         lines.append(f"| {env_id} | {mode} | {cells} |")
     path = Path(args.out)
     path.mkdir(parents=True, exist_ok=True)
-    (path / "feasibility.md").write_text("\n".join(lines) + "\n")
+    write_text_atomic(path / "feasibility.md", "\n".join(lines) + "\n")
     print("\n".join(lines))
 
 

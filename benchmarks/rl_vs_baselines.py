@@ -397,7 +397,7 @@ def write_markdown(path: Path, command: str, env_ids: list[str], policies: dict,
             lines += ["### Learned agents vs ekf-pid and ekf-pid-traction", ""]
             lines += comparison_rows(env_id, env_models, sets, eps, summ, metas) + [""]
         lines += condition_tables(env_id, policies[env_id], sets, eps, summ, metas)
-    path.write_text("\n".join(lines))
+    write_text_atomic(path, "\n".join(lines))
     return verdicts
 
 

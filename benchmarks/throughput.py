@@ -31,6 +31,7 @@ import gymnasium as gym
 import numpy as np
 
 import omni_gym  # noqa: F401  (registers the environments)
+from omni_gym.outputs import write_text_atomic
 
 ENV_ID = "OmniPathFollow-Williams-v0"
 SENSORS_ID = "OmniPathFollow-Phunopas-v0"
@@ -128,9 +129,7 @@ def main() -> None:
             target = "≥ 60,000 steps/s"
         lines.append(f"| {name} | {n} | {rate:,.0f} | {rate / lunar:.2f} | {eps} | {target} |")
     text = "\n".join(lines) + "\n"
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "throughput.md").write_text(text)
+    write_text_atomic(Path(args.out) / "throughput.md", text)
     print(text)
 
 

@@ -40,6 +40,7 @@ import gymnasium as gym  # noqa: E402
 import torch  # noqa: E402
 
 import omni_gym  # noqa: E402,F401  (registers the environments)
+from omni_gym.outputs import write_text_atomic  # noqa: E402
 
 PHUNOPAS, WILLIAMS = "OmniPathFollow-Phunopas-v0", "OmniPathFollow-Williams-v1"
 N_ENVS = 64
@@ -190,8 +191,7 @@ def main() -> None:
         lines.append(f"| {name} | {rate:,.0f} | {rate / reference:.2f} | {rate / per_robot:.1f} | {steps} | "
                      f"{episodes} | {target(name)} |")
     text = "\n".join(lines) + "\n"
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "training_speed.md").write_text(text)
+    write_text_atomic(out / "training_speed.md", text)
     plot(out / "training_speed.png", [(name, rate) for name, rate, _, _ in rows])
     print(text)
 
