@@ -18,7 +18,8 @@ use ``nn``), ``learning_rate`` (a number or ``lin_<x>`` for a linear schedule), 
   ``{class path: {keyword: value}}``; this module knows ``agents.wrappers.SensorNoiseRandomizer``
   (``scale_range``: sensor noise scaled by U(lo, hi) per episode) and ``agents.wrappers.EKFFeatures``
   (``residual_scale`` > 0: ``residual-ekf-pid``, 0: ``ekf-features``; ``reward``: ``env``, ``tracking`` or
-  ``squared``, :data:`agents.wrappers.REWARDS`), in that order.
+  ``squared``, :data:`agents.rewards.REWARDS`), in that order; or ``agents.rewards.TrackingReward``
+  (keyword ``reward``) alone: the privileged agent's reward without the EKF.
 * ``callback``: ``agents.callbacks.ResidualInit`` (``factor``: the actor's last layer is scaled by it
   and its bias zeroed at the start, so a residual policy starts as its baseline; ``log_std``: SAC's
   initial log std).
@@ -199,6 +200,7 @@ def make_training_vec_env(kind: str, env_id: str, env_kwargs: dict, spec: Wrappe
     if kind not in VEC_ENVS:
         raise ValueError(f"unknown vec_env {kind!r}; choose one of {', '.join(VEC_ENVS)}")
     if kind == "native":
+        from agents.rewards import VectorTrackingReward
         from agents.sb3_vec_env import NativeVecEnv
         from agents.wrappers import VectorEKFFeatures
 
@@ -213,6 +215,8 @@ def make_training_vec_env(kind: str, env_id: str, env_kwargs: dict, spec: Wrappe
         if spec.name != "none":
             scale = spec.residual_scale if spec.name == "residual-ekf-pid" else 0.0
             raw = VectorEKFFeatures(raw, scale, spec.reward)
+        elif spec.reward != "env":
+            raw = VectorTrackingReward(raw, spec.reward)
         venv = NativeVecEnv(raw)
     else:
         factories = [_EnvFactory(env_id, env_kwargs, spec.name, spec.residual_scale, spec.sensor_noise_range,

@@ -28,22 +28,9 @@
   and the agent can move the twist by at most s of its range. With ``residual_scale`` = 0
   (``ekf-features``) the agent's action is the whole twist and the PID only supplies features.
 
-  Reward: ``reward="env"`` keeps the environment's; ``reward="tracking"`` replaces it with
-
-      r = 0.5·exp(−(e/0.05 m)²) + 0.5·exp(−e/0.1 m) − 0.02·mean(a²)
-
-  (e the true tracking error from ``info``, a the agent's action): it concentrates on e (slope at
-  e = 4.5 cm 2.5× the environment reward's) and stays positive, so getting lost early never pays.
-  ``reward="squared"`` is the benchmark metric itself, per step:
-
-      r = −(e/0.1 m)² − 0.01·mean(a²),   and −LOST_HORIZON·(lost_distance/0.1 m)² once when terminated
-
-  Under slip and lift-off ekf-pid's RMSE is dominated by rare excursions of 20–30 cm (the robot
-  falls behind at 0.45 m/s on carpet), where the two bounded rewards above are flat; the squared
-  reward weighs them as the RMSE does. The termination penalty is what staying lost for the
-  discounting horizon would cost, so ending early does not pay. The small action term keeps the
-  residual at zero where it does not help. The reward is a training signal only: the policy never
-  sees e.
+  Reward (``reward``): "env" keeps the environment's; "tracking" and "squared" replace it with a
+  function of the true tracking error and the agent's action (:mod:`agents.rewards`; "squared" is the
+  benchmark metric per step). The reward is a training signal only: the policy never sees the error.
 
 * :class:`VectorEKFFeatures`: the same features, residual action and rewards for a native vector
   environment (N robots at once, the batched EKF of :mod:`agents.batched`); both autoreset modes.
@@ -67,11 +54,10 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorWrapper
 from gymnasium.vector.utils import batch_space
 
+from agents.rewards import TrackingReward, check_reward, tracking_reward
 from omni_gym.checks import wrap_angle
 
 WRAPPERS = ("none", "residual-ekf-pid", "ekf-features")
-REWARDS = ("env", "tracking", "squared")
-LOST_HORIZON = 50  # steps: the squared reward's penalty for getting lost (≈ 1/(1 − γ) at γ = 0.98)
 POS_SCALE = 0.05  # m: tracking errors of a few cm are what the agent must act on
 HEAD_SCALE = 0.1  # rad
 LOOK_SCALE = 0.5  # m
@@ -91,11 +77,10 @@ def _check_env(env: gym.Env, who: str) -> None:
 
 
 def _check_wrapper_args(residual_scale, reward: str) -> None:
-    """The EKF wrappers' keywords: a residual bound in [0, 1] and one of :data:`REWARDS`."""
+    """The EKF wrappers' keywords: a residual bound in [0, 1] and one of :data:`agents.rewards.REWARDS`."""
     if not (isinstance(residual_scale, (int, float)) and 0.0 <= residual_scale <= 1.0):
         raise ValueError(f"residual_scale must be a number in [0, 1], got {residual_scale!r}")
-    if reward not in REWARDS:
-        raise ValueError(f"unknown reward {reward!r}; choose one of {', '.join(REWARDS)}")
+    check_reward(reward)
 
 
 class EKFFeatures(gym.Wrapper):
@@ -112,6 +97,7 @@ class EKFFeatures(gym.Wrapper):
         _check_env(env, "EKFFeatures")
         _check_wrapper_args(residual_scale, reward)
         self.reward_mode = reward
+        self.lost_distance = float(env.unwrapped.cfg.lost_distance)
         from agents.policies import make_policy
 
         self.residual_scale = float(residual_scale)
@@ -148,13 +134,8 @@ class EKFFeatures(gym.Wrapper):
         else:
             total = a
         obs, reward, terminated, truncated, info = self.env.step(total.astype(np.float32))
-        e = float(info["tracking_error"])
-        if self.reward_mode == "tracking":
-            reward = 0.5 * math.exp(-((e / 0.05) ** 2)) + 0.5 * math.exp(-e / 0.1) - 0.02 * float(np.mean(a * a))
-        elif self.reward_mode == "squared":
-            reward = -((e / 0.1) ** 2) - 0.01 * float(np.mean(a * a))
-            if terminated:
-                reward -= LOST_HORIZON * (self.env.unwrapped.cfg.lost_distance / 0.1) ** 2
+        reward = float(tracking_reward(self.reward_mode, [reward], [info["tracking_error"]], a[None], [terminated],
+                                       self.lost_distance)[0])
         return self._observe(obs), reward, terminated, truncated, info
 
     def _observe(self, obs: np.ndarray) -> np.ndarray:
@@ -274,7 +255,7 @@ class VectorEKFFeatures(VectorWrapper):
             self._autoreset = np.asarray(terminated | truncated, dtype=bool)
         live = ~restart
         self.prev_action[live] = a[live]
-        reward = self._reward(reward, e, a, terminated)
+        reward = tracking_reward(self.reward_mode, reward, e, a, terminated, self.lost_distance)
         if restart.any():  # NEXT_STEP: obs[restart] are first observations, the actions were ignored
             self.prev_action[restart] = 0.0
             reward[restart] = 0.0
@@ -294,15 +275,6 @@ class VectorEKFFeatures(VectorWrapper):
         else:
             features = self._observe(obs)
         return features, reward, terminated, truncated, info
-
-    def _reward(self, env_reward: np.ndarray, e: np.ndarray, a: np.ndarray, terminated: np.ndarray) -> np.ndarray:
-        """Per-robot reward of :class:`EKFFeatures` (``reward`` mode) from true tracking errors ``e`` [m]."""
-        if self.reward_mode == "tracking":
-            return 0.5 * np.exp(-((e / 0.05) ** 2)) + 0.5 * np.exp(-e / 0.1) - 0.02 * np.mean(a * a, axis=1)
-        if self.reward_mode == "squared":
-            r = -((e / 0.1) ** 2) - 0.01 * np.mean(a * a, axis=1)
-            return np.where(terminated, r - LOST_HORIZON * (self.lost_distance / 0.1) ** 2, r)
-        return env_reward
 
     def _observe(self, obs: np.ndarray, robots=None) -> np.ndarray:
         """Advance the baseline of ``robots`` (None: all) with ``obs`` (N, D) and build the (N, dim) features."""
@@ -382,8 +354,8 @@ def wrap_env(env: gym.Env, name: str = "none", residual_scale: float = 0.3,
              sensor_noise_range: tuple[float, float] | None = None, reward: str = "env") -> gym.Env:
     """Apply the sensor-noise randomiser (if a range is given) and the named wrapper (one of :data:`WRAPPERS`).
 
-    ``reward`` (one of :data:`REWARDS`: "env", "tracking" or "squared", see :class:`EKFFeatures`) needs an
-    EKF wrapper unless it is "env".
+    ``reward``: one of :data:`agents.rewards.REWARDS`; without an EKF wrapper ("none", the privileged
+    agent) a reward other than "env" is applied alone (:class:`agents.rewards.TrackingReward`).
     """
     if name not in WRAPPERS:
         raise ValueError(f"unknown wrapper {name!r}; choose one of {', '.join(WRAPPERS)}")
@@ -393,6 +365,6 @@ def wrap_env(env: gym.Env, name: str = "none", residual_scale: float = 0.3,
         env = EKFFeatures(env, residual_scale, reward)
     elif name == "ekf-features":
         env = EKFFeatures(env, 0.0, reward)
-    elif reward != "env":
-        raise ValueError(f"reward {reward!r} needs an EKF wrapper (residual-ekf-pid or ekf-features)")
+    elif reward != "env":  # the privileged agent: the reward alone
+        env = TrackingReward(env, reward)
     return env

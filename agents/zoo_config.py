@@ -14,6 +14,7 @@ from agents.wrappers import WRAPPERS
 LEGACY_KEYS = ("residual_scale", "reward", "sensor_noise_range", "residual_init", "init_log_std")
 NOISE_WRAPPER = "agents.wrappers.SensorNoiseRandomizer"
 EKF_WRAPPER = "agents.wrappers.EKFFeatures"
+REWARD_WRAPPER = "agents.rewards.TrackingReward"
 RESIDUAL_INIT = "agents.callbacks.ResidualInit"
 
 
@@ -22,7 +23,7 @@ class WrapperSpec:
     """The wrapper stack of a hyperparameter entry (see :func:`agents.wrappers.wrap_env`).
 
     ``name``: one of :data:`agents.wrappers.WRAPPERS`; ``residual_scale``: the residual bound (fraction of
-    the action range); ``reward``: one of :data:`agents.wrappers.REWARDS`; ``sensor_noise_range``:
+    the action range); ``reward``: one of :data:`agents.rewards.REWARDS`; ``sensor_noise_range``:
     ``[lo, hi]`` sensor-noise scale per episode, or None.
     """
 
@@ -84,9 +85,12 @@ def wrapper_spec(hp: dict, where: str) -> WrapperSpec:
             scale = float(kw.get("residual_scale", 0.3))  # EKFFeatures' default
             spec = replace(spec, name="residual-ekf-pid" if scale > 0 else "ekf-features", residual_scale=scale,
                            reward=str(kw.get("reward", "env")))
+        elif path == REWARD_WRAPPER and not seen:  # the privileged agent: the reward alone, no EKF
+            _known_keywords(path, kw, ("reward",), "env_wrapper", where)
+            spec = replace(spec, reward=str(kw.get("reward", "squared")))
         else:
             raise ValueError(f"{where}: env_wrapper: {path!r}: this trainer builds {NOISE_WRAPPER} then {EKF_WRAPPER} "
-                             "(each at most once, in this order)")
+                             f"(each at most once, in this order), or {REWARD_WRAPPER} alone")
         seen.append(path)
     return spec
 

@@ -126,6 +126,16 @@ def test_committed_hyperparams_have_the_zoo_keys(algo):
     assert {"randomize_friction", "randomize_mass", "randomize_lift_rate"} <= set(hp["env_kwargs"])
 
 
+@pytest.mark.parametrize("env_id", [ENV, "OmniPathFollow-Williams-v1"])
+def test_every_learned_agent_trains_on_the_squared_tracking_error(env_id):
+    """The privileged, EKF-feature and residual agents differ in what they observe, not in the reward."""
+    for agent, name in (("privileged", "none"), ("features", "ekf-features"), ("residual", "residual-ekf-pid")):
+        hp = load_hyperparams("ppo", env_id, HYPERPARAM_DIR / f"ppo_{agent}.yml")
+        spec = wrapper_spec(hp, agent)
+        assert (spec.name, spec.reward) == (name, "squared"), agent
+        assert hp["env_kwargs"]["obs_mode"] == ("state" if agent == "privileged" else "sensors")
+
+
 def _shrink(hp: dict) -> dict:
     """One environment, one small PPO update: enough to compare two trainings weight by weight."""
     return {**hp, "n_envs": 1, "n_steps": 64, "batch_size": 32, "n_epochs": 1}
@@ -164,6 +174,8 @@ def test_zoo_layout_trains_the_same_agent_as_the_earlier_layout(tmp_path):
     ({"env_wrapper": ["agents.wrappers.EKFFeatures"], "residual_scale": 0.3}, r"key 'residual_scale' belongs"),
     ({"env_wrapper": "residual_ekf_pid"}, "env_wrapper 'residual_ekf_pid'"),
     ({"env_wrapper": [["a"]]}, "each entry must be a class path"),
+    ({"env_wrapper": [{"agents.rewards.TrackingReward": {"mode": "squared"}}]}, r"unknown keyword 'mode'"),
+    ({"env_wrapper": ["agents.wrappers.EKFFeatures", "agents.rewards.TrackingReward"]}, "alone"),
 ])
 def test_wrapper_entries_are_checked_with_file_and_key(entry, match):
     with pytest.raises(ValueError, match=match):
@@ -306,8 +318,6 @@ def test_tracking_reward_is_bounded_and_positive():
     for _ in range(20):
         _, r, *_ = env.step(np.ones(3, dtype=np.float32))
         assert -0.02 <= r <= 1.0  # 0.5 + 0.5 at e = 0; the action term costs at most 0.02
-    with pytest.raises(ValueError, match="needs an EKF wrapper"):
-        wrap_env(make_env(ENV, SHORT), "none", reward="squared")
 
 
 def test_option_bounds_are_the_tables_in_docs_bounds_md():

@@ -1,0 +1,121 @@
+"""Training rewards on the true tracking error: one home for the reward modes every learned agent uses.
+
+``reward="env"`` keeps the environment's reward (docs/environments.md). The other two replace it,
+computed from the true tracking error e [m] (``info["tracking_error"]``) and the agent's action
+a ∈ [−1, 1]^A:
+
+* ``"tracking"``:  r = 0.5·exp(−(e/0.05 m)²) + 0.5·exp(−e/0.1 m) − 0.02·mean(a²).
+  It concentrates on e (slope at e = 4.5 cm 2.5× the environment reward's) and stays positive, so
+  getting lost early never pays.
+* ``"squared"``:  r = −(e/0.1 m)² − 0.01·mean(a²), and −LOST_HORIZON·(lost_distance/0.1 m)² once when
+  the episode terminates (the robot got lost). This is the benchmark metric itself, per step. Under
+  slip and lift-off the tracking RMSE is dominated by rare excursions of 20–30 cm, where the bounded
+  rewards are flat; the squared reward weighs them as the RMSE does. The termination penalty is what
+  staying lost for the discounting horizon would cost, so ending early does not pay.
+
+The reward is a training signal only: no policy observes e.
+
+* :func:`tracking_reward`: the formula, for one robot or N at once.
+* :class:`TrackingReward` / :class:`VectorTrackingReward`: the reward alone, for agents without the
+  EKF wrappers (the privileged-state agent), on a single or a native vector environment. The EKF
+  wrappers (:mod:`agents.wrappers`) call :func:`tracking_reward` with their agent's action.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorWrapper
+
+REWARDS = ("env", "tracking", "squared")
+LOST_HORIZON = 50  # steps: the squared reward's penalty for getting lost (≈ 1/(1 − γ) at γ = 0.98)
+ERROR_SCALE = 0.1  # m: the squared reward's unit of tracking error
+
+
+def check_reward(reward: str) -> None:
+    """Raise ValueError unless ``reward`` is one of :data:`REWARDS`."""
+    if reward not in REWARDS:
+        raise ValueError(f"unknown reward {reward!r}; choose one of {', '.join(REWARDS)}")
+
+
+def tracking_reward(mode: str, env_reward, error, action, terminated, lost_distance: float) -> np.ndarray:
+    """Reward of ``mode`` per robot: (N,) from env_reward, error [m], terminated (N,) and action (N, A).
+
+    ``lost_distance`` [m] is the environment's termination distance (``cfg.lost_distance``).
+    """
+    env_reward = np.asarray(env_reward, dtype=float)
+    if mode == "env":
+        return env_reward.copy()
+    e = np.asarray(error, dtype=float)
+    a = np.asarray(action, dtype=float)
+    effort = np.mean(a * a, axis=-1)
+    if mode == "tracking":
+        return 0.5 * np.exp(-((e / 0.05) ** 2)) + 0.5 * np.exp(-e / 0.1) - 0.02 * effort
+    if mode == "squared":
+        r = -((e / ERROR_SCALE) ** 2) - 0.01 * effort
+        return np.where(terminated, r - LOST_HORIZON * (lost_distance / ERROR_SCALE) ** 2, r)
+    check_reward(mode)
+    raise AssertionError("unreachable")
+
+
+def _omni_cfg(env, who: str):
+    cfg = getattr(env.unwrapped, "cfg", None)
+    if cfg is None:
+        raise ValueError(f"{who} needs an omni-gym environment, got {type(env.unwrapped).__name__}")
+    return cfg
+
+
+class TrackingReward(gym.Wrapper):
+    """Replace an omni-gym environment's reward with :func:`tracking_reward` (``reward`` mode).
+
+    Observations, actions, flags and info pass through unchanged; any ``obs_mode`` / ``action_mode``.
+    """
+
+    def __init__(self, env: gym.Env, reward: str = "squared") -> None:
+        super().__init__(env)
+        check_reward(reward)
+        self.reward_mode = reward
+        self.lost_distance = float(_omni_cfg(env, "TrackingReward").lost_distance)
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        a = np.clip(np.asarray(action, dtype=float).reshape(1, -1), -1.0, 1.0)
+        r = tracking_reward(self.reward_mode, [reward], [info["tracking_error"]], a, [terminated], self.lost_distance)
+        return obs, float(r[0]), terminated, truncated, info
+
+
+class VectorTrackingReward(VectorWrapper):
+    """:class:`TrackingReward` for a native vector environment, in either autoreset mode.
+
+    ``SAME_STEP``: an ended robot's reward uses its ended episode's error (``info["final_info"]``).
+    ``NEXT_STEP``: on the step after a robot ended, its action was ignored and its reward is 0, as the
+    environment's own reward is.
+    """
+
+    def __init__(self, env, reward: str = "squared") -> None:
+        super().__init__(env)
+        check_reward(reward)
+        self.reward_mode = reward
+        self.lost_distance = float(_omni_cfg(env, "VectorTrackingReward").lost_distance)
+        self.same_step = env.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP) == AutoresetMode.SAME_STEP
+        self._autoreset = np.zeros(int(env.num_envs), dtype=bool)
+
+    def reset(self, *, seed=None, options: dict | None = None):
+        self._autoreset[:] = False
+        return self.env.reset(seed=seed, options=options)
+
+    def step(self, actions):
+        obs, reward, terminated, truncated, info = self.env.step(actions)
+        e = np.asarray(info["tracking_error"], dtype=float).copy()
+        restart = np.zeros(self.num_envs, dtype=bool)
+        if self.same_step:
+            done = np.asarray(terminated | truncated, dtype=bool)
+            if done.any():
+                e[done] = np.asarray(info["final_info"]["tracking_error"], dtype=float)[done]
+        else:
+            restart = self._autoreset.copy()
+            self._autoreset = np.asarray(terminated | truncated, dtype=bool)
+        a = np.clip(np.asarray(actions, dtype=float).reshape(self.num_envs, -1), -1.0, 1.0)
+        r = tracking_reward(self.reward_mode, reward, e, a, terminated, self.lost_distance)
+        r[restart] = 0.0
+        return obs, r, terminated, truncated, info
