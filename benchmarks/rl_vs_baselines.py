@@ -30,8 +30,9 @@ Each learned agent against ekf-pid and against ekf-pid-traction (tracking RMSE):
 
 Writes ``rl_vs_baselines.md`` (command line first) and ``rl_vs_baselines.png`` (bars with 95 % whiskers per
 id, set and condition) into ``--out``; training curves are ``benchmarks/learning_curves.py``. With
-``--cache FILE`` every episode's metrics are kept in a JSON file keyed by (id, policy, set, condition, seed,
-overrides) and reused on the next run (e.g. the scripted policies while the agents train). Usage::
+``--cache FILE`` every episode's metrics are kept in a JSON file keyed by (id, policy, a hash of the model's
+files, set, condition, seed, overrides) and reused on the next run (e.g. the scripted policies while the
+agents train). Usage::
 
     python benchmarks/rl_vs_baselines.py [--models DIR ...] [--envs ID ...] [--episodes 50] [--seed 10000]
                                          [--sets held-out [unseen]] [--workers 2] [--cache FILE]
@@ -41,6 +42,8 @@ overrides) and reused on the next run (e.g. the scripted policies while the agen
 from __future__ import annotations
 
 import argparse
+import functools
+import hashlib
 import json
 import os
 import shlex
@@ -98,7 +101,21 @@ class Batch:
         return kw
 
     def cache_key(self, seed: int) -> str:
-        return json.dumps([self.env_id, self.policy, self.eval_set, self.cond, seed, list(self.overrides)])
+        return json.dumps([self.env_id, self.policy, policy_fingerprint(self.policy), self.eval_set, self.cond, seed,
+                           list(self.overrides)])
+
+
+@functools.cache
+def policy_fingerprint(policy: str) -> str:
+    """A scripted policy's name, or the SHA-256 of a model directory's files: a retrained model at the same
+    path must not reuse the cached episodes of the old one."""
+    if policy in POLICY_NAMES:
+        return policy
+    digest = hashlib.sha256()
+    for f in sorted(Path(policy).iterdir()):
+        if f.is_file() and f.suffix in (".zip", ".pkl", ".json"):
+            digest.update(f.name.encode() + b"\0" + f.read_bytes())
+    return digest.hexdigest()[:16]
 
 
 def run_batch(batch: Batch) -> tuple[Batch, list[Episode]]:

@@ -55,8 +55,17 @@ def _check(effect: str, cells: list[tuple]) -> None:
     assert min(reductions) >= 0.7, reductions
 
 
-@pytest.mark.parametrize(("effect", "case"), list(QUICK.items()),
-                         ids=[f"{e}-{c[0]}-{c[1] * 1e3:g}mm-seed{c[2]}" for e, c in QUICK.items()])
+# Effects whose recovery `make test` already checks elsewhere run their quick case with the slow tests
+# only (`make test-slow`, with the full sweep): wheel_radius and motor_lag are hidden together in
+# test_discrepancy_multi.py, and both must be named and fitted within this study's tolerances there.
+# Keeps `make test` within its 10-minute budget.
+COVERED_ELSEWHERE = ("wheel_radius", "motor_lag")
+
+
+@pytest.mark.parametrize(("effect", "case"), [
+    pytest.param(e, c, id=f"{e}-{c[0]}-{c[1] * 1e3:g}mm-seed{c[2]}",
+                 marks=[pytest.mark.slow] if e in COVERED_ELSEWHERE else [])
+    for e, c in QUICK.items()])
 def test_hidden_effect_quick_sweep(effect, case):
     """wheel_liftoff is fitted by MAP lift-event inference (docs/discrepancy.md); its rates are
     within a factor e although only 2-8 lift events occur per dataset."""
