@@ -23,7 +23,7 @@ goes to ``reset_infos[i]``, as in DummyVecEnv.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -36,17 +36,19 @@ _FINAL_KEYS = ("final_obs", "final_info")
 
 
 def make_native_vec_env(env_id: str, num_envs: int, info_keys: Sequence[str] | str = (),
+                        wrap: Callable[[gym.vector.VectorEnv], gym.vector.VectorEnv] | None = None,
                         **env_kwargs: Any) -> NativeVecEnv:
-    """``NativeVecEnv(gym.make_vec(env_id, num_envs, vectorization_mode="vector_entry_point",
-    autoreset_mode="same_step", **env_kwargs), info_keys)``; ``env_kwargs`` are the single environment's
-    keywords."""
+    """``NativeVecEnv(wrap(gym.make_vec(env_id, num_envs, vectorization_mode="vector_entry_point",
+    autoreset_mode="same_step", **env_kwargs)), info_keys)``; ``env_kwargs`` are the single environment's
+    keywords, ``wrap`` (optional) puts vector wrappers around the native env (e.g.
+    :class:`agents.wrappers.VectorEKFFeatures`)."""
     import omni_gym  # noqa: F401  (registers the ids)
 
     if "autoreset_mode" in env_kwargs:
         raise ValueError("make_native_vec_env sets autoreset_mode='same_step' itself; do not pass it")
     venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
                         autoreset_mode="same_step", **env_kwargs)
-    return NativeVecEnv(venv, info_keys)
+    return NativeVecEnv(venv if wrap is None else wrap(venv), info_keys)
 
 
 def _info_rows(infos: dict, indices: Sequence[int] | None, n: int, keys: frozenset[str] | None) -> list[dict]:

@@ -62,7 +62,6 @@ import sys
 import time
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 
 from agents import require_agents_extra
@@ -201,23 +200,23 @@ def make_training_vec_env(kind: str, env_id: str, env_kwargs: dict, spec: Wrappe
         raise ValueError(f"unknown vec_env {kind!r}; choose one of {', '.join(VEC_ENVS)}")
     if kind == "native":
         from agents.rewards import VectorTrackingReward
-        from agents.sb3_vec_env import NativeVecEnv
+        from agents.sb3_vec_env import make_native_vec_env
         from agents.wrappers import VectorEKFFeatures
 
         kw = dict(env_kwargs)
         obs_mode = kw.pop("obs_mode", "sensors")  # as make_train_env: "state" is the privileged upper bound
         if spec.sensor_noise_range is not None:
             kw.setdefault("randomize_sensor_noise", tuple(spec.sensor_noise_range))
+
+        def wrap(raw):
+            if spec.name != "none":
+                scale = spec.residual_scale if spec.name == "residual-ekf-pid" else 0.0
+                return VectorEKFFeatures(raw, scale, spec.reward)
+            return raw if spec.reward == "env" else VectorTrackingReward(raw, spec.reward)
+
         # max_episode_steps=None: episodes end with the reference, as make_env matches the registered TimeLimit.
-        raw = gym.make_vec(env_id.rpartition(":")[2], num_envs=n, vectorization_mode="vector_entry_point",
-                           autoreset_mode="same_step", obs_mode=obs_mode, action_mode="twist",
-                           max_episode_steps=None, **kw)
-        if spec.name != "none":
-            scale = spec.residual_scale if spec.name == "residual-ekf-pid" else 0.0
-            raw = VectorEKFFeatures(raw, scale, spec.reward)
-        elif spec.reward != "env":
-            raw = VectorTrackingReward(raw, spec.reward)
-        venv = NativeVecEnv(raw)
+        venv = make_native_vec_env(env_id.rpartition(":")[2], n, wrap=wrap, obs_mode=obs_mode, action_mode="twist",
+                                   max_episode_steps=None, **kw)
     else:
         factories = [_EnvFactory(env_id, env_kwargs, spec.name, spec.residual_scale, spec.sensor_noise_range,
                                  spec.reward) for _ in range(n)]

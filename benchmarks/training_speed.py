@@ -84,13 +84,12 @@ def configurations() -> dict:
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     from agents.rollout import make_env
-    from agents.sb3_vec_env import NativeVecEnv, make_native_vec_env
+    from agents.sb3_vec_env import make_native_vec_env
     from agents.wrappers import EKFFeatures, VectorEKFFeatures
 
     def native_ekf(scale: float):
-        raw = gym.make_vec(PHUNOPAS, num_envs=N_ENVS, vectorization_mode="vector_entry_point",
-                           autoreset_mode="same_step", obs_mode="sensors")
-        return NativeVecEnv(VectorEKFFeatures(raw, scale, "squared"))
+        return make_native_vec_env(PHUNOPAS, N_ENVS, wrap=lambda raw: VectorEKFFeatures(raw, scale, "squared"),
+                                   obs_mode="sensors")
 
     return {
         "Pendulum-v1, DummyVecEnv + Monitor (reference)": lambda: DummyVecEnv(

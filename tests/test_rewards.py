@@ -83,3 +83,30 @@ def test_reward_modes_and_bad_names():
         TrackingReward(gym.make(ENV, **KW), "quadratic")
     with pytest.raises(ValueError, match="TrackingReward needs an omni-gym environment"):
         TrackingReward(gym.make("Pendulum-v1"), "squared")
+
+
+def test_training_builds_the_same_privileged_reward_on_native_and_dummy_vec_envs():
+    """`omni-gym train` wraps the privileged env in VectorTrackingReward (native, the default) or
+    TrackingReward (dummy): per robot the same episodes, hence the same rewards up to float64 rounding."""
+    from agents.train import make_training_vec_env
+    from agents.zoo_config import WrapperSpec
+
+    spec = WrapperSpec(reward="squared")
+    kw = {"obs_mode": "state", "episode_seconds": 0.5, "lost_distance": 0.06, "randomize_friction": [0.7, 1.3]}
+    native, _ = make_training_vec_env("native", ENV, kw, spec, 3, seed=5)
+    dummy, _ = make_training_vec_env("dummy", ENV, kw, spec, 3, seed=5)
+    np.testing.assert_allclose(native.reset(), dummy.reset(), atol=1e-6)
+    rng = np.random.default_rng(2)
+    dones = 0
+    for _ in range(60):
+        a = rng.uniform(-1, 1, (3, 3)).astype(np.float32)
+        native.step_async(a)
+        dummy.step_async(a)
+        o1, r1, d1, _ = native.step_wait()
+        o2, r2, d2, _ = dummy.step_wait()
+        np.testing.assert_allclose(o1, o2, atol=1e-6)
+        np.testing.assert_allclose(r1, r2, rtol=1e-12, atol=1e-12)
+        assert np.array_equal(d1, d2)
+        dones += int(d1.sum())
+        assert np.all(r1 <= 0.0)  # the squared reward is never positive
+    assert dones >= 3  # episodes ended (lost or the 0.5 s = 50-step limit), so the reset rows were compared too
