@@ -44,6 +44,7 @@ bench-agents: $(STAMP)
 	$(PY) benchmarks/baselines.py --episodes 50 --out benchmarks/results
 	$(PY) benchmarks/rl_vs_baselines.py --models $(AGENT_MODELS) --episodes 50 --workers 2 --out benchmarks/results
 	$(PY) benchmarks/learning_curves.py --runs benchmarks/results/training_runs/* --out benchmarks/results
+	$(PY) benchmarks/headroom.py --episodes 50 --out benchmarks/results
 
 # The agents of issue 16 into runs/: PPO, three agents (privileged, residual, EKF features) x two ids x seeds,
 # 3 M steps each (3-12 min per run on the shared 2-core machine); SAC, the privileged agent (the upper
