@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import torch
 import yaml
+from stable_baselines3 import PPO
 
 from agents.evaluate import evaluate
 from agents.sb3_policy import ModelOptions, build, read_meta
@@ -136,3 +137,24 @@ def test_committed_model_evaluates_through_the_cli(capsys):
     out = json.loads(capsys.readouterr().out)
     api = evaluate(str(MODELS[0]), ENV, 1, 321, SHORT, progress=False)
     assert out["per_episode"] == api["per_episode"]
+
+
+def test_export_drops_the_optimizer_state_and_keeps_the_actions(tmp_path):
+    """agents.export_model (how the SAC models were made commit-sized) on a copy of a committed PPO model."""
+    import shutil
+
+    from agents.export_model import main as export_main
+
+    src = Path(__file__).resolve().parents[1] / "agents" / "models" / "ppo-residual-phunopas"
+    model = tmp_path / "m"
+    shutil.copytree(src, model)
+    before = (model / "model.zip").stat().st_size
+    assert export_main([str(model)]) == 0
+    # PPO's Adam keeps two moments per weight: the zip loses about two thirds of the weights' bytes.
+    assert (model / "model.zip").stat().st_size < 0.8 * before
+    assert json.loads((model / "meta.json").read_text())["optimizer_state"] == "dropped"
+    obs = np.random.default_rng(1).normal(size=(8, *PPO.load(src / "model.zip").observation_space.shape))
+    a1, _ = PPO.load(src / "model.zip", device="cpu").predict(obs.astype(np.float32), deterministic=True)
+    a2, _ = PPO.load(model / "model.zip", device="cpu").predict(obs.astype(np.float32), deterministic=True)
+    np.testing.assert_array_equal(a1, a2)
+    assert export_main([str(tmp_path / "missing")]) == 2  # no meta.json: one line on stderr, exit 2
