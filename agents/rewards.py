@@ -15,7 +15,8 @@ a ∈ [−1, 1]^A:
 
 The reward is a training signal only: no policy observes e.
 
-* :func:`tracking_reward`: the formula, for one robot or N at once.
+* :func:`tracking_reward`: the formula, for one robot or N at once; :func:`step_errors`: which error each
+  robot of a native vector env is rewarded for, in either autoreset mode.
 * :class:`TrackingReward` / :class:`VectorTrackingReward`: the reward alone, for agents without the
   EKF wrappers (the privileged-state agent), on a single or a native vector environment. The EKF
   wrappers (:mod:`agents.wrappers`) call :func:`tracking_reward` with their agent's action.
@@ -56,6 +57,25 @@ def tracking_reward(mode: str, env_reward, error, action, terminated, lost_dista
         return np.where(terminated, r - LOST_HORIZON * (lost_distance / ERROR_SCALE) ** 2, r)
     check_reward(mode)
     raise AssertionError("unreachable")
+
+
+def step_errors(info: dict, terminated, truncated, same_step: bool,
+                pending: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per robot of a native vector env: the tracking error [m] of the step it just took, and its autoreset.
+
+    ``SAME_STEP``: a robot that ended this step has its ended episode's error in ``info["final_info"]``;
+    ``done`` marks those robots. ``NEXT_STEP``: the robots in ``pending`` (ended on the previous step)
+    were reset by this step, their actions ignored: ``restart`` marks them. Returns ``(e, done, restart,
+    pending for the next step)``; the masks are (N,) booleans.
+    """
+    e = np.asarray(info["tracking_error"], dtype=float).copy()
+    ended = np.asarray(terminated | truncated, dtype=bool)
+    none = np.zeros(e.shape[0], dtype=bool)
+    if same_step:
+        if ended.any():
+            e[ended] = np.asarray(info["final_info"]["tracking_error"], dtype=float)[ended]
+        return e, ended, none, pending
+    return e, none, pending.copy(), ended
 
 
 def _omni_cfg(env, who: str):
@@ -106,15 +126,7 @@ class VectorTrackingReward(VectorWrapper):
 
     def step(self, actions):
         obs, reward, terminated, truncated, info = self.env.step(actions)
-        e = np.asarray(info["tracking_error"], dtype=float).copy()
-        restart = np.zeros(self.num_envs, dtype=bool)
-        if self.same_step:
-            done = np.asarray(terminated | truncated, dtype=bool)
-            if done.any():
-                e[done] = np.asarray(info["final_info"]["tracking_error"], dtype=float)[done]
-        else:
-            restart = self._autoreset.copy()
-            self._autoreset = np.asarray(terminated | truncated, dtype=bool)
+        e, _, restart, self._autoreset = step_errors(info, terminated, truncated, self.same_step, self._autoreset)
         a = np.clip(np.asarray(actions, dtype=float).reshape(self.num_envs, -1), -1.0, 1.0)
         r = tracking_reward(self.reward_mode, reward, e, a, terminated, self.lost_distance)
         r[restart] = 0.0

@@ -199,24 +199,17 @@ def make_training_vec_env(kind: str, env_id: str, env_kwargs: dict, spec: Wrappe
     if kind not in VEC_ENVS:
         raise ValueError(f"unknown vec_env {kind!r}; choose one of {', '.join(VEC_ENVS)}")
     if kind == "native":
-        from agents.rewards import VectorTrackingReward
         from agents.sb3_vec_env import make_native_vec_env
-        from agents.wrappers import VectorEKFFeatures
+        from agents.wrappers import wrap_vector_env
 
         kw = dict(env_kwargs)
         obs_mode = kw.pop("obs_mode", "sensors")  # as make_train_env: "state" is the privileged upper bound
         if spec.sensor_noise_range is not None:
             kw.setdefault("randomize_sensor_noise", tuple(spec.sensor_noise_range))
-
-        def wrap(raw):
-            if spec.name != "none":
-                scale = spec.residual_scale if spec.name == "residual-ekf-pid" else 0.0
-                return VectorEKFFeatures(raw, scale, spec.reward)
-            return raw if spec.reward == "env" else VectorTrackingReward(raw, spec.reward)
-
         # max_episode_steps=None: episodes end with the reference, as make_env matches the registered TimeLimit.
-        venv = make_native_vec_env(env_id.rpartition(":")[2], n, wrap=wrap, obs_mode=obs_mode, action_mode="twist",
-                                   max_episode_steps=None, **kw)
+        venv = make_native_vec_env(env_id.rpartition(":")[2], n,
+                                   wrap=lambda raw: wrap_vector_env(raw, spec.name, spec.residual_scale, spec.reward),
+                                   obs_mode=obs_mode, action_mode="twist", max_episode_steps=None, **kw)
     else:
         factories = [_EnvFactory(env_id, env_kwargs, spec.name, spec.residual_scale, spec.sensor_noise_range,
                                  spec.reward) for _ in range(n)]

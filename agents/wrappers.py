@@ -54,7 +54,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorWrapper
 from gymnasium.vector.utils import batch_space
 
-from agents.rewards import TrackingReward, check_reward, tracking_reward
+from agents.rewards import TrackingReward, VectorTrackingReward, check_reward, step_errors, tracking_reward
 from omni_gym.checks import wrap_angle
 
 WRAPPERS = ("none", "residual-ekf-pid", "ekf-features")
@@ -242,17 +242,7 @@ class VectorEKFFeatures(VectorWrapper):
         else:
             total = a
         obs, reward, terminated, truncated, info = self.env.step(total.astype(np.float32))
-        reward = np.asarray(reward, dtype=float).copy()
-        e = np.asarray(info["tracking_error"], dtype=float).copy()
-        if self.same_step:
-            done = np.asarray(terminated | truncated, dtype=bool)
-            restart = np.zeros(self.num, dtype=bool)
-            if done.any():
-                e[done] = np.asarray(info["final_info"]["tracking_error"], dtype=float)[done]
-        else:
-            done = np.zeros(self.num, dtype=bool)
-            restart = self._autoreset.copy()
-            self._autoreset = np.asarray(terminated | truncated, dtype=bool)
+        e, done, restart, self._autoreset = step_errors(info, terminated, truncated, self.same_step, self._autoreset)
         live = ~restart
         self.prev_action[live] = a[live]
         reward = tracking_reward(self.reward_mode, reward, e, a, terminated, self.lost_distance)
@@ -368,3 +358,16 @@ def wrap_env(env: gym.Env, name: str = "none", residual_scale: float = 0.3,
     elif reward != "env":  # the privileged agent: the reward alone
         env = TrackingReward(env, reward)
     return env
+
+
+def wrap_vector_env(env, name: str = "none", residual_scale: float = 0.3, reward: str = "env"):
+    """:func:`wrap_env` for a native vector environment: the named wrapper as :class:`VectorEKFFeatures`,
+    or the reward alone (:class:`agents.rewards.VectorTrackingReward`). The sensor-noise randomiser has
+    no vector twin: give the environment keyword ``randomize_sensor_noise`` instead."""
+    if name not in WRAPPERS:
+        raise ValueError(f"unknown wrapper {name!r}; choose one of {', '.join(WRAPPERS)}")
+    if name == "residual-ekf-pid":
+        return VectorEKFFeatures(env, residual_scale, reward)
+    if name == "ekf-features":
+        return VectorEKFFeatures(env, 0.0, reward)
+    return env if reward == "env" else VectorTrackingReward(env, reward)

@@ -37,7 +37,7 @@ from tqdm import tqdm  # noqa: E402
 from agents.batched.policies import make_vector_policy  # noqa: E402
 from agents.evaluate import summarize  # noqa: E402
 from agents.vector_rollout import make_vector_env, run_episodes_vector  # noqa: E402
-from omni_gym.envs.observations import POS_SCALE  # noqa: E402
+from omni_gym.envs.observations import StateObsDecoder  # noqa: E402
 from omni_gym.outputs import write_text_atomic  # noqa: E402
 
 ENV_IDS = ("OmniPathFollow-Phunopas-v0", "OmniPathFollow-Williams-v1")
@@ -51,11 +51,8 @@ class TrueStateFeedback:
     """
 
     def __init__(self, vec_env, gain: float) -> None:
-        u = vec_env.unwrapped
-        layout, sc = u.observation_layout, u.obs_scales
-        self.err = layout["tracking_error_body"]
-        self.head = layout["heading_error"]
-        self.ref = layout["reference_velocity"]
+        self.decode = StateObsDecoder.for_env(vec_env)
+        sc = self.decode.scales
         self.gain = float(gain)
         self.twist_scale = np.array([sc.max_speed, sc.max_speed, sc.max_yaw_rate])
 
@@ -63,12 +60,10 @@ class TrueStateFeedback:
         """Nothing to reset: the law reads only the current observation."""
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        o = np.asarray(obs, dtype=float)
-        e_xy = o[:, self.err] * POS_SCALE  # m, body frame
-        e_th = o[:, self.head][:, 0] * np.pi  # rad
-        ref = o[:, self.ref] * self.twist_scale  # m/s, m/s, rad/s
-        twist = ref + self.gain * np.column_stack([e_xy, e_th])
-        return np.clip(twist / self.twist_scale, -1.0, 1.0)
+        rows = [self.decode(o) for o in obs]  # SI units, body frame of each robot
+        ref = np.array([r.reference_velocity for r in rows])  # m/s, m/s, rad/s
+        err = np.array([[*r.tracking_error_body, r.heading_error] for r in rows])  # m, m, rad
+        return np.clip((ref + self.gain * err) / self.twist_scale, -1.0, 1.0)
 
 
 def run(env_id: str, cond: str, seeds: list[int], gain: float | None) -> list:
