@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
-from baselines import CONDITIONS, paired_bootstrap_ratio  # noqa: E402
+from baselines import CONDITIONS, fmt_ci, paired_bootstrap_ratio  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from agents.batched.policies import make_vector_policy  # noqa: E402
@@ -107,8 +107,7 @@ def main(argv: list[str] | None = None) -> int:
         for cond in CONDITIONS:
             base = results[(env_id, cond, None)]
             b = np.array([e.tracking_rmse for e in base])
-            s = summarize(base)["tracking_rmse"]
-            row = [env_id, cond, f"{s['mean']:.4f} [{s['ci95'][0]:.4f}, {s['ci95'][1]:.4f}]"]
+            row = [env_id, cond, fmt_ci(summarize(base)["tracking_rmse"])]
             for g in args.gains:
                 eps = results[(env_id, cond, g)]
                 v = np.array([e.tracking_rmse for e in eps])
@@ -117,10 +116,9 @@ def main(argv: list[str] | None = None) -> int:
                 row.append(f"{v.mean():.4f} ({v.mean() / b.mean():.2f} [{ci[0]:.2f}, {ci[1]:.2f}])"
                            + (f", {lost} lost" if lost else ""))
             lines.append("| " + " | ".join(row) + " |")
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(out / "headroom.md", "\n".join(lines) + "\n")
-    print(f"wrote {out / 'headroom.md'}")
+    path = Path(args.out) / "headroom.md"
+    write_text_atomic(path, "\n".join(lines) + "\n")  # creates the folder
+    print(f"wrote {path}")
     return 0
 
 

@@ -60,7 +60,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from baselines import CONDITIONS, paired_bootstrap_ratio  # noqa: E402
+from baselines import CONDITIONS, fmt_ci, paired_bootstrap_ratio  # noqa: E402
 from scipy import stats  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
@@ -239,11 +239,6 @@ def is_privileged(policy: str, metas: dict) -> bool:
 
 def label(policy: str, metas: dict) -> str:
     return f"{label_plain(policy)} ({PRIVILEGED})" if is_privileged(policy, metas) else label_plain(policy)
-
-
-def fmt_ci(r: dict, digits: int = 4) -> str:
-    lo, hi = r["ci95"]
-    return f"{r['mean']:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
 
 
 def fmt_cmp(c: Comparison) -> str:
