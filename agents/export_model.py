@@ -19,18 +19,18 @@ from pathlib import Path
 import numpy as np
 
 from agents.algorithms import algorithm_class
+from agents.sb3_policy import read_meta
 from omni_gym.outputs import write_text_atomic
 
 
 def export(model_dir: str | Path) -> int:
     """Drop the optimizer state of ``model_dir``'s model in place; returns the new zip size [bytes]."""
     d = Path(model_dir)
-    meta_path = d / "meta.json"
-    if not meta_path.is_file():
-        raise ValueError(f"{d}: no meta.json (not a model directory of omni-gym train)")
-    meta = json.loads(meta_path.read_text())
+    meta = read_meta(d)  # the checks (and one-line messages) of evaluation's loader
     cls = algorithm_class(meta["algo"])
     zip_path = d / meta["model"]
+    if not zip_path.is_file():
+        raise ValueError(f"{zip_path}: no such model file (named by {d / 'meta.json'})")
     model = cls.load(zip_path, device="cpu")
     obs = np.random.default_rng(0).normal(size=(64, *model.observation_space.shape)).astype(np.float32)
     before, _ = model.predict(obs, deterministic=True)
@@ -45,10 +45,10 @@ def export(model_dir: str | Path) -> int:
     after, _ = cls.load(tmp, device="cpu").predict(obs, deterministic=True)
     if not np.array_equal(before, after):
         tmp.unlink()
-        raise RuntimeError(f"{zip_path}: the exported model acts differently; not exported")
+        raise ValueError(f"{zip_path}: the exported model would act differently; left unchanged")
     os.replace(tmp, zip_path)  # the original stays whole until the export is checked
     meta["optimizer_state"] = "dropped"
-    write_text_atomic(meta_path, json.dumps(meta, indent=2, default=str) + "\n")
+    write_text_atomic(d / "meta.json", json.dumps(meta, indent=2, default=str) + "\n")
     return zip_path.stat().st_size
 
 
