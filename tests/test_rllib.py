@@ -109,28 +109,12 @@ def test_restored_checkpoint_evaluates_as_its_validation_and_deterministically(t
     assert bare["per_episode"] == first["per_episode"]
 
 
-def test_env_runner_steps_the_native_vector_env(ray_cluster, tmp_path):
-    from agents.rllib.config import load, ppo_config
-    from agents.rllib.env import register_training_env
-
-    env_id = PATH_IDS[0]
-    hp = load(env_id, _tiny_file(tmp_path, env_id))
-    config = ppo_config(hp, {"env_id": env_id, "reward": "squared", "seed": 7, "obs_mode": "state"}, 4, 1, 7,
-                        register_training_env())
-    algo = config.build_algo()
-    try:
-        def describe(runner):
-            env, names = runner.env, []
-            while env is not None:
-                names.append(type(env).__name__)
-                env = getattr(env, "env", None)
-            return names, str(runner.env.unwrapped.metadata["autoreset_mode"]), runner.env.num_envs
-
-        [(names, mode, n)] = algo.env_runner_group.foreach_env_runner(describe, local_env_runner=False)
-    finally:
-        algo.stop()
-    assert names[-1] == "OmniPathVectorEnv" and "VectorTrackingReward" in names and "DistinctSeeds" in names
-    assert "SyncVectorEnv" not in names and n == 4 and mode.endswith("NEXT_STEP")
+def test_each_env_runner_steps_the_native_vector_env(trained):
+    _, out = trained
+    meta = json.loads((out / "meta.json").read_text())
+    [stack] = meta["env_runner_envs"]  # one env runner actor: its env, outermost wrapper first
+    assert stack.endswith("DistinctSeeds(VectorTrackingReward(OmniPathVectorEnv)))"), stack
+    assert "SyncVectorEnv" not in stack
 
 
 def test_registry_creators_build_the_native_vector_env_and_distinct_seeds():

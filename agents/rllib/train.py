@@ -62,6 +62,23 @@ def iteration_stats(result: dict) -> IterationStats:
     return IterationStats(int(steps or 0), float(ret) if finite else None)
 
 
+def env_stack(runner) -> str:
+    """The env runner's environment as nested class names, outermost first, e.g.
+    ``DictInfoToList(DistinctSeeds(VectorTrackingReward(OmniPathVectorEnv)))`` (recorded in meta.json)."""
+    names, env = [], runner.env
+    while env is not None and len(names) < 20:
+        names.append(type(env).__name__)
+        env = getattr(env, "env", None)
+    return "(".join(names) + ")" * (len(names) - 1)
+
+
+def runner_envs(algo, num_env_runners: int) -> list[str]:
+    """:func:`env_stack` of every env runner that samples (the driver's with 0 env runner actors)."""
+    if num_env_runners == 0:
+        return [env_stack(algo.env_runner)]
+    return list(algo.env_runner_group.foreach_env_runner(env_stack, local_env_runner=False))
+
+
 @contextlib.contextmanager
 def ray_session(address: str | None, num_env_runners: int) -> Iterator[None]:
     """Connect to the cluster at ``address`` or start a local Ray (stopped afterwards); if this process is
@@ -170,6 +187,7 @@ def train_into(env_id: str, timesteps: int | None, seed: int, out: str | Path, e
             env_config = {**kw, "env_id": env_id, "reward": hp.spec.reward, "seed": seed}
             algo = ppo_config(hp, env_config, n, num_env_runners, seed, name, where).build_algo()
             try:
+                meta["env_runner_envs"] = runner_envs(algo, num_env_runners)
                 run.loop(algo, budget, eval_freq, checkpoint_freq, max_minutes)
             finally:
                 algo.stop()
