@@ -29,6 +29,8 @@ import sys
 import numpy as np
 
 from agents.policies import POLICY_NAMES, make_policy
+from agents.rllib.policy import build as build_rllib
+from agents.rllib.policy import is_rllib_model
 from agents.rollout import Episode, make_env, run_episode
 from agents.sb3_policy import build
 
@@ -114,7 +116,8 @@ def evaluate(policy: str, env_id: str, episodes: int, seed: int, env_kwargs: dic
     Args:
         policy: one of :data:`~agents.policies.POLICY_NAMES`, or a trained model: our model directory
             (``meta.json`` + model zip), an RL Zoo output folder or a plain SB3 ``.zip`` (see
-            :mod:`agents.sb3_policy`; it builds the environment and wrapper the model needs).
+            :mod:`agents.sb3_policy`; it builds the environment and wrapper the model needs), or an RLlib
+            model (our ``--backend rllib`` directory or a bare RLlib checkpoint; :mod:`agents.rllib.policy`).
         env_id: a registered omni-gym id.
         episodes: number of episodes (≥ 1).
         seed: first seed.
@@ -142,6 +145,10 @@ def evaluate(policy: str, env_id: str, episodes: int, seed: int, env_kwargs: dic
 
     if scripted:
         env = make_env(env_id, env_kwargs)
+    elif is_rllib_model(policy):  # an RLlib checkpoint (agents/rllib): no SB3 options apply
+        if model_options is not None and model_options.given():
+            raise ValueError(f"{model_options.given()[0]} applies to an SB3 model, not to the RLlib model {policy}")
+        env, pol = build_rllib(policy, env_id, env_kwargs)
     else:  # a trained model: it knows (or the options say) its observation mode and wrapper
         env, pol = build(policy, env_id, env_kwargs, model_options)
     try:

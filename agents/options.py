@@ -30,7 +30,14 @@ TRAIN: dict[str, Bound] = {b.name: b for b in (
           "would train nothing yet write a model); 30 days is longer than any run", lo_open=True),
     Bound("--threads", 1, 1024, "", "torch threads: at least one (torch refuses 0, which was silently "
           "replaced by 1); 1024 exceeds any machine's cores", integer=True),
+    Bound("--num-env-runners", 0, 1024, "", "RLlib env runner actors (0: sample in the training process); "
+          "each needs a CPU of the Ray cluster, 1024 exceeds any cluster this runs on", integer=True),
 )}
+
+BACKENDS = ("sb3", "rllib")
+# Options that only one backend reads: option -> (attribute, backend). Given with the other, they are refused.
+BACKEND_ONLY = {"--address": ("address", "rllib"), "--num-env-runners": ("num_env_runners", "rllib"),
+                "--tensorboard": ("tensorboard", "sb3")}
 
 EVALUATE: dict[str, Bound] = {b.name: b for b in (
     Bound("--episodes", 1, 100_000, "", "at least one episode; 10⁵ episodes of 20 s is days of "
@@ -65,6 +72,24 @@ def parse_env_kwargs(text: str | None) -> dict | None:
 def check_train_args(args: argparse.Namespace) -> None:
     """Refuse a ``train`` option outside :data:`TRAIN` (ValueError naming the option)."""
     _check(TRAIN, args)
+
+
+def check_backend_args(args: argparse.Namespace) -> None:
+    """Refuse options that the chosen ``--backend`` does not read (ValueError naming the option).
+
+    sb3 needs ``--algo``; rllib trains PPO on the native vector env only (``--algo ppo``, ``--vec-env native``).
+    """
+    backend = getattr(args, "backend", "sb3")
+    for option, (attr, only) in BACKEND_ONLY.items():
+        if getattr(args, attr, None) is not None and backend != only:
+            raise ValueError(f"{option} applies to --backend {only}, not --backend {backend}")
+    if backend == "sb3" and getattr(args, "algo", None) is None:
+        raise ValueError("--algo is required with --backend sb3 (ppo, sac or td3)")
+    if backend == "rllib":
+        if getattr(args, "algo", None) not in (None, "ppo"):
+            raise ValueError(f"--algo {args.algo}: --backend rllib trains ppo only")
+        if getattr(args, "vec_env", "native") != "native":
+            raise ValueError(f"--vec-env {args.vec_env}: --backend rllib steps the native vector env only")
 
 
 def check_evaluate_args(args: argparse.Namespace) -> None:

@@ -66,7 +66,7 @@ import numpy as np
 
 from agents import require_agents_extra
 from agents.algorithms import ALGOS, algorithm_class
-from agents.options import check_train_args, parse_env_kwargs
+from agents.options import BACKENDS, check_backend_args, check_train_args, parse_env_kwargs
 from agents.rollout import make_env, run_episode
 from agents.sb3_policy import SB3Policy
 from agents.wrappers import wrap_env
@@ -329,7 +329,8 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
         init_residual(model, init_factor, init_log_std)
 
     meta = {
-        "algo": algo, "env_id": env_id, "train_env_kwargs": kw, "wrapper": wrapper, "residual_scale": residual_scale,
+        "backend": "sb3", "algo": algo, "env_id": env_id, "train_env_kwargs": kw, "wrapper": wrapper,
+        "residual_scale": residual_scale,
         "sensor_noise_range": noise, "obs_mode": kw.get("obs_mode", "sensors"), "seed": seed, "n_envs": n,
         "vec_env": vec_env, "reward": reward,
         "hyperparams_file": os.path.relpath(where, Path(__file__).resolve().parents[1]) if hyperparams is None
@@ -427,18 +428,13 @@ class _TrainingMixin:
         return True
 
     def _validate(self) -> None:
-
         if self._eval_env is None:
             self._eval_env = wrap_env(self._base_env(), self.meta["wrapper"], self.meta["residual_scale"])
         vn = self.model.get_vec_normalize_env()
-        pol = SB3Policy(self.model, vn, self._eval_env)
-        eps = [run_episode(self._eval_env, pol, VALIDATION_SEED + i) for i in range(self.eval_episodes)]
-        rmse = float(np.mean([e.tracking_rmse for e in eps]))
-        row = {"timesteps": int(self.num_timesteps), "wall_s": round(time.time() - self._t0, 1),
-               "val_tracking_rmse": rmse, "val_final_error": float(np.mean([e.final_position_error for e in eps])),
-               "val_success": float(np.mean([e.success for e in eps])),
-               "train_ep_reward": self._train_reward()}
+        row = validation_row(self._eval_env, SB3Policy(self.model, vn, self._eval_env), self.eval_episodes,
+                             int(self.num_timesteps), time.time() - self._t0, self._train_reward())
         self.rows.append(row)
+        rmse = row["val_tracking_rmse"]
         # The untrained policy (step 0) is a reference point on the curve, not a candidate.
         if self.num_timesteps > 0 and (self.best is None or rmse < self.best["val_tracking_rmse"]):
             self.best = dict(row)
@@ -449,7 +445,7 @@ class _TrainingMixin:
         self.write_curve()
         if self._bar is not None and self.show:
             self._bar.set_postfix(val_rmse=f"{rmse:.4f}", best=f"{self.best['val_tracking_rmse']:.4f}")
-        print(json.dumps(row), file=sys.stderr if self.show else sys.stdout, flush=True)
+        print_progress(row, self.show)
 
     def _train_reward(self) -> float | None:
         buf = getattr(self.model, "ep_info_buffer", None)
@@ -458,21 +454,48 @@ class _TrainingMixin:
         return float(np.mean([e["r"] for e in buf]))
 
     def write_curve(self) -> None:
-        """curve.csv and curve.png (validation tracking RMSE and training episode reward vs timesteps)."""
-        if not self.rows:
-            return
-        from omni_gym.io import write_csv_atomic
-
-        cols = ["timesteps", "wall_s", "val_tracking_rmse", "val_final_error", "val_success", "train_ep_reward"]
-        data = np.array([[math.nan if r[c] is None else r[c] for c in cols] for r in self.rows], dtype=float)
-        write_csv_atomic(self.out / "curve.csv", cols, data)
-        _plot_curve(self.out / "curve.png", data, self.meta)
+        """curve.csv and curve.png (:func:`write_curve`)."""
+        write_curve(self.out, self.rows, self.meta)
 
     def close(self) -> None:
         if self._bar is not None:
             self._bar.close()
         if self._eval_env is not None:
             self._eval_env.close()
+
+
+CURVE_COLUMNS = ("timesteps", "wall_s", "val_tracking_rmse", "val_final_error", "val_success", "train_ep_reward")
+
+
+def validation_row(env, policy, episodes: int, timesteps: int, wall_s: float, train_reward: float | None) -> dict:
+    """One row of the training curve: ``policy`` on ``episodes`` validation episodes of ``env`` (seeds
+    ``VALIDATION_SEED``…). Keys :data:`CURVE_COLUMNS`: ``timesteps`` (environment steps so far),
+    ``wall_s`` [s] since training started, the mean validation tracking RMSE and final position error [m],
+    the success fraction, and ``train_ep_reward`` (the backend's mean training episode return, or None).
+    Every backend validates through this function, so their curves compare."""
+    eps = [run_episode(env, policy, VALIDATION_SEED + i) for i in range(episodes)]
+    return {"timesteps": int(timesteps), "wall_s": round(wall_s, 1),
+            "val_tracking_rmse": float(np.mean([e.tracking_rmse for e in eps])),
+            "val_final_error": float(np.mean([e.final_position_error for e in eps])),
+            "val_success": float(np.mean([e.success for e in eps])),
+            "train_ep_reward": None if train_reward is None else float(train_reward)}
+
+
+def print_progress(row: dict, to_stderr: bool) -> None:
+    """A validation row as one JSON line: on stderr beside a progress bar, else on stdout (also when piped)."""
+    print(json.dumps(row), file=sys.stderr if to_stderr else sys.stdout, flush=True)
+
+
+def write_curve(out: Path, rows: list[dict], meta: dict) -> None:
+    """``out/curve.csv`` and ``out/curve.png`` (validation tracking RMSE and training episode reward vs
+    timesteps) from :func:`validation_row` rows; nothing without rows."""
+    if not rows:
+        return
+    from omni_gym.io import write_csv_atomic
+
+    data = np.array([[math.nan if r[c] is None else r[c] for c in CURVE_COLUMNS] for r in rows], dtype=float)
+    write_csv_atomic(out / "curve.csv", list(CURVE_COLUMNS), data)
+    _plot_curve(out / "curve.png", data, meta)
 
 
 def _plot_curve(path: Path, data: np.ndarray, meta: dict) -> None:
@@ -493,7 +516,8 @@ def _plot_curve(path: Path, data: np.ndarray, meta: dict) -> None:
     ax[1].set_xlabel("timesteps")
     ax[1].set_ylabel("training episode reward (mean of last 100)")
     ax[1].grid(alpha=0.3)
-    fig.suptitle(f"{meta['algo']} / {meta['wrapper']} on {meta['env_id']} (seed {meta['seed']})")
+    algo = meta["algo"] if meta.get("backend", "sb3") == "sb3" else f"{meta['backend']} {meta['algo']}"
+    fig.suptitle(f"{algo} / {meta['wrapper']} on {meta['env_id']} (seed {meta['seed']})")
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
@@ -504,7 +528,11 @@ def _plot_curve(path: Path, data: np.ndarray, meta: dict) -> None:
 def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     """Arguments of ``omni-gym train`` (also used by ``python -m agents.train``)."""
     p = parser or argparse.ArgumentParser(prog="python -m agents.train", description=__doc__.splitlines()[0])
-    p.add_argument("--algo", required=True, choices=ALGOS, help="SB3 algorithm")
+    p.add_argument("--backend", choices=BACKENDS, default="sb3",
+                   help="sb3 (Stable-Baselines3; default) or rllib (Ray RLlib PPO, agents/rllib; needs the rllib "
+                        "extra)")
+    p.add_argument("--algo", default=None, choices=ALGOS,
+                   help="SB3 algorithm (required with --backend sb3; rllib trains ppo)")
     p.add_argument("--env", required=True, help="environment id, e.g. OmniPathFollow-Phunopas-v0")
     p.add_argument("--timesteps", type=float, default=None,
                    help="environment steps, 1 to 1e9 (default: n_timesteps in YAML)")
@@ -523,6 +551,11 @@ def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.
     p.add_argument("--max-minutes", type=float, default=None,
                    help="stop training after this wall time [min], > 0 (default: no limit)")
     p.add_argument("--threads", type=int, default=1, help="torch threads, >= 1 (default 1)")
+    p.add_argument("--address", default=None,
+                   help="rllib: a running Ray cluster's address HOST:PORT (default: start a local Ray for the run)")
+    p.add_argument("--num-env-runners", type=int, default=None,
+                   help="rllib: env runner actors, each stepping --n-envs robots in one native vector env "
+                        "(default 0: sample in the training process)")
     p.add_argument("--force", action="store_true",
                    help="replace an existing model directory (default: refuse; the directory appears complete "
                         "or not at all, see docs/formats.md)")
@@ -534,13 +567,16 @@ def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.
 
 def command_line(prog: str, args: argparse.Namespace) -> str:
     """The full command (every option spelled out) that reproduces ``args``; recorded in meta.json."""
-    parts = [prog, "--algo", args.algo, "--env", args.env]
+    backend = getattr(args, "backend", "sb3")
+    parts = [prog, *(["--backend", backend] if backend != "sb3" else []), "--algo", args.algo or "ppo",
+             "--env", args.env]
     if args.timesteps is not None:
         parts += ["--timesteps", str(int(args.timesteps))]
     parts += ["--seed", str(args.seed), "--out", args.out]
     for opt, value in (("--env-kwargs", args.env_kwargs), ("--hyperparams", args.hyperparams),
                        ("--n-envs", args.n_envs), ("--tensorboard", args.tensorboard),
-                       ("--max-minutes", args.max_minutes)):
+                       ("--max-minutes", args.max_minutes), ("--address", getattr(args, "address", None)),
+                       ("--num-env-runners", getattr(args, "num_env_runners", None))):
         if value is not None:
             parts += [opt, str(value)]
     parts += ["--vec-env", args.vec_env, "--eval-freq", str(args.eval_freq), "--eval-episodes",
@@ -552,6 +588,9 @@ def run_from_args(args: argparse.Namespace, command: str | None = None) -> dict:
     """Validate parsed arguments (:mod:`agents.options`) and call :func:`train`."""
 
     check_train_args(args)  # before anything is locked, read or written
+    check_backend_args(args)
+    if getattr(args, "backend", "sb3") != "sb3":
+        raise ValueError("--backend rllib trains through omni-gym train or python -m agents.rllib.train")
     require_agents_extra("omni-gym train")
     kwargs = parse_env_kwargs(args.env_kwargs)
     if args.tensorboard is not None:

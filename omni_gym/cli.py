@@ -51,7 +51,8 @@ def build_parser() -> argparse.ArgumentParser:
     ev = sub.add_parser("evaluate", help="evaluate a policy on held-out seeds (mean and 95%% CI per metric)")
     ev.add_argument("--policy", required=True,
                     help="open-loop, odometry-pid, ekf-pid, ekf-pid-traction, or a trained model: our model "
-                         "directory (meta.json), an RL Zoo output folder (logs/ALGO/ENV_1) or a plain SB3 .zip")
+                         "directory (meta.json), an RL Zoo output folder (logs/ALGO/ENV_1), a plain SB3 .zip or "
+                         "an RLlib checkpoint folder (rllib_checkpoint.json)")
     ev.add_argument("--env", required=True, help="environment id, e.g. OmniPathFollow-Phunopas-v0")
     ev.add_argument("--episodes", type=int, required=True, help="number of episodes, 1 to 100000")
     ev.add_argument("--seed", type=int, required=True, help="first seed (>= 0); episode i uses seed + i")
@@ -67,7 +68,8 @@ def build_parser() -> argparse.ArgumentParser:
     show.set_defaults(handler=_cmd_model_show)
     sim.set_defaults(handler=_cmd_simulate)
     ev.set_defaults(handler=_cmd_evaluate)
-    tr = sub.add_parser("train", help="train an SB3 agent (ppo, sac, td3) with hyperparameters from agents/hyperparams")
+    tr = sub.add_parser("train", help="train an SB3 agent (ppo, sac, td3; hyperparameters from agents/hyperparams) "
+                                      "or RLlib PPO (--backend rllib; agents/rllib)")
     _add_train_options(tr)
     tr.set_defaults(handler=_cmd_train)
     gp = sub.add_parser("gap", help="find, name and add the effect missing from a dataset's nominal model")
@@ -141,10 +143,13 @@ def check_option(option: str, value) -> None:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    from agents.options import check_train_args
+    from agents.options import check_backend_args, check_train_args
     from agents.train import command_line, run_from_args
 
     check_train_args(args)  # before the command line is spelled out (it rounds --timesteps)
+    check_backend_args(args)
+    if args.backend == "rllib":
+        from agents.rllib.train import run_from_args
     try:
         meta = run_from_args(args, command_line("omni-gym train", args))
     except ImportError as exc:  # a missing extra: one line naming it (agents.require_agents_extra)

@@ -14,6 +14,7 @@ Layers (a module belongs to the longest prefix in :data:`LAYERS` that names it),
 * ``omni_gym.analysis``: the validation integrator and the max-force analysis, on the physics;
 * core: the other ``omni_gym`` modules (sensors, trajectories, the package ``__init__``), on the physics;
 * ``omni_gym.envs``: the Gymnasium environments, on core;
+* ``omni_gym.rllib``: the ids registered with Ray's registry, on the environments (no agents);
 * ``omni_gym.discrepancy``: the ``gap``/``synth`` workflow, on core only (no environments, no agents);
 * ``agents``: baselines and SB3 training, on core and the environments (not the discrepancy workflow);
 * ``omni_gym.cli``: the command line, on top of everything.
@@ -40,8 +41,9 @@ LAYERS: dict[str, set[str] | None] = {
     "omni_gym.analysis": PHYSICS | {"omni_gym.analysis"},
     "omni_gym": CORE,
     "omni_gym.envs": CORE | {"omni_gym.envs"},
+    "omni_gym.rllib": CORE | {"omni_gym.envs", "omni_gym.rllib"},
     "omni_gym.discrepancy": CORE | {"omni_gym.discrepancy"},
-    "agents": CORE | {"omni_gym.envs", "agents"},
+    "agents": CORE | {"omni_gym.envs", "omni_gym.rllib", "agents"},
     "omni_gym.cli": None,  # on top: imports anything
 }
 # (importer, imported) pairs allowed against the layers, with the reason.

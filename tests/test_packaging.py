@@ -40,8 +40,9 @@ def wheel(tmp_path_factory) -> Path:
 def test_wheel_ships_the_hyperparameter_files(wheel):
     """Issue 12 item 3: a non-editable install left out agents/hyperparams/*.yml, so `omni-gym train` failed."""
     names = set(zipfile.ZipFile(wheel).namelist())
-    committed = sorted(p.relative_to(ROOT).as_posix() for p in (ROOT / "agents" / "hyperparams").glob("*.yml"))
-    assert committed and set(committed) <= names
+    for folder in ("hyperparams", "rllib"):  # agents/rllib/ppo.yml: omni-gym train --backend rllib (issue 17)
+        committed = sorted(p.relative_to(ROOT).as_posix() for p in (ROOT / "agents" / folder).glob("*.yml"))
+        assert committed and set(committed) <= names
     for module in ("agents/train.py", "agents/callbacks.py", "omni_gym/cli.py", "omni_gym/envs/__init__.py"):
         assert module in names
     assert not any(n.startswith("agents/models/") for n in names)  # the committed models stay in the checkout
@@ -56,7 +57,7 @@ def test_wheel_metadata_version_and_entry_point(wheel):
     (entry,) = [n for n in z.namelist() if n.endswith(".dist-info/entry_points.txt")]
     assert "omni-gym = omni_gym.cli:main" in z.read(entry).decode()
     extras = z.read(meta).decode()
-    for extra in ("agents", "render", "dev"):
+    for extra in ("agents", "render", "dev", "rllib"):
         assert f"Provides-Extra: {extra}" in extras
 
 
