@@ -117,8 +117,8 @@ def test_gap_survives_a_worker_killed_mid_task(dataset, local_report, ray_cluste
 
 def test_gap_cli_with_ray_address_equals_the_local_run(dataset, local_report, ray_cluster, tmp_path) -> None:
     """A second process joins the cluster by address (``--ray ADDRESS``; the token of the cluster's
-    ``ray.init`` is sent, RAY_AUTH_MODE=token being inherited). All candidates but FAST are removed
-    through a sitecustomize-free route: the subprocess runs the same patch as ``fast_library``."""
+    ``ray.init`` is sent, RAY_AUTH_MODE=token being inherited). The subprocess applies the same
+    candidate patch as ``fast_library`` before calling the CLI's main."""
     out = tmp_path / "rep"
     code = ("import sys; from omni_gym.discrepancy import candidates, workflow; "
             f"workflow.candidates = lambda m: [c for c in candidates.candidates(m) if c.name in {FAST!r}]; "
