@@ -26,6 +26,7 @@ Writes ``baselines.md`` (command line first) and ``baselines.png`` (bars with 95
 ``--out``: one section per id. Usage::
 
     python benchmarks/baselines.py [--episodes 50] [--confirm-episodes 200] [--seed 10000] [--workers 2]
+                                   [--ray [ADDRESS]]
                                    [--env ID ...] [--out benchmarks/results]
 """
 
@@ -36,7 +37,6 @@ import os
 import shlex
 import sys
 import time
-from multiprocessing import get_context
 from pathlib import Path
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
@@ -51,6 +51,7 @@ from tqdm import tqdm  # noqa: E402
 from agents.evaluate import METRICS, summarize  # noqa: E402
 from agents.policies import POLICY_NAMES, make_policy  # noqa: E402
 from agents.rollout import Episode, make_env, run_episode  # noqa: E402
+from omni_gym.parallel import SERIAL, Backend, parallel_map  # noqa: E402
 
 GOAL_ENV = "OmniPathFollow-Phunopas-v0"  # the goal and the confirmation run are defined on this id
 ENV_IDS = (GOAL_ENV, "OmniPathFollow-Williams-v0")
@@ -88,8 +89,18 @@ def _episode(task: tuple[str, str, str, int, str]) -> tuple[tuple[str, str, str,
     return (env_id, policy, cond, tag), run_episode(env, pol, seed)
 
 
-def run_all(env_ids: list[str], episodes: int, seed: int, confirm: int, workers: int) -> dict:
-    """Episodes keyed by (id, policy, condition, tag): tag "" for the table, CONFIRM for the confirmation run."""
+CHUNK = 5  # episodes per task (a worker builds an env and policy once per id, policy and condition)
+
+
+def _episodes(chunk: list[tuple[str, str, str, int, str]]) -> list[tuple[tuple[str, str, str, str], Episode]]:
+    """A task: a few episodes, one after another, in a worker (or in this process)."""
+    return [_episode(task) for task in chunk]
+
+
+def run_all(env_ids: list[str], episodes: int, seed: int, confirm: int, backend: Backend = SERIAL) -> dict:
+    """Episodes keyed by (id, policy, condition, tag): tag "" for the table, CONFIRM for the confirmation run.
+
+    Each episode is a function of its seed alone, so the result is the same on every backend."""
     tasks = [(e, p, c, seed + i, "") for e in env_ids for c in CONDITIONS for p in POLICY_NAMES
              for i in range(episodes)]
     if GOAL_ENV in env_ids:
@@ -97,16 +108,10 @@ def run_all(env_ids: list[str], episodes: int, seed: int, confirm: int, workers:
                   for i in range(confirm)]
     out: dict = {}
     bar = tqdm(total=len(tasks), desc="baseline episodes", file=sys.stderr, unit="ep")
-    if workers > 1:
-        with get_context("spawn").Pool(workers) as pool:
-            for key, ep in pool.imap_unordered(_episode, tasks, chunksize=5):
-                out.setdefault(key, []).append(ep)
-                bar.update()
-    else:
-        for task in tasks:
-            key, ep = _episode(task)
-            out.setdefault(key, []).append(ep)
-            bar.update()
+    chunks = [tasks[i:i + CHUNK] for i in range(0, len(tasks), CHUNK)]
+    done = parallel_map(_episodes, chunks, backend, on_done=lambda _i, eps: bar.update(len(eps)))
+    for key, ep in (x for chunk in done for x in chunk):
+        out.setdefault(key, []).append(ep)
     bar.close()
     return {k: sorted(v, key=lambda e: e.seed) for k, v in out.items()}
 
@@ -273,6 +278,9 @@ def main(argv: list[str] | None = None) -> int:
                          "(default 200; 0: skip)")
     ap.add_argument("--seed", type=int, default=10_000, help="first seed (default 10000, held out from tests)")
     ap.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
+    ap.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
+                    help="run the episode batches as Ray tasks: on the cluster at ADDRESS, or without it on a fresh "
+                         "local Ray with --workers CPUs (same table)")
     ap.add_argument("--env", action="append", choices=ENV_IDS, dest="envs",
                     help=f"environment id (repeatable; default both: {', '.join(ENV_IDS)})")
     ap.add_argument("--out", default="benchmarks/results", help="output directory")
@@ -284,7 +292,9 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     command = "python benchmarks/baselines.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
     t0 = time.time()
-    runs = run_all(env_ids, args.episodes, args.seed, max(0, args.confirm_episodes), max(1, args.workers))
+    backend = Backend(jobs=max(1, args.workers), ray=args.ray is not None, address=args.ray or None)
+    backend.preflight()
+    runs = run_all(env_ids, args.episodes, args.seed, max(0, args.confirm_episodes), backend)
     eps = {(e, p, c): v for (e, p, c, tag), v in runs.items() if tag == ""}
     confirm = ([runs[(GOAL_ENV, p, LIFT, CONFIRM)] for p in ("open-loop", "odometry-pid")]
                if args.confirm_episodes > 1 and GOAL_ENV in env_ids else [])

@@ -11,6 +11,8 @@ wall time of one 10-run x 5 s dataset per effect (the issue's 2-minute budget on
     python benchmarks/discrepancy_recovery.py --seeds 1 --runs 4 --duration 2.5   # quick look
     # re-run the rows of some effects (e.g. a new one) and merge them into the committed table:
     python benchmarks/discrepancy_recovery.py --seeds 2 --runs 6 --duration 3 --jobs 2 --effects wheel_geometry
+    # the cases as Ray tasks (a fresh local Ray with --jobs CPUs, or the cluster at ADDRESS; same table):
+    python benchmarks/discrepancy_recovery.py --seeds 2 --runs 6 --duration 3 --ray [ADDRESS]
 """
 
 from __future__ import annotations
@@ -20,12 +22,12 @@ import json
 import os
 import platform
 import time
-from multiprocessing import Pool
 from pathlib import Path
 
 import numpy as np
 
 from omni_gym.discrepancy.recovery import NOISES, SIZES, TOLERANCES, run_case
+from omni_gym.parallel import Backend, parallel_map
 
 
 def _case(args: tuple) -> dict:
@@ -43,7 +45,9 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--runs", type=int, default=6)
     ap.add_argument("--duration", type=float, default=3.0)
-    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--jobs", type=int, default=2, help="local worker processes (with --ray: the local Ray's CPUs)")
+    ap.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
+                    help="run the cases as Ray tasks: on the cluster at ADDRESS, or without it on a fresh local Ray")
     ap.add_argument("--no-budget", action="store_true", help="skip the 10-run x 5 s timing rows")
     ap.add_argument("--effects", default=None, metavar="NAME[,NAME...]",
                     help="run only these library effects' rows (sweep and budget) and merge them into the "
@@ -63,13 +67,14 @@ def main() -> None:
         cases += [("viscous_drag", "c=4", {"c": 4.0}, noise, 100 + s, args.runs, args.duration) for noise in NOISES
                   for s in range(args.seeds)]
     budget = [] if args.no_budget else [(e, "large", SIZES[e]["large"], 0.001, 7, 10, 5.0) for e in effects]
+    backend = Backend(jobs=args.jobs, ray=args.ray is not None, address=args.ray or None)
+    backend.preflight()
     t0 = time.perf_counter()
-    with Pool(args.jobs) as pool:
-        results = pool.map(_case, cases, chunksize=1)
+    results = parallel_map(_case, cases, backend)  # in the order of the cases, whatever the backend
     sweep_wall = time.perf_counter() - t0
     # Budget rows one at a time: each is timed alone on the machine (2 cores).
     timed = [_case(c) for c in budget]
-    runs_note = [f"full sweep: {sweep_wall / 60:.1f} min with {args.jobs} worker process(es)"]
+    runs_note = [f"full sweep: {sweep_wall / 60:.1f} min on {backend.describe()}"]
     if args.effects is not None:
         old = json.loads((out / "discrepancy_recovery.json").read_text())
         keep = [r for r in old["sweep"] if r["hidden"] not in effects]
@@ -79,8 +84,7 @@ def main() -> None:
         timed = sorted([r for r in old.get("budget", []) if r["hidden"] not in effects] + timed,
                        key=lambda r: order.get(r["hidden"], len(order)))
         runs_note = old.get("runs_note", ["full sweep: see the git history of this table"]) + [
-            f"rows of {', '.join(effects)} re-run with --effects: {sweep_wall / 60:.1f} min with {args.jobs} "
-            "worker process(es)"]
+            f"rows of {', '.join(effects)} re-run with --effects: {sweep_wall / 60:.1f} min on {backend.describe()}"]
     (out / "discrepancy_recovery.json").write_text(
         json.dumps({"sweep": results, "budget": timed, "runs_note": runs_note}, indent=1))
     write_table(out, results, timed, args, runs_note)

@@ -36,6 +36,7 @@ agents train). Usage::
 
     python benchmarks/rl_vs_baselines.py [--models DIR ...] [--envs ID ...] [--episodes 50] [--seed 10000]
                                          [--sets held-out [unseen]] [--workers 2] [--cache FILE]
+                                         [--ray [ADDRESS]]
                                          [--out benchmarks/results]
 """
 
@@ -50,7 +51,6 @@ import shlex
 import sys
 import time
 from dataclasses import dataclass
-from multiprocessing import get_context
 from pathlib import Path
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
@@ -68,6 +68,7 @@ from agents.evaluate import METRICS, summarize  # noqa: E402
 from agents.policies import POLICY_NAMES  # noqa: E402
 from agents.rollout import Episode  # noqa: E402
 from omni_gym.outputs import write_text_atomic  # noqa: E402
+from omni_gym.parallel import Backend, parallel_map  # noqa: E402
 
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"
 WILLIAMS = "OmniPathFollow-Williams-v1"
@@ -156,8 +157,11 @@ def make_batches(env_ids: list[str], policies: dict[str, list[str]], sets: list[
     return out
 
 
-def run_all(batches: list[Batch], workers: int, cache: Path | None) -> dict:
-    """Episodes keyed by (id, policy, set, condition), sorted by seed; cached episodes are reused."""
+def run_all(batches: list[Batch], backend: Backend, cache: Path | None) -> dict:
+    """Episodes keyed by (id, policy, set, condition), sorted by seed; cached episodes are reused.
+
+    Batches run on ``backend`` (:mod:`omni_gym.parallel`); an episode is a function of its seed alone,
+    so the result is the same on every backend."""
     stored = json.loads(cache.read_text()) if cache is not None and cache.is_file() else {}
     out: dict = {}
     todo = []
@@ -179,13 +183,7 @@ def run_all(batches: list[Batch], workers: int, cache: Path | None) -> dict:
         bar.update(len(eps))
 
     try:
-        if workers > 1 and len(todo) > 1:
-            with get_context("spawn").Pool(workers) as pool:
-                for b, eps in pool.imap_unordered(run_batch, todo):
-                    keep(b, eps)
-        else:
-            for b in todo:
-                keep(*run_batch(b))
+        parallel_map(run_batch, todo, backend, on_done=lambda _i, r: keep(*r))
     finally:
         bar.close()
         if cache is not None:
@@ -458,6 +456,9 @@ def parse(argv: list[str] | None) -> tuple[argparse.Namespace, dict]:
     ap.add_argument("--episodes", type=int, default=50, help="episodes per id, policy, condition and set (default 50)")
     ap.add_argument("--seed", type=int, default=10_000, help="first seed (default 10000)")
     ap.add_argument("--workers", type=int, default=2, help="worker processes, one batch each (default 2)")
+    ap.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
+                    help="run the episode batches as Ray tasks: on the cluster at ADDRESS, or without it on a fresh "
+                         "local Ray with --workers CPUs (same table)")
     ap.add_argument("--out", default="benchmarks/results", help="output directory")
     ap.add_argument("--cache", default=None, help="JSON file of episode metrics to reuse and extend")
     ap.add_argument("--episode-seconds", type=float, default=None,
@@ -497,7 +498,9 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.time()
     batches = make_batches(env_ids, policies, sets, args.episodes, args.seed, overrides)
     try:
-        eps = run_all(batches, args.workers, None if args.cache is None else Path(args.cache))
+        backend = Backend(jobs=args.workers, ray=args.ray is not None, address=args.ray or None)
+        backend.preflight()
+        eps = run_all(batches, backend, None if args.cache is None else Path(args.cache))
     except ValueError as exc:  # a model that does not fit its environment, bad env kwargs: one line
         print(f"rl_vs_baselines.py: error: {exc}", file=sys.stderr)
         return 2

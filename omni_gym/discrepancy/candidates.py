@@ -53,8 +53,20 @@ class Candidate:
         return np.clip(u, 0.0, 1.0)
 
 
+@dataclass(frozen=True)
+class _FromFit:
+    """``build`` of a library candidate: the effect's parameters from dimension values on ``model``
+    (a picklable callable, so a candidate and its fit travel to worker processes, omni_gym.parallel)."""
+
+    effect: Effect
+    model: SimModel
+
+    def __call__(self, values: list[float]) -> dict:
+        return self.effect.from_fit(values, self.model)
+
+
 def _candidate(effect: Effect, model: SimModel) -> Candidate:
-    return Candidate(effect.name, effect.fit_dims(model), lambda v: effect.from_fit(v, model),
+    return Candidate(effect.name, effect.fit_dims(model), _FromFit(effect, model),
                      stochastic=effect.stochastic, null=effect.null_fit(model), prior=effect.prior_fit(model))
 
 

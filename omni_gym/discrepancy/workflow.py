@@ -11,12 +11,20 @@ held-out runs included), so a later effect must beat an optimistic baseline: the
 stopping. The single-effect keys of ``result.json`` (``effect``, ``why``, ``params``, ``uncertainty``,
 ``ranking``) describe the first step; ``effects`` and ``steps`` the whole search; ``model`` and ``gap``
 the final model.
+
+Each step's candidate fits are independent tasks (:func:`fit_task`), run on the chosen backend
+(:mod:`omni_gym.parallel`: this process by default, local processes or Ray). A fit draws its random
+numbers from its own generator, seeded from the gap seed, the step and the candidate's name
+(:func:`fit_seed`), never from the worker or the order the fits finish in, so the result is the same
+bit for bit on every backend and worker count. The driver's own generator (folds, the decision's
+bootstrap, parameter intervals) draws only in the driver, in a fixed order.
 """
 
 from __future__ import annotations
 
 import math
 import sys
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from omni_gym.discrepancy import plausible
-from omni_gym.discrepancy.candidates import candidates
+from omni_gym.discrepancy.candidates import Candidate, candidates
 from omni_gym.discrepancy.dataset import load_dataset
 from omni_gym.discrepancy.decision import RULES, decide
 from omni_gym.discrepancy.events import EVENT_METHOD
@@ -37,6 +45,7 @@ from omni_gym.discrepancy.segments import FIT_BUDGET, fit_data
 from omni_gym.discrepancy.simulate import FIT_DT
 from omni_gym.discrepancy.synth import pose_lever
 from omni_gym.outputs import Output
+from omni_gym.parallel import SERIAL, Backend, Executor, executor
 from omni_gym.physics.liftoff import contact_cases
 from omni_gym.physics.model import SimModel
 
@@ -48,7 +57,7 @@ METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2
 
 def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds: int = 3,
         progress: bool | None = None, dt: float = FIT_DT, plots: bool = True, force: bool = False,
-        max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET) -> dict:
+        max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET, backend: Backend = SERIAL) -> dict:
     """Run the workflow on ``dataset``; write the report folder ``out`` (if given); return the result.
 
     ``progress``: tqdm bar on stderr (None: only when stderr is a terminal). Same seed, same result.
@@ -58,15 +67,17 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     ``out`` is checked and locked before the work starts and appears complete or not at all
     (:class:`omni_gym.outputs.Output`): an existing report is refused unless ``force``; a report that
     is, contains or lies inside the dataset is refused.
+    ``backend``: where the candidate fits run (:class:`omni_gym.parallel.Backend`; default this process,
+    nothing to start); the result does not depend on it.
     """
     if isinstance(max_effects, bool) or not isinstance(max_effects, int) or max_effects < 1:
         raise ValueError(f"max_effects must be an integer >= 1, got {max_effects!r}")
     if isinstance(fit_budget, bool) or not isinstance(fit_budget, (int, float)) or not fit_budget > 0:
         raise ValueError(f"fit_budget must be a positive number of seconds (inf: no limit), got {fit_budget!r}")
     if out is None:
-        return _gap(dataset, None, seed, folds, progress, dt, plots, max_effects, fit_budget)
+        return _gap(dataset, None, seed, folds, progress, dt, plots, max_effects, fit_budget, backend)
     with Output(Path(out), "dir", force=force, inputs=[dataset], marker="result.json", what="gap report") as tx:
-        return _gap(dataset, tx.path, seed, folds, progress, dt, plots, max_effects, fit_budget)
+        return _gap(dataset, tx.path, seed, folds, progress, dt, plots, max_effects, fit_budget, backend)
 
 
 @dataclass
@@ -93,23 +104,81 @@ class Step:
         return next((f for f in self.fits if f.candidate.name == self.effect), None)
 
 
+@dataclass(frozen=True)
+class FitShared:
+    """What every fit task of a gap run needs (sent to each worker once): the evaluator, with its
+    cached nominal baseline, noise floor and shooting windows, and the runs' folds."""
+
+    ev: Evaluator
+    fold_of: np.ndarray
+
+
+@dataclass(frozen=True)
+class FitTask:
+    """One candidate fit: the candidate, the model it is fitted on top of, and its own seed."""
+
+    candidate: Candidate
+    base: SimModel
+    seed: np.random.SeedSequence
+
+
+FIT_STREAM = 1  # first spawn key of the fits' seeds (the driver's generator uses the root seed itself)
+
+
+def fit_seed(seed: int, step: int, name: str) -> np.random.SeedSequence:
+    """The seed of candidate ``name``'s fit at search ``step``: a child of the gap seed keyed by the step
+    and the name (CRC-32, stable across processes and Python versions), so the fit draws the same numbers
+    wherever and whenever it runs, and does not depend on which other candidates are fitted."""
+    return np.random.SeedSequence(seed, spawn_key=(FIT_STREAM, step, zlib.crc32(name.encode())))
+
+
+def fit_task(shared: FitShared, task: FitTask, tick: Callable[[], None] | None = None) -> tuple[FitResult, int]:
+    """Fit one candidate (a backend task); returns the fit and the robot-runs it simulated (for the report:
+    a worker's evaluator is a copy, so the driver adds the counts up)."""
+    ev = shared.ev
+    before = ev.simulated
+    fit = fit_candidate(task.candidate, ev, task.base, shared.fold_of, np.random.default_rng(task.seed), tick=tick)
+    return fit, ev.simulated - before
+
+
 def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: list[str], fold_of: np.ndarray,
                  n_comp: np.ndarray, sigma: float | None, rng: np.random.Generator, bar, say, step: int,
-                 reference_excess: float | None = None) -> Step:
+                 reference_excess: float | None = None, seed: int = 0, ex: Executor | None = None,
+                 shared: FitShared | None = None) -> Step:
     """Fit every library candidate not in ``exclude`` on top of ``base`` and decide (the 70 % rule
-    measured against ``reference_excess``, the nominal gap, from the second step on)."""
+    measured against ``reference_excess``, the nominal gap, from the second step on).
+
+    The fits run on ``ex`` (None: in this process, with a progress tick per search round); the
+    decision draws from ``rng`` in this process."""
     cands = [c for c in candidates(base) if c.name not in exclude]
     if step > 1:  # the bar's first total covered step 1 only
         bar.total += 1 + sum(max_ticks(c) + 1 for c in cands)
         bar.refresh()
-    fits = []
+    shared = FitShared(ev, fold_of) if shared is None else shared
+    tasks = [FitTask(c, base, fit_seed(seed, step, c.name)) for c in cands]
     prefix = f"step {step}: " if step > 1 else ""
-    for i, c in enumerate(cands, start=1):
-        say(f"{prefix}fitting candidate {i}/{len(cands)} {c.name}")
-        bar.set_postfix_str(c.name)
-        done = bar.n + max_ticks(c) + 1
-        fits.append(fit_candidate(c, ev, base, fold_of, rng, tick=lambda: bar.update(1)))
-        bar.update(max(done - bar.n, 0))  # searches that converge early skip their remaining rounds
+    start = ev.simulated
+    if ex is None or ex.backend.serial:
+        results = []
+        for i, (c, task) in enumerate(zip(cands, tasks, strict=True), start=1):
+            say(f"{prefix}fitting candidate {i}/{len(cands)} {c.name}")
+            bar.set_postfix_str(c.name)
+            done = bar.n + max_ticks(c) + 1
+            results.append(fit_task(shared, task, tick=lambda: bar.update(1)))
+            bar.update(max(done - bar.n, 0))  # searches that converge early skip their remaining rounds
+    else:
+        say(f"{prefix}fitting {len(cands)} candidates on {ex.backend.describe()}")
+        finished = [0]
+
+        def on_done(i: int, _result: tuple) -> None:  # tasks finish in any order: one bar step per fit
+            finished[0] += 1
+            say(f"{prefix}fitted candidate {finished[0]}/{len(cands)} {cands[i].name}")
+            bar.set_postfix_str(cands[i].name)
+            bar.update(max_ticks(cands[i]) + 1)
+
+        results = ex.map(fit_task, tasks, shared=shared, on_done=on_done)
+    fits = [f for f, _ in results]
+    ev.simulated = start + sum(n for _, n in results)  # in place (this process) or counted by the workers
     say(f"{prefix}deciding")
     decision = decide(base_sse, fits, n_comp, sigma, rng, reference_excess=reference_excess)
     bar.update(1)
@@ -117,7 +186,8 @@ def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: l
 
 
 def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress: bool | None, dt: float,
-         plots: bool, max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET) -> dict:
+         plots: bool, max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET,
+         backend: Backend = SERIAL) -> dict:
     """The workflow of :func:`gap`; the report is written into ``out`` as it is (no transaction)."""
     from tqdm import tqdm
 
@@ -155,7 +225,10 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     total = 2 + sum(max_ticks(c) + 1 for c in cands)
     steps: list[Step] = []
     uncertainties: list[dict] = []
-    with tqdm(total=total, desc="gap: fitting", file=sys.stderr, disable=not show, unit="batch") as bar:
+    ev.windows  # noqa: B018 -- computed once here, before the evaluator is sent to the workers
+    shared = FitShared(ev, fold_of)
+    with executor(backend) as ex, \
+            tqdm(total=total, desc="gap: fitting", file=sys.stderr, disable=not show, unit="batch") as bar:
         say("localising")
         where = localise(ds, nominal, lever, res0, dt=dt, sigma=tracker)  # windows: no integration drift
         bar.update(1)
@@ -163,7 +236,8 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         excess0 = _excess(sse0, n_comp, sigma**2 if sigma is not None else 0.0)
         while True:
             step = _search_step(ev, model, base_sse, [s.effect for s in steps], fold_of, n_comp, sigma, rng, bar,
-                                say, len(steps) + 1, reference_excess=excess0 if steps else None)
+                                say, len(steps) + 1, reference_excess=excess0 if steps else None, seed=seed, ex=ex,
+                                shared=shared)
             fit = step.fit
             if fit is None:  # none or unexplained: the search ends here
                 break

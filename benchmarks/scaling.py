@@ -1,0 +1,108 @@
+"""Scaling of the recovery benchmark's case map from 1 to N local workers (issue 17 goal: efficiency >= 0.8 at 2).
+
+A fixed, balanced workload: ``--cases`` recovery cases of one effect (motor_lag, large, 1 mm noise),
+differing only in the data seed, so every case costs about the same; more cases than workers. Each
+backend runs the same cases: local processes and a fresh local Ray, at 1 and ``--workers`` workers.
+Efficiency = t1 / (N · tN). The results (minus wall times) must be identical across every run.
+
+    # the measurement (idle machine; estimated 8-12 min on 2 idle cores, not yet measured):
+    python benchmarks/scaling.py --cases 8 --runs 4 --duration 2 --workers 2 --out benchmarks/results
+    # a tiny check that it works (seconds of work, mostly start-up):
+    python benchmarks/scaling.py --cases 2 --runs 3 --duration 1 --workers 2 --out /tmp/scaling
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from omni_gym.discrepancy.recovery import SIZES, run_case
+from omni_gym.parallel import Backend, parallel_map
+
+EFFECT = "motor_lag"
+
+
+@dataclass(frozen=True)
+class Case:
+    """One recovery case of the workload."""
+
+    seed: int
+    runs: int
+    duration: float
+
+
+@dataclass
+class Timing:
+    """One backend at one worker count."""
+
+    backend: str
+    workers: int
+    wall_s: float
+
+
+def run(case: Case) -> dict:
+    """A task: one recovery case; the wall time is dropped (it differs between runs, the rest must not)."""
+    out = run_case(EFFECT, SIZES[EFFECT]["large"], 0.001, case.seed, case.runs, case.duration)
+    out.pop("wall_s")
+    return out
+
+
+def measure(cases: list[Case], backend: Backend) -> tuple[float, str]:
+    """Wall time [s] of the case map on ``backend`` (start-up included) and its results as JSON."""
+    t0 = time.perf_counter()
+    results = parallel_map(run, cases, backend)
+    return time.perf_counter() - t0, json.dumps(results, sort_keys=True)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", type=int, default=8)
+    ap.add_argument("--runs", type=int, default=4)
+    ap.add_argument("--duration", type=float, default=2.0)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--backends", default="processes,ray", help="comma-separated: processes, ray")
+    ap.add_argument("--out", default="benchmarks/results")
+    args = ap.parse_args()
+    cases = [Case(200 + i, args.runs, args.duration) for i in range(args.cases)]
+    # One case first, not timed: numba's compiled kernels land in its disk cache for every worker to load.
+    run(cases[0])
+    timings: list[Timing] = []
+    outputs: set[str] = set()
+    for name in args.backends.split(","):
+        for n in (1, args.workers):
+            # processes at 1 worker run in this process: no pool start-up, the stricter baseline.
+            backend = Backend(jobs=n, ray=name == "ray")
+            wall, out = measure(cases, backend)
+            timings.append(Timing(name, n, wall))
+            outputs.add(out)
+            print(f"{name} x{n}: {wall:.1f} s", flush=True)
+    write(Path(args.out), args, timings, identical=len(outputs) == 1)
+
+
+def write(out: Path, args: argparse.Namespace, timings: list[Timing], identical: bool) -> None:
+    """benchmarks/results/scaling.md: wall time, speed-up and efficiency per backend."""
+    out.mkdir(parents=True, exist_ok=True)
+    lines = ["# Scaling of the recovery benchmark's case map", "",
+             f"`python benchmarks/scaling.py --cases {args.cases} --runs {args.runs} --duration {args.duration:g} "
+             f"--workers {args.workers}` on {platform.machine()} ({os.cpu_count()} cores). {args.cases} cases of "
+             f"{EFFECT} (large, 1 mm), {args.runs} runs x {args.duration:g} s each, seeds 200..; wall times include "
+             "the start-up of the workers (and of Ray); `processes` at 1 worker runs in the driver itself "
+             "(no start-up:"
+             " the stricter baseline).", "",
+             "| backend | workers | wall [s] | speed-up | efficiency |", "|---|---|---|---|---|"]
+    for t in timings:
+        t1 = next(x.wall_s for x in timings if x.backend == t.backend and x.workers == 1)
+        speedup = t1 / t.wall_s
+        lines.append(f"| {t.backend} | {t.workers} | {t.wall_s:.1f} | {speedup:.2f} | {speedup / t.workers:.2f} |")
+    lines += ["", f"Results identical across all runs (wall times aside): {'yes' if identical else 'NO'}."]
+    (out / "scaling.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

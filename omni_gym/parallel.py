@@ -1,0 +1,283 @@
+"""Where independent tasks run: this process, local worker processes, or Ray (issue 17).
+
+One ordered map of a picklable function over task arguments, with a backend chosen by :class:`Backend`:
+
+* serial (the default): every task in this process, one after another; nothing to start;
+* ``jobs`` > 1: that many local worker processes (``spawn``: a clean interpreter, no forked threads);
+* ``ray``: Ray tasks, on a fresh local Ray (``address`` None, started and stopped here) or on the
+  cluster at ``address`` (``ray start --head`` on one machine, ``ray start --address`` on the others).
+
+The results come back in the order of the arguments whatever order the tasks finish in, so a caller
+that makes every task a pure function of its arguments (its random numbers from a seed in the
+arguments, never from the worker) gets the same result bit for bit from every backend and worker
+count. A large input every task needs (``shared``) is sent once per worker process (local processes)
+or put once into Ray's object store. Ray retries a task whose worker died (``max_retries``). Each
+worker runs its task on one thread (numba, BLAS): the parallelism is the tasks'.
+
+Ray is imported only when the Ray backend is used; without it the error names the extra to install.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from contextlib import contextmanager
+from dataclasses import dataclass
+from multiprocessing import get_context
+from typing import Any
+
+RAY_EXTRA = "omni-gym[rllib]"
+# Threading libraries whose thread count a task pins to 1 (set before a worker loads them).
+THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+_NO_SHARED = object()  # module state of a local worker process: the shared input its initializer received
+_worker_shared: Any = _NO_SHARED
+
+
+class BackendError(ValueError):
+    """A backend that cannot be used (ray missing, cluster unreachable, bad settings): one line for the CLI."""
+
+
+@dataclass(frozen=True)
+class Backend:
+    """The execution backend of :func:`executor`.
+
+    ``jobs``: local worker processes (1: serial in this process). ``ray``: run on Ray instead;
+    ``address``: the cluster's ``HOST:PORT`` (None: a fresh local Ray with ``jobs`` CPUs if ``jobs`` > 1,
+    else all cores). ``max_retries``: Ray re-runs a task whose worker died up to this often.
+    """
+
+    jobs: int = 1
+    ray: bool = False
+    address: str | None = None
+    max_retries: int = 3
+
+    def __post_init__(self) -> None:
+        if isinstance(self.jobs, bool) or not isinstance(self.jobs, int) or self.jobs < 1:
+            raise BackendError(f"jobs must be an integer >= 1, got {self.jobs!r}")
+        if self.address is not None and not self.ray:
+            raise BackendError("a Ray address needs ray=True")
+        if self.max_retries < 0:
+            raise BackendError(f"max_retries must be >= 0, got {self.max_retries}")
+
+    @property
+    def serial(self) -> bool:
+        """True when the tasks run in this process, one after another."""
+        return not self.ray and self.jobs == 1
+
+    def preflight(self) -> None:
+        """Raise :class:`BackendError` now for a backend that cannot work (ray not installed, nothing
+        listening at ``address``), before any work is done."""
+        if not self.ray:
+            return
+        _import_ray()
+        if self.address is not None:
+            _check_reachable(self.address)
+
+    def describe(self) -> str:
+        """One phrase for logs and reports."""
+        if self.ray:
+            return f"Ray at {self.address}" if self.address else "a local Ray" + (
+                f" with {self.jobs} CPUs" if self.jobs > 1 else "")
+        return "this process" if self.jobs == 1 else f"{self.jobs} local processes"
+
+
+SERIAL = Backend()
+
+# on_done(i, result): called in the driver as task i finishes (finishing order; for progress).
+OnDone = Callable[[int, Any], None]
+
+
+class Executor:
+    """An open backend: :meth:`map` as often as needed, then closed by :func:`executor`."""
+
+    def __init__(self, backend: Backend) -> None:
+        self.backend = backend
+        self._pool: ProcessPoolExecutor | None = None
+        self._pool_shared: Any = _NO_SHARED
+        self._ray: Any = None
+        self._started_ray = False
+        self._ray_shared: Any = _NO_SHARED  # the shared input last put into the object store, and its ref
+        self._ray_ref: Any = None
+
+    def map(self, fn: Callable, args: Sequence, shared: Any = _NO_SHARED, on_done: OnDone | None = None) -> list:
+        """``[fn(a) for a in args]`` (``fn(shared, a)`` when ``shared`` is given), in the order of ``args``.
+
+        ``on_done(i, result)`` is called in this process as each task finishes (in finishing order;
+        for progress). ``fn``, the arguments and ``shared`` must pickle; ``fn`` must be importable by
+        the workers (a module-level function).
+        """
+        args = list(args)
+        if self.backend.ray:
+            return self._map_ray(fn, args, shared, on_done)
+        if self.backend.serial or len(args) <= 1:
+            out = []
+            for i, a in enumerate(args):
+                out.append(fn(a) if shared is _NO_SHARED else fn(shared, a))
+                if on_done:
+                    on_done(i, out[-1])
+            return out
+        return self._map_processes(fn, args, shared, on_done)
+
+    # --- local processes -------------------------------------------------------------------------
+
+    def _map_processes(self, fn: Callable, args: list, shared: Any, on_done: OnDone | None) -> list:
+        if self._pool is None or self._pool_shared is not shared:
+            self._close_pool()
+            has = shared is not _NO_SHARED
+            self._pool = ProcessPoolExecutor(self.backend.jobs, mp_context=get_context("spawn"),
+                                             initializer=_init_worker, initargs=(has, shared if has else None))
+            self._pool_shared = shared
+        futures = {self._pool.submit(_call_local, fn, a): i for i, a in enumerate(args)}
+        return _collect(futures, len(args), on_done)
+
+    def _close_pool(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+    # --- Ray -------------------------------------------------------------------------------------
+
+    def _connect_ray(self) -> Any:
+        if self._ray is not None:
+            return self._ray
+        ray = _import_ray()
+        if not ray.is_initialized():
+            address = self.backend.address
+            if address is not None:
+                _check_reachable(address)
+                _use_token_if_available()
+                try:
+                    ray.init(address=address, log_to_driver=False, configure_logging=False)
+                except Exception as exc:  # Ray's own errors: ConnectionError, RuntimeError (auth), ...
+                    raise BackendError(f"cannot connect to the Ray cluster at {address}: "
+                                       f"{str(exc).strip().splitlines()[-1] if str(exc).strip() else exc!r}") from None
+            else:
+                cpus = self.backend.jobs if self.backend.jobs > 1 else None
+                ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False, configure_logging=False)
+            self._started_ray = True
+        self._ray = ray
+        return ray
+
+    def _map_ray(self, fn: Callable, args: list, shared: Any, on_done: OnDone | None) -> list:
+        ray = self._connect_ray()
+        task = ray.remote(num_cpus=1, max_retries=self.backend.max_retries, retry_exceptions=False)(_call_ray)
+        if shared is not _NO_SHARED and shared is not self._ray_shared:
+            self._ray_shared, self._ray_ref = shared, ray.put(shared)  # once into the object store
+        ref = None if shared is _NO_SHARED else self._ray_ref
+        refs = [task.remote(fn, a, ref, ref is not None) for a in args]
+        index = {r: i for i, r in enumerate(refs)}
+        out: list = [None] * len(refs)
+        pending = list(refs)
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            for r in done:
+                i = index[r]
+                out[i] = ray.get(r)
+                if on_done:
+                    on_done(i, out[i])
+        return out
+
+    def close(self) -> None:
+        """Stop the worker processes, and the Ray this executor started (a cluster it joined stays up)."""
+        self._close_pool()
+        if self._started_ray and self._ray is not None:
+            self._ray.shutdown()
+        self._ray, self._started_ray, self._ray_shared, self._ray_ref = None, False, _NO_SHARED, None
+
+
+@contextmanager
+def executor(backend: Backend = SERIAL) -> Iterator[Executor]:
+    """Open ``backend`` for the ``with`` block; workers and a Ray it started are stopped at the end."""
+    ex = Executor(backend)
+    try:
+        yield ex
+    finally:
+        ex.close()
+
+
+def parallel_map(fn: Callable, args: Sequence, backend: Backend = SERIAL, shared: Any = _NO_SHARED,
+                 on_done: OnDone | None = None) -> list:
+    """One :meth:`Executor.map` on a backend opened and closed for it."""
+    with executor(backend) as ex:
+        return ex.map(fn, args, shared=shared, on_done=on_done)
+
+
+def pin_threads() -> None:
+    """One thread per task for numba's parallel kernel and BLAS (the workers are the parallelism)."""
+    for k in THREAD_ENV:
+        os.environ[k] = "1"
+    try:
+        import numba
+
+        numba.set_num_threads(1)
+    except (ImportError, ValueError):  # no numba, or numba's thread pool already fixed below
+        pass
+    try:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(1)
+    except ImportError:
+        pass
+
+
+def _init_worker(has_shared: bool, shared: Any) -> None:
+    global _worker_shared
+    pin_threads()
+    _worker_shared = shared if has_shared else _NO_SHARED  # the sentinel itself does not survive pickling
+
+
+def _call_local(fn: Callable, a: Any) -> Any:
+    return fn(a) if _worker_shared is _NO_SHARED else fn(_worker_shared, a)
+
+
+def _call_ray(fn: Callable, a: Any, shared: Any, has_shared: bool) -> Any:
+    pin_threads()
+    return fn(shared, a) if has_shared else fn(a)  # Ray resolves a top-level ObjectRef argument
+
+
+def _collect(futures: dict, n: int, on_done: OnDone | None) -> list:
+    out: list = [None] * n
+    pending = set(futures)
+    while pending:
+        done, pending = wait(pending, return_when=FIRST_COMPLETED)
+        for f in done:
+            i = futures[f]
+            out[i] = f.result()
+            if on_done:
+                on_done(i, out[i])
+    return out
+
+
+def _import_ray() -> Any:
+    try:
+        import ray
+    except ImportError:
+        raise BackendError(f"the Ray backend needs ray: pip install '{RAY_EXTRA}'") from None
+    return ray
+
+
+def _check_reachable(address: str, timeout: float = 5.0) -> None:
+    """A fast one-line error for an address nothing listens on (ray.init would retry for a minute)."""
+    if address in ("auto", "local") or address.startswith("ray://"):
+        return
+    host, sep, port = address.rpartition(":")
+    if not sep or not port.isdigit():
+        raise BackendError(f"Ray address must be HOST:PORT, got {address!r}")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise BackendError(f"cannot reach the Ray cluster at {address}: {exc.strerror or exc}") from None
+
+
+def _use_token_if_available() -> None:
+    """Send the cluster's token when one is at hand (``RAY_AUTH_TOKEN``, ``~/.ray/auth_token``) and the
+    user did not choose a mode: a cluster started by ``ray.init``/``ray start`` has token authentication
+    on, and a client without the mode set would not send the token (``RAY_AUTH_MODE=disabled`` opts out)."""
+    if "RAY_AUTH_MODE" in os.environ:
+        return
+    if os.environ.get("RAY_AUTH_TOKEN") or os.environ.get("RAY_AUTH_TOKEN_PATH") or \
+            os.path.isfile(os.path.expanduser("~/.ray/auth_token")):
+        os.environ["RAY_AUTH_MODE"] = "token"
