@@ -38,7 +38,8 @@ bench: $(STAMP)
 AGENT_MODELS ?= agents/models/ppo-privileged-phunopas agents/models/ppo-residual-phunopas \
 	agents/models/ppo-features-phunopas agents/models/ppo-privileged-williams agents/models/ppo-residual-williams \
 	agents/models/ppo-features-williams agents/models/sac-privileged-phunopas agents/models/sac-privileged-williams \
-	agents/models/ppo-residual
+	agents/models/sac-residual-phunopas agents/models/sac-residual-williams agents/models/sac-features-phunopas \
+	agents/models/sac-features-williams agents/models/ppo-residual
 
 bench-agents: $(STAMP)
 	$(PY) benchmarks/baselines.py --episodes 50 --out benchmarks/results
@@ -46,11 +47,11 @@ bench-agents: $(STAMP)
 	$(PY) benchmarks/learning_curves.py --runs benchmarks/results/training_runs/* --out benchmarks/results
 	$(PY) benchmarks/headroom.py --episodes 50 --out benchmarks/results
 
-# The agents of issue 16 into runs/: PPO, three agents (privileged, residual, EKF features) x two ids x seeds,
-# 3 M steps each (3-12 min per run on the shared 2-core machine); SAC, the privileged agent (the upper
-# bound: PPO did not learn it on Phunopas), 300k steps (20-40 min per run).
+# The agents of issue 16 into runs/: three agents (privileged, residual, EKF features) x two ids x 3 seeds, with
+# PPO (3 M steps, 3-12 min per run on the shared 2-core machine) and SAC (privileged 300k steps, 20-40 min;
+# residual and EKF features 200k steps, 1 gradient step per vector step).
 SEEDS ?= 0 1 2
-SAC_SEEDS ?= 0 1
+SAC_SEEDS ?= 0 1 2
 train-agents: $(STAMP)
 	for seed in $(SEEDS); do for agent in privileged residual features; do \
 	  for id in OmniPathFollow-Phunopas-v0 OmniPathFollow-Williams-v1; do \
@@ -58,11 +59,12 @@ train-agents: $(STAMP)
 	      --timesteps 3000000 --out runs/$$id-$$agent-ppo-s$$seed --eval-freq 250000 --eval-episodes 5 \
 	      --max-minutes 12 --no-progress || exit 1; \
 	done; done; done
-	for seed in $(SAC_SEEDS); do for id in OmniPathFollow-Phunopas-v0 OmniPathFollow-Williams-v1; do \
-	  $(PY) -m agents.train --algo sac --env $$id --hyperparams agents/hyperparams/sac_privileged.yml --seed $$seed \
-	    --out runs/$$id-privileged-sac-s$$seed --eval-freq 50000 --eval-episodes 5 --max-minutes 40 \
-	    --no-progress || exit 1; \
-	done; done
+	for seed in $(SAC_SEEDS); do for agent in privileged residual features; do \
+	  for id in OmniPathFollow-Phunopas-v0 OmniPathFollow-Williams-v1; do \
+	    $(PY) -m agents.train --algo sac --env $$id --hyperparams agents/hyperparams/sac_$$agent.yml --seed $$seed \
+	      --out runs/$$id-$$agent-sac-s$$seed --eval-freq $$([ $$agent = privileged ] && echo 50000 || echo 25000) \
+	      --eval-episodes 5 --max-minutes $$([ $$agent = privileged ] && echo 80 || echo 60) --no-progress || exit 1; \
+	done; done; done
 
 bench-discrepancy: $(STAMP)
 	$(PY) benchmarks/discrepancy_recovery.py --seeds 2 --runs 6 --duration 3 --jobs 2 --out benchmarks/results

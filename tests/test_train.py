@@ -126,14 +126,18 @@ def test_committed_hyperparams_have_the_zoo_keys(algo):
     assert {"randomize_friction", "randomize_mass", "randomize_lift_rate"} <= set(hp["env_kwargs"])
 
 
+@pytest.mark.parametrize("algo", ["ppo", "sac"])
 @pytest.mark.parametrize("env_id", [ENV, "OmniPathFollow-Williams-v1"])
-def test_every_learned_agent_trains_on_the_squared_tracking_error(env_id):
-    """The privileged, EKF-feature and residual agents differ in what they observe, not in the reward."""
+def test_every_learned_agent_trains_on_the_squared_tracking_error(env_id, algo):
+    """The privileged, EKF-feature and residual agents differ in what they observe, not in the reward,
+    with either algorithm; the residual agents of both start at ekf-pid (ResidualInit)."""
     for agent, name in (("privileged", "none"), ("features", "ekf-features"), ("residual", "residual-ekf-pid")):
-        hp = load_hyperparams("ppo", env_id, HYPERPARAM_DIR / f"ppo_{agent}.yml")
+        hp = load_hyperparams(algo, env_id, HYPERPARAM_DIR / f"{algo}_{agent}.yml")
         spec = wrapper_spec(hp, agent)
-        assert (spec.name, spec.reward) == (name, "squared"), agent
+        assert (spec.name, spec.reward) == (name, "squared"), (algo, agent)
         assert hp["env_kwargs"]["obs_mode"] == ("state" if agent == "privileged" else "sensors")
+        inits = [c for c in hp.get("callback", []) if "agents.callbacks.ResidualInit" in c]
+        assert bool(inits) == (agent == "residual"), (algo, agent)
 
 
 def _shrink(hp: dict) -> dict:
