@@ -44,14 +44,18 @@ class Backend:
     """The execution backend of :func:`executor`.
 
     ``jobs``: local worker processes (1: serial in this process). ``ray``: run on Ray instead;
-    ``address``: the cluster's ``HOST:PORT`` (None: a fresh local Ray with ``jobs`` CPUs if ``jobs`` > 1,
-    else all cores). ``max_retries``: Ray re-runs a task whose worker died up to this often.
+    ``address``: the cluster's ``HOST:PORT`` (None: a fresh local Ray with ``cpus`` CPUs; ``cpus`` None:
+    ``jobs`` if ``jobs`` > 1, else all cores). ``max_retries``: Ray re-runs a task whose worker died up to
+    this often. ``pool``: run even a single job in a worker process (not in this process), so that one
+    and N local workers are measured the same way (``benchmarks/scaling.py``).
     """
 
     jobs: int = 1
     ray: bool = False
     address: str | None = None
     max_retries: int = 3
+    cpus: int | None = None
+    pool: bool = False
 
     def __post_init__(self) -> None:
         if isinstance(self.jobs, bool) or not isinstance(self.jobs, int) or self.jobs < 1:
@@ -60,11 +64,13 @@ class Backend:
             raise BackendError("a Ray address needs ray=True")
         if self.max_retries < 0:
             raise BackendError(f"max_retries must be >= 0, got {self.max_retries}")
+        if self.cpus is not None and (isinstance(self.cpus, bool) or not isinstance(self.cpus, int) or self.cpus < 1):
+            raise BackendError(f"cpus must be an integer >= 1 or None, got {self.cpus!r}")
 
     @property
     def serial(self) -> bool:
         """True when the tasks run in this process, one after another."""
-        return not self.ray and self.jobs == 1
+        return not self.ray and self.jobs == 1 and not self.pool
 
     def preflight(self) -> None:
         """Raise :class:`BackendError` now for a backend that cannot work (ray not installed, nothing
@@ -78,9 +84,13 @@ class Backend:
     def describe(self) -> str:
         """One phrase for logs and reports."""
         if self.ray:
-            return f"Ray at {self.address}" if self.address else "a local Ray" + (
-                f" with {self.jobs} CPUs" if self.jobs > 1 else "")
-        return "this process" if self.jobs == 1 else f"{self.jobs} local processes"
+            cpus = self.cpus or (self.jobs if self.jobs > 1 else None)
+            if self.address:
+                return f"Ray at {self.address}"
+            return "a local Ray" + (f" with {cpus} CPU{'s' * (cpus > 1)}" if cpus else "")
+        if self.serial:
+            return "this process"
+        return f"{self.jobs} local process" + ("es" if self.jobs > 1 else "")
 
 
 SERIAL = Backend()
@@ -111,7 +121,7 @@ class Executor:
         args = list(args)
         if self.backend.ray:
             return self._map_ray(fn, args, shared, on_done)
-        if self.backend.serial or len(args) <= 1:
+        if self.backend.serial or (len(args) <= 1 and not self.backend.pool):
             out = []
             for i, a in enumerate(args):
                 out.append(fn(a) if shared is _NO_SHARED else fn(shared, a))
@@ -154,7 +164,7 @@ class Executor:
                     raise BackendError(f"cannot connect to the Ray cluster at {address}: "
                                        f"{str(exc).strip().splitlines()[-1] if str(exc).strip() else exc!r}") from None
             else:
-                cpus = self.backend.jobs if self.backend.jobs > 1 else None
+                cpus = self.backend.cpus or (self.backend.jobs if self.backend.jobs > 1 else None)
                 ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False, configure_logging=False)
             self._started_ray = True
         self._ray = ray

@@ -144,6 +144,11 @@ def test_bad_backend_settings_are_refused() -> None:
         Backend(address="127.0.0.1:6379")
     with pytest.raises(BackendError, match="HOST:PORT"):
         Backend(ray=True, address="nohost").preflight()
+    with pytest.raises(BackendError, match="cpus"):
+        Backend(ray=True, cpus=0)
+    # One job runs in this process unless a pool is asked for (scaling.py measures 1 and N workers alike).
+    assert Backend().serial and not Backend(pool=True).serial
+    assert Backend(ray=True, cpus=1).describe() == "a local Ray with 1 CPU"
 
 
 def test_missing_ray_names_the_extra(monkeypatch) -> None:
