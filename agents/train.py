@@ -60,6 +60,7 @@ import shlex
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -609,10 +610,16 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
     argv = sys.argv[1:] if argv is None else argv
     args = build_arg_parser().parse_args(argv)
+    return run_and_report("agents.train", run_from_args, args)
+
+
+def run_and_report(prog: str, run: Callable[[argparse.Namespace], dict], args: argparse.Namespace) -> int:
+    """``run(args)`` (a training), then its one-line summary; exit status 0, or 2 with a one-line error
+    on stderr for bad input (ImportError: a missing extra, named in one line). Both trainers' ``main``."""
     try:
-        meta = run_from_args(args)
-    except (ValueError, OSError, ImportError) as exc:  # ImportError: a missing extra, named in one line
-        print(f"agents.train: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        meta = run(args)
+    except (ValueError, OSError, ImportError) as exc:
+        print(f"{prog}: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
     best = meta.get("best") or {}
     print(f"trained {meta['timesteps']} steps in {meta['wall_time_s']:.0f} s; best validation tracking RMSE "

@@ -34,7 +34,15 @@ from agents.rllib.config import RLlibHyperparams, default_file, load, ppo_config
 from agents.rllib.env import register_training_env
 from agents.rllib.policy import RLlibPolicy
 from agents.rollout import make_env
-from agents.train import VALIDATION_SEED, _write_json, git_commit, print_progress, validation_row, write_curve
+from agents.train import (
+    VALIDATION_SEED,
+    _write_json,
+    git_commit,
+    print_progress,
+    run_and_report,
+    validation_row,
+    write_curve,
+)
 from agents.wrappers import wrap_env
 from omni_gym.envs.config import parse_model
 from omni_gym.rllib import require_ray
@@ -281,15 +289,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_arg_parser(argparse.ArgumentParser(prog="python -m agents.rllib.train",
                                                       description=__doc__.splitlines()[0]))
     args = parser.parse_args(["--backend", "rllib", *argv])
-    try:
-        meta = run_from_args(args)
-    except (ValueError, OSError, ImportError) as exc:
-        print(f"agents.rllib.train: error: {' '.join(str(exc).split())}", file=sys.stderr)
-        return 2
-    best = meta.get("best") or {}
-    print(f"trained {meta['timesteps']} steps in {meta['wall_time_s']:.0f} s; best validation tracking RMSE "
-          f"{best.get('val_tracking_rmse', float('nan')):.4f} m at {best.get('timesteps')} steps -> {args.out}")
-    return 0
+    return run_and_report("agents.rllib.train", run_from_args, args)
 
 
 if __name__ == "__main__":
