@@ -73,7 +73,16 @@ def _evaluate(policy: Path, env_id: str, capsys, seed: int = 5000) -> dict:
     return json.loads(capsys.readouterr().out)
 
 
-def test_ppo_trains_two_iterations_and_writes_the_sb3_layout(trained):
+def test_ppo_trains_restores_and_samples_the_native_vector_env(trained, capsys):
+    """One test per id over the module's training: under pytest-xdist each worker that draws a test using
+    ``trained`` would train again (about 20 s per id), so its checks share one test."""
+    _check_sb3_layout(trained)
+    _check_restored_checkpoint(trained, capsys)
+    _check_env_runner_stack(trained)
+
+
+def _check_sb3_layout(trained) -> None:
+    """2 PPO iterations write the SB3 path's layout: checkpoints, meta.json, curve."""
     env_id, out = trained
     assert (out / "checkpoint" / "rllib_checkpoint.json").is_file()
     assert (out / "final_checkpoint" / "rllib_checkpoint.json").is_file()
@@ -94,7 +103,8 @@ def test_ppo_trains_two_iterations_and_writes_the_sb3_layout(trained):
     assert meta["best"]["timesteps"] in (BATCH, 2 * BATCH)
 
 
-def test_restored_checkpoint_evaluates_as_its_validation_and_deterministically(trained, capsys):
+def _check_restored_checkpoint(trained, capsys) -> None:
+    """The restored checkpoint evaluates as its validation did, and deterministically."""
     env_id, out = trained
     meta = json.loads((out / "meta.json").read_text())
     first = _evaluate(out, env_id, capsys)
@@ -109,7 +119,8 @@ def test_restored_checkpoint_evaluates_as_its_validation_and_deterministically(t
     assert bare["per_episode"] == first["per_episode"]
 
 
-def test_each_env_runner_steps_the_native_vector_env(trained):
+def _check_env_runner_stack(trained) -> None:
+    """Each env runner steps the native vector env (not a SyncVectorEnv of single envs)."""
     _, out = trained
     meta = json.loads((out / "meta.json").read_text())
     [stack] = meta["env_runner_envs"]  # one env runner actor: its env, outermost wrapper first
