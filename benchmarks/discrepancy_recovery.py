@@ -21,6 +21,7 @@ import argparse
 import json
 import os
 import platform
+import sys
 import time
 from pathlib import Path
 
@@ -70,10 +71,23 @@ def main() -> None:
     backend = Backend(jobs=args.jobs, ray=args.ray is not None, address=args.ray or None)
     backend.preflight()
     t0 = time.perf_counter()
-    results = parallel_map(_case, cases, backend)  # in the order of the cases, whatever the backend
+    finished = [0]
+
+    def progress(i: int, result: dict) -> None:  # one line per case as it finishes (also when piped)
+        finished[0] += 1
+        hidden, size, _, noise, seed = cases[i][:5]
+        print(f"[{finished[0]}/{len(cases)} {(time.perf_counter() - t0) / 60:.1f} min] {hidden} {size} "
+              f"{noise * 1e3:g} mm seed {seed}: {result['named']}", file=sys.stderr, flush=True)
+
+    print(f"{len(cases)} cases on {backend.describe()}, then {len(budget)} timed budget rows", file=sys.stderr,
+          flush=True)
+    results = parallel_map(_case, cases, backend, on_done=progress)  # in the order of the cases, any backend
     sweep_wall = time.perf_counter() - t0
     # Budget rows one at a time: each is timed alone on the machine (2 cores).
-    timed = [_case(c) for c in budget]
+    timed = []
+    for k, c in enumerate(budget, start=1):
+        timed.append(_case(c))
+        print(f"[budget {k}/{len(budget)}] {c[0]}: {timed[-1]['wall_s']:.0f} s", file=sys.stderr, flush=True)
     runs_note = [f"full sweep: {sweep_wall / 60:.1f} min on {backend.describe()}"]
     if args.effects is not None:
         old = json.loads((out / "discrepancy_recovery.json").read_text())
