@@ -237,16 +237,23 @@ def train(*args, force: bool = False, **kwargs) -> dict:
     writes into a temporary sibling ``.NAME.tmp-PID``, renamed to ``out`` at the end: an interrupted
     or killed training leaves the old directory (or none) in place.
     """
+    return in_model_transaction(train_into, args, kwargs, force)
+
+
+def in_model_transaction(train_into_fn: Callable[..., dict], args: tuple, kwargs: dict, force: bool) -> dict:
+    """``train_into_fn(*args, **kwargs)`` writing into a temporary sibling of its ``out``, renamed to ``out``
+    at the end (:class:`omni_gym.outputs.Output`); the hyperparameter file and any file named in
+    ``env_kwargs`` are inputs ``out`` must not be. Both backends' ``train``."""
     from omni_gym.outputs import Output
 
-    bound = inspect.signature(train_into).bind(*args, **kwargs)
+    bound = inspect.signature(train_into_fn).bind(*args, **kwargs)
     kw = bound.arguments.get("env_kwargs")
     inputs = [bound.arguments.get("hyperparams"),
               *(v for v in (kw.values() if isinstance(kw, dict) else ()) if isinstance(v, str))]
     with Output(Path(bound.arguments["out"]), "dir", force=force, inputs=inputs, marker="meta.json",
                 what="model directory") as tx:
         bound.arguments["out"] = tx.path
-        return train_into(*bound.args, **bound.kwargs)
+        return train_into_fn(*bound.args, **bound.kwargs)
 
 
 def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: str | Path,

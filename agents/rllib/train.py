@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import inspect
 import os
 import sys
 import time
@@ -38,6 +37,7 @@ from agents.train import (
     VALIDATION_SEED,
     _write_json,
     git_commit,
+    in_model_transaction,
     print_progress,
     run_and_report,
     validation_row,
@@ -119,16 +119,7 @@ def ray_session(address: str | None, num_env_runners: int) -> Iterator[None]:
 def train(*args, force: bool = False, **kwargs) -> dict:
     """Train into the model directory ``out`` (arguments of :func:`train_into`) through an
     :class:`omni_gym.outputs.Output` transaction, as :func:`agents.train.train` does; returns the meta dict."""
-    from omni_gym.outputs import Output
-
-    bound = inspect.signature(train_into).bind(*args, **kwargs)
-    kw = bound.arguments.get("env_kwargs")
-    inputs = [bound.arguments.get("hyperparams"),
-              *(v for v in (kw.values() if isinstance(kw, dict) else ()) if isinstance(v, str))]
-    with Output(Path(bound.arguments["out"]), "dir", force=force, inputs=inputs, marker="meta.json",
-                what="model directory") as tx:
-        bound.arguments["out"] = tx.path
-        return train_into(*bound.args, **bound.kwargs)
+    return in_model_transaction(train_into, args, kwargs, force)
 
 
 def _settings(env_id: str, timesteps: int | None, seed: int, env_kwargs: dict | None, hyperparams,
