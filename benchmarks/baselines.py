@@ -51,7 +51,7 @@ from tqdm import tqdm  # noqa: E402
 from agents.evaluate import METRICS, summarize  # noqa: E402
 from agents.policies import POLICY_NAMES, make_policy  # noqa: E402
 from agents.rollout import Episode, make_env, run_episode  # noqa: E402
-from omni_gym.parallel import SERIAL, Backend, parallel_map  # noqa: E402
+from omni_gym.parallel import SERIAL, Backend, add_ray_option, backend_from_options, parallel_map  # noqa: E402
 
 GOAL_ENV = "OmniPathFollow-Phunopas-v0"  # the goal and the confirmation run are defined on this id
 ENV_IDS = (GOAL_ENV, "OmniPathFollow-Williams-v0")
@@ -278,9 +278,7 @@ def main(argv: list[str] | None = None) -> int:
                          "(default 200; 0: skip)")
     ap.add_argument("--seed", type=int, default=10_000, help="first seed (default 10000, held out from tests)")
     ap.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
-    ap.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
-                    help="run the episode batches as Ray tasks: on the cluster at ADDRESS, or without it on a fresh "
-                         "local Ray with --workers CPUs (same table)")
+    add_ray_option(ap, "the episode batches", "--workers")
     ap.add_argument("--env", action="append", choices=ENV_IDS, dest="envs",
                     help=f"environment id (repeatable; default both: {', '.join(ENV_IDS)})")
     ap.add_argument("--out", default="benchmarks/results", help="output directory")
@@ -292,8 +290,7 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     command = "python benchmarks/baselines.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
     t0 = time.time()
-    backend = Backend(jobs=max(1, args.workers), ray=args.ray is not None, address=args.ray or None)
-    backend.preflight()
+    backend = backend_from_options(max(1, args.workers), args.ray)
     runs = run_all(env_ids, args.episodes, args.seed, max(0, args.confirm_episodes), backend)
     eps = {(e, p, c): v for (e, p, c, tag), v in runs.items() if tag == ""}
     confirm = ([runs[(GOAL_ENV, p, LIFT, CONFIRM)] for p in ("open-loop", "odometry-pid")]

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from omni_gym.discrepancy.recovery import NOISES, SIZES, TOLERANCES, run_case
-from omni_gym.parallel import Backend, parallel_map
+from omni_gym.parallel import add_ray_option, backend_from_options, parallel_map
 
 
 def _case(args: tuple) -> dict:
@@ -47,8 +47,7 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=6)
     ap.add_argument("--duration", type=float, default=3.0)
     ap.add_argument("--jobs", type=int, default=2, help="local worker processes (with --ray: the local Ray's CPUs)")
-    ap.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
-                    help="run the cases as Ray tasks: on the cluster at ADDRESS, or without it on a fresh local Ray")
+    add_ray_option(ap, "the cases", "--jobs")
     ap.add_argument("--no-budget", action="store_true", help="skip the 10-run x 5 s timing rows")
     ap.add_argument("--effects", default=None, metavar="NAME[,NAME...]",
                     help="run only these library effects' rows (sweep and budget) and merge them into the "
@@ -68,8 +67,7 @@ def main() -> None:
         cases += [("viscous_drag", "c=4", {"c": 4.0}, noise, 100 + s, args.runs, args.duration) for noise in NOISES
                   for s in range(args.seeds)]
     budget = [] if args.no_budget else [(e, "large", SIZES[e]["large"], 0.001, 7, 10, 5.0) for e in effects]
-    backend = Backend(jobs=args.jobs, ray=args.ray is not None, address=args.ray or None)
-    backend.preflight()
+    backend = backend_from_options(args.jobs, args.ray)
     t0 = time.perf_counter()
     finished = [0]
 

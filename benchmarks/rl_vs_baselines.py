@@ -68,7 +68,7 @@ from agents.evaluate import METRICS, summarize  # noqa: E402
 from agents.policies import POLICY_NAMES  # noqa: E402
 from agents.rollout import Episode  # noqa: E402
 from omni_gym.outputs import write_text_atomic  # noqa: E402
-from omni_gym.parallel import Backend, parallel_map  # noqa: E402
+from omni_gym.parallel import Backend, add_ray_option, backend_from_options, parallel_map  # noqa: E402
 
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"
 WILLIAMS = "OmniPathFollow-Williams-v1"
@@ -456,9 +456,7 @@ def parse(argv: list[str] | None) -> tuple[argparse.Namespace, dict]:
     ap.add_argument("--episodes", type=int, default=50, help="episodes per id, policy, condition and set (default 50)")
     ap.add_argument("--seed", type=int, default=10_000, help="first seed (default 10000)")
     ap.add_argument("--workers", type=int, default=2, help="worker processes, one batch each (default 2)")
-    ap.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
-                    help="run the episode batches as Ray tasks: on the cluster at ADDRESS, or without it on a fresh "
-                         "local Ray with --workers CPUs (same table)")
+    add_ray_option(ap, "the episode batches", "--workers")
     ap.add_argument("--out", default="benchmarks/results", help="output directory")
     ap.add_argument("--cache", default=None, help="JSON file of episode metrics to reuse and extend")
     ap.add_argument("--episode-seconds", type=float, default=None,
@@ -498,8 +496,7 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.time()
     batches = make_batches(env_ids, policies, sets, args.episodes, args.seed, overrides)
     try:
-        backend = Backend(jobs=args.workers, ray=args.ray is not None, address=args.ray or None)
-        backend.preflight()
+        backend = backend_from_options(args.workers, args.ray)
         eps = run_all(batches, backend, None if args.cache is None else Path(args.cache))
     except ValueError as exc:  # a model that does not fit its environment, bad env kwargs: one line
         print(f"rl_vs_baselines.py: error: {exc}", file=sys.stderr)

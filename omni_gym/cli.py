@@ -15,6 +15,7 @@ import numpy as np
 from omni_gym import __version__
 from omni_gym.bounds import CLI as CLI_BOUNDS
 from omni_gym.discrepancy.importers import FORMATS as IMPORT_FORMATS
+from omni_gym.parallel import add_ray_option, backend_from_options
 from omni_gym.physics.friction import FRICTION_MODELS, SURFACES
 
 EXIT_BAD_INPUT = 2
@@ -85,9 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="most robot time fitted [s] (default 120); a longer dataset is fitted on an even sample "
                          "of 10 s segments of its runs, each replayed from the tracked state at its start; "
                          "inf: always whole runs")
-    gp.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
-                    help="fit the candidates as Ray tasks: on the cluster at ADDRESS (HOST:PORT of `ray start "
-                         "--head`), or without ADDRESS on a fresh local Ray; the result is the same as without --ray")
+    add_ray_option(gp, "the candidate fits", "all (or --jobs N > 1)")
     gp.add_argument("--jobs", type=int, default=1,
                     help="local worker processes for the candidate fits (with --ray and no ADDRESS: the local "
                          "Ray's CPUs); default 1, this process")
@@ -271,10 +270,8 @@ def _cmd_gap(args: argparse.Namespace) -> int:
     budget = {} if args.fit_budget is None else {"fit_budget": args.fit_budget}
     if args.fit_budget is not None and not args.fit_budget > 0:
         raise ValueError(f"--fit-budget must be a positive number of seconds (inf: no limit), got {args.fit_budget}")
-    from omni_gym.parallel import Backend
-
-    backend = Backend(jobs=args.jobs, ray=args.ray is not None, address=args.ray or None)  # BackendError: ValueError
-    backend.preflight()  # ray missing, an address nothing listens on: one line now, not after the first stages
+    # ray missing, an address nothing listens on: one line now (BackendError: ValueError), not after the first stages
+    backend = backend_from_options(args.jobs, args.ray)
     result = gap(args.dataset, args.out, seed=args.seed, plots=not args.no_plots, force=args.force,
                  max_effects=args.max_effects, backend=backend, **budget)
     if args.json:

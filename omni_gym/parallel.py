@@ -19,6 +19,7 @@ Ray is imported only when the Ray backend is used; without it the error names th
 
 from __future__ import annotations
 
+import argparse
 import os
 import socket
 from collections.abc import Callable, Iterator, Sequence
@@ -205,6 +206,23 @@ def executor(backend: Backend = SERIAL) -> Iterator[Executor]:
         yield ex
     finally:
         ex.close()
+
+
+def add_ray_option(parser: argparse.ArgumentParser, tasks: str, cpus: str) -> None:
+    """``--ray [ADDRESS]`` on ``parser``, for the commands and benchmarks that run ``tasks`` on a backend; the
+    ``cpus`` option (e.g. ``--jobs``) sizes a fresh local Ray. Read it with :func:`backend_from_options`."""
+    parser.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
+                        help=f"run {tasks} as Ray tasks: on the cluster at ADDRESS (HOST:PORT of `ray start --head`), "
+                             f"or without ADDRESS on a fresh local Ray with {cpus} CPUs; the result is the same as "
+                             "without --ray")
+
+
+def backend_from_options(jobs: int, ray: str | None) -> Backend:
+    """The backend of ``--jobs``/``--workers`` and ``--ray [ADDRESS]`` (:func:`add_ray_option`), checked now
+    (:meth:`Backend.preflight`: ray missing, nothing listening at the address) before any work is done."""
+    backend = Backend(jobs=jobs, ray=ray is not None, address=ray or None)
+    backend.preflight()
+    return backend
 
 
 def parallel_map(fn: Callable, args: Sequence, backend: Backend = SERIAL, shared: Any = _NO_SHARED,

@@ -39,18 +39,21 @@ def dataset(tmp_path_factory) -> Path:
     return folder
 
 
+def _fit_only_fast(mp: pytest.MonkeyPatch) -> None:
+    """Fit only FAST (the driver builds the tasks, so the workers need no patch); the rules are unchanged."""
+    mp.setattr(workflow, "candidates", lambda model: [c for c in candidates.candidates(model) if c.name in FAST])
+
+
 @pytest.fixture
 def fast_library(monkeypatch):
-    """Fit only FAST (the driver builds the tasks, so the workers need no patch); the rules are unchanged."""
-    monkeypatch.setattr(workflow, "candidates",
-                        lambda model: [c for c in candidates.candidates(model) if c.name in FAST])
+    _fit_only_fast(monkeypatch)
 
 
 @pytest.fixture(scope="module")
 def local_report(dataset, tmp_path_factory) -> Path:
     """The reference: gap in this process, the default backend (module-scoped: computed once)."""
     mp = pytest.MonkeyPatch()
-    mp.setattr(workflow, "candidates", lambda model: [c for c in candidates.candidates(model) if c.name in FAST])
+    _fit_only_fast(mp)
     try:
         out = tmp_path_factory.mktemp("local") / "rep"
         workflow.gap(dataset, out, progress=False, plots=False, max_effects=2)
