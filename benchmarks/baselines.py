@@ -290,7 +290,10 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     command = "python benchmarks/baselines.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
     t0 = time.time()
-    backend = backend_from_options(max(1, args.workers), args.ray)
+    try:
+        backend = backend_from_options(max(1, args.workers), args.ray)
+    except ValueError as exc:  # BackendError: ray missing, nothing at the address, a bad --jobs/--workers
+        raise SystemExit(f"baselines.py: error: {exc}") from None
     runs = run_all(env_ids, args.episodes, args.seed, max(0, args.confirm_episodes), backend)
     eps = {(e, p, c): v for (e, p, c, tag), v in runs.items() if tag == ""}
     confirm = ([runs[(GOAL_ENV, p, LIFT, CONFIRM)] for p in ("open-loop", "odometry-pid")]

@@ -67,7 +67,10 @@ def main() -> None:
         cases += [("viscous_drag", "c=4", {"c": 4.0}, noise, 100 + s, args.runs, args.duration) for noise in NOISES
                   for s in range(args.seeds)]
     budget = [] if args.no_budget else [(e, "large", SIZES[e]["large"], 0.001, 7, 10, 5.0) for e in effects]
-    backend = backend_from_options(args.jobs, args.ray)
+    try:
+        backend = backend_from_options(args.jobs, args.ray)
+    except ValueError as exc:  # BackendError: ray missing, nothing at the address, a bad --jobs/--workers
+        raise SystemExit(f"discrepancy_recovery.py: error: {exc}") from None
     t0 = time.perf_counter()
     finished = [0]
 
