@@ -112,14 +112,15 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--out", required=True, help="dataset folder to write")
     _add_force_option(sy, "an existing dataset folder and its DATASET.truth.json")
     sy.set_defaults(handler=_cmd_synth)
-    im = sub.add_parser("import", help="write a dataset from another log format (OptiOdom sessions)")
+    im = sub.add_parser("import", help="write a dataset from another log format (OptiOdom omni3 or omni4 sessions)")
     im.add_argument("format", choices=sorted(IMPORT_FORMATS), help="log format: optiodom")
     im.add_argument("sessions", nargs="+", metavar="SESSION_DIR",
-                    help="session folder(s) with <id>_metadata.csv and <id>_run-NN.csv")
+                    help="session folder(s) of one robot with <id>_metadata.csv and <id>_run-NN.csv[.gz]")
     im.add_argument("--out", required=True, help="dataset folder to write")
     im.add_argument("--mass", type=float, default=None, help="assumed robot mass [kg] (not published; default and "
                     "why in docs/formats.md, 'Importing OptiOdom logs')")
-    im.add_argument("--inertia", type=float, default=None, help="assumed yaw inertia [kg·m²] (default 0.5·mass·Li²)")
+    im.add_argument("--inertia", type=float, default=None,
+                    help="assumed yaw inertia [kg·m²] (default 0.5·mass·ρ², ρ the wheel centres' distance)")
     im.add_argument("--surface", choices=sorted(SURFACES), default=None,
                     help="floor preset of the nominal model (default grip: no slip, as kinematic odometry assumes)")
     _add_force_option(im, "an existing dataset folder")
@@ -351,9 +352,9 @@ def _cmd_import(args: argparse.Namespace) -> int:
     Output(args.out, "dir", force=args.force, inputs=args.sessions, marker="dataset.json", what="dataset").preflight()
     from omni_gym.discrepancy.importers import optiodom
 
-    mass = optiodom.MASS if args.mass is None else args.mass
     surface = optiodom.SURFACE if args.surface is None else args.surface
-    s = optiodom.import_optiodom(args.sessions, args.out, force=args.force, mass=mass, inertia=args.inertia,
+    # mass None: the default of the sessions' robot type (omni3 8 kg, omni4 4 kg; docs/formats.md)
+    s = optiodom.import_optiodom(args.sessions, args.out, force=args.force, mass=args.mass, inertia=args.inertia,
                                  surface=surface)
     print(f"imported {s.runs} runs from {len(s.sessions)} session(s), {s.duration:.1f} s of robot time "
           f"(assumed: mass {s.mass:g} kg, inertia {s.inertia:.4g} kg·m², surface {s.surface}) -> {s.out}")
