@@ -125,6 +125,12 @@ def build_parser() -> argparse.ArgumentParser:
                     help="floor preset of the nominal model (default grip: no slip, as kinematic odometry assumes)")
     _add_force_option(im, "an existing dataset folder")
     im.set_defaults(handler=_cmd_import)
+    ca = sub.add_parser("calibrate", help="kinematic odometry calibration of a dataset with wheel odometry (wheel "
+                                          "diameters and L, or l1 + l2 for mecanum wheels) -> a model JSON")
+    ca.add_argument("dataset", help="dataset folder with enc1…encn columns (e.g. from omni-gym import optiodom)")
+    ca.add_argument("--out", required=True, help="model JSON to write (the nominal model with the fitted values)")
+    _add_force_option(ca, "an existing --out file")
+    ca.set_defaults(handler=_cmd_calibrate)
     # Further subcommands register here with their own set_defaults(handler=...).
     return parser
 
@@ -358,6 +364,14 @@ def _cmd_import(args: argparse.Namespace) -> int:
                                  surface=surface)
     print(f"imported {s.runs} runs from {len(s.sessions)} session(s), {s.duration:.1f} s of robot time "
           f"(assumed: mass {s.mass:g} kg, inertia {s.inertia:.4g} kg·m², surface {s.surface}) -> {s.out}")
+    return 0
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from omni_gym.discrepancy.calibrate import calibrate_dataset, summary_lines
+
+    cal = calibrate_dataset(args.dataset, args.out, force=args.force)
+    print("\n".join(summary_lines(cal, args.out)))
     return 0
 
 
