@@ -497,20 +497,43 @@ def mecanum_supported() -> bool:
     return any(f.name == "roller_angle" for f in fields(Wheel))
 
 
+def _omni4_preset(meta: Metadata):
+    """The physics' OptiOdom omni4 preset at this session's l1, l2 and mean diameter, or None where the
+    physics has none yet (its assumptions, inertia and body radius are then this module's)."""
+    from omni_gym.physics import robot
+
+    preset = getattr(robot, "optiodom_omni4", None)
+    if preset is None:
+        return None
+    mean = float(np.mean(meta.D))
+    return preset(meta.Li[0], meta.Li[1], (mean,) * 4)
+
+
 def nominal_model_json(meta: Metadata, mass: float | None = None, inertia: float | None = None,
                        surface: str = SURFACE) -> dict:
     """The nominal model of a session as model JSON (``docs/formats.md``): geometry and wheel size from the
     metadata, assumed mass properties (:func:`nominal_model` builds it).
 
-    ``mass`` [kg] (default :func:`default_mass`); ``inertia`` [kg·m²] (default 0.5·mass·ρ², ρ the distance
-    of the wheel centres); ``surface``: a preset name. If the Di differ, ``wheel_radius`` is mean(Di)/2 and
-    a ``wheel_radius`` effect carries the scales Di/mean.
+    ``mass`` [kg] (default :func:`default_mass`); ``inertia`` [kg·m²] (default: omni3 0.5·mass·L², a disc
+    of the wheel circle; omni4 the physics preset ``optiodom_omni4``'s, a plate the size of the footprint,
+    scaled to ``mass``); ``surface``: a preset name. If the Di differ, ``wheel_radius`` is mean(Di)/2 and a
+    ``wheel_radius`` effect carries the scales Di/mean. omni4 wheels, rollers and body radius come from the
+    preset where the physics has it (this module's table and constants otherwise: the same layout).
     """
     mass = default_mass(meta.kind) if mass is None else mass
     MODEL_BOUNDS["mass"].check(mass, "--mass")
     wheels = layout(meta)
     rho = max(math.hypot(*w["position"]) for w in wheels)
-    inertia = INERTIA_DISC_FACTOR * mass * rho**2 if inertia is None else inertia
+    body_radius = rho + BODY_MARGIN
+    rollers = ROLLERS_OMNI4 if meta.kind == "omni4" else ROLLERS
+    default_inertia = INERTIA_DISC_FACTOR * mass * rho**2
+    preset = _omni4_preset(meta) if meta.kind == "omni4" else None
+    if preset is not None:
+        wheels = [{"position": list(w.position), "drive": list(w.drive), "roller_angle": w.roller_angle}
+                  for w in preset.wheels]
+        default_inertia = preset.inertia * mass / preset.mass
+        body_radius, rollers = preset.body_radius, preset.rollers
+    inertia = default_inertia if inertia is None else inertia
     MODEL_BOUNDS["inertia"].check(inertia, "--inertia")
     D = np.asarray(meta.D, dtype=float)
     mean = float(np.mean(D))
@@ -525,9 +548,9 @@ def nominal_model_json(meta: Metadata, mass: float | None = None, inertia: float
         "wheel_radius": mean / 2.0,
         "wheels": wheels,
         "com": [0.0, 0.0],
-        "rollers": ROLLERS_OMNI4 if meta.kind == "omni4" else ROLLERS,
+        "rollers": rollers,
         "roller_fraction": ROLLER_FRACTION,
-        "body_radius": rho + BODY_MARGIN,
+        "body_radius": body_radius,
         "friction": FRICTION,
         "surface": surface_preset(surface).to_json(),
         "effects": effects,
