@@ -3,7 +3,8 @@
 The synthetic runs are made with the omni4 kinematics written here from the data README (OptiOdom's
 ``simulateRobot_omni4.m``, after Lin et al.): inverse kinematics per wheel from l1 and l2 separately,
 poses by midpoint quadrature of the world-frame velocity (20 substeps per 10 ms cycle), encoder counts
-quantised to 1/256 revolution as in the bundled files, tracker noise. The real-data check calibrates on
+quantised to 1/256 revolution (coarser than the bundled files' 1/11520), tracker noise. The real-data
+check calibrates on
 the two day-1 training sessions and scores the three held-out sessions.
 """
 
@@ -30,7 +31,7 @@ TRAIN = ("circular/080920201015", "square/080920201810")
 HELDOUT = ("square/080920201715", "circular/231220200440", "circular/231220200502")
 DT = 0.01  # s: the omni4 control cycle
 REV = 2 * math.pi  # rad per count (ngear 1, encRes 1: one count is one revolution)
-QUANTUM = 1 / 256  # rev: the resolution of the bundled files' counts
+QUANTUM = 1 / 256  # rev: coarser than the bundled files' count resolution (1/11520 rev)
 
 
 @pytest.fixture(scope="module")
@@ -68,7 +69,7 @@ def synth_run(name: str, rng: np.random.Generator, D: np.ndarray, l1: float, l2:
         pose[k + 1] = x, y, th + om * DT
     enc = np.zeros((K, 4))
     enc[1:] = np.cumsum(twist * DT @ inverse(D, l1, l2).T, axis=0)
-    enc = np.round(enc / (REV * QUANTUM)) * REV * QUANTUM  # the logged counts are whole 1/256 revolutions
+    enc = np.round(enc / (REV * QUANTUM)) * REV * QUANTUM  # whole quanta, as an encoder counts
     measured = pose.copy()
     measured[1:] += rng.normal(0.0, [0.001, 0.001, 0.002], size=(K - 1, 3))
     cmd = np.zeros((K, 4))
