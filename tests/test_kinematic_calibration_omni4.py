@@ -4,8 +4,7 @@ The synthetic runs are made with the omni4 kinematics written here from the data
 ``simulateRobot_omni4.m``, after Lin et al.): inverse kinematics per wheel from l1 and l2 separately,
 poses by midpoint quadrature of the world-frame velocity (20 substeps per 10 ms cycle), encoder counts
 quantised to 1/256 revolution (coarser than the bundled files' 1/11520), tracker noise. The real-data
-check calibrates on
-the two day-1 training sessions and scores the three held-out sessions.
+check calibrates on the two day-1 training sessions and scores the three held-out sessions.
 """
 
 from __future__ import annotations
