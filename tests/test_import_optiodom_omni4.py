@@ -268,3 +268,14 @@ def test_score_and_calibrate_work_on_an_omni4_dataset(omni4_dataset, tmp_path, c
     means = json.loads(capsys.readouterr().out)["models"]
     nominal, calibrated = means["nominal"]["mean_position_rms"], means[str(model)]["mean_position_rms"]
     assert 0.06 < nominal < 0.25 and calibrated < nominal
+
+
+@pytest.mark.parametrize("damage", ["plain text", "truncated"])
+def test_a_broken_gzip_run_file_is_one_line_naming_it(tmp_path, damage):
+    folder = copy_session(SQUARE, tmp_path / "s", rows=50)
+    path = folder / "080920201715_run-01.csv.gz"
+    data = path.read_bytes()
+    path.write_bytes(b"0,0,0,0,0,0,0,0\n" if damage == "plain text" else data[: len(data) // 2])
+    with pytest.raises(InputError) as info:
+        read_sessions([folder])
+    assert f"{path}: not a readable gzip file" in _one_line(info)
