@@ -112,18 +112,25 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--out", required=True, help="dataset folder to write")
     _add_force_option(sy, "an existing dataset folder and its DATASET.truth.json")
     sy.set_defaults(handler=_cmd_synth)
-    im = sub.add_parser("import", help="write a dataset from another log format (OptiOdom sessions)")
+    im = sub.add_parser("import", help="write a dataset from another log format (OptiOdom omni3 or omni4 sessions)")
     im.add_argument("format", choices=sorted(IMPORT_FORMATS), help="log format: optiodom")
     im.add_argument("sessions", nargs="+", metavar="SESSION_DIR",
-                    help="session folder(s) with <id>_metadata.csv and <id>_run-NN.csv")
+                    help="session folder(s) of one robot with <id>_metadata.csv and <id>_run-NN.csv[.gz]")
     im.add_argument("--out", required=True, help="dataset folder to write")
     im.add_argument("--mass", type=float, default=None, help="assumed robot mass [kg] (not published; default and "
                     "why in docs/formats.md, 'Importing OptiOdom logs')")
-    im.add_argument("--inertia", type=float, default=None, help="assumed yaw inertia [kg·m²] (default 0.5·mass·Li²)")
+    im.add_argument("--inertia", type=float, default=None,
+                    help="assumed yaw inertia [kg·m²] (default 0.5·mass·ρ², ρ the wheel centres' distance)")
     im.add_argument("--surface", choices=sorted(SURFACES), default=None,
                     help="floor preset of the nominal model (default grip: no slip, as kinematic odometry assumes)")
     _add_force_option(im, "an existing dataset folder")
     im.set_defaults(handler=_cmd_import)
+    ca = sub.add_parser("calibrate", help="kinematic odometry calibration of a dataset with wheel odometry (wheel "
+                                          "diameters and L, or l1 + l2 for mecanum wheels) -> a model JSON")
+    ca.add_argument("dataset", help="dataset folder with enc1…encn columns (e.g. from omni-gym import optiodom)")
+    ca.add_argument("--out", required=True, help="model JSON to write (the nominal model with the fitted values)")
+    _add_force_option(ca, "an existing --out file")
+    ca.set_defaults(handler=_cmd_calibrate)
     # Further subcommands register here with their own set_defaults(handler=...).
     return parser
 
@@ -351,12 +358,20 @@ def _cmd_import(args: argparse.Namespace) -> int:
     Output(args.out, "dir", force=args.force, inputs=args.sessions, marker="dataset.json", what="dataset").preflight()
     from omni_gym.discrepancy.importers import optiodom
 
-    mass = optiodom.MASS if args.mass is None else args.mass
     surface = optiodom.SURFACE if args.surface is None else args.surface
-    s = optiodom.import_optiodom(args.sessions, args.out, force=args.force, mass=mass, inertia=args.inertia,
+    # mass None: the default of the sessions' robot type (omni3 8 kg, omni4 4 kg; docs/formats.md)
+    s = optiodom.import_optiodom(args.sessions, args.out, force=args.force, mass=args.mass, inertia=args.inertia,
                                  surface=surface)
     print(f"imported {s.runs} runs from {len(s.sessions)} session(s), {s.duration:.1f} s of robot time "
           f"(assumed: mass {s.mass:g} kg, inertia {s.inertia:.4g} kg·m², surface {s.surface}) -> {s.out}")
+    return 0
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from omni_gym.discrepancy.calibrate import calibrate_dataset, summary_lines
+
+    cal = calibrate_dataset(args.dataset, args.out, force=args.force)
+    print("\n".join(summary_lines(cal, args.out)))
     return 0
 
 

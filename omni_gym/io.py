@@ -7,8 +7,10 @@ Every reader error is a :class:`InputError` whose one-line message names the fil
 from __future__ import annotations
 
 import csv
+import gzip
 import io
 import re
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -63,7 +65,8 @@ def read_text(path: str | Path) -> str:
     """The text of a UTF-8 file, without a leading byte-order mark; InputError naming the file.
 
     Spreadsheet programs and some editors start UTF-8 files with a byte-order mark (and end lines
-    with CRLF, which the CSV and JSON readers accept): both are read as if absent.
+    with CRLF, which the CSV and JSON readers accept): both are read as if absent. A name ending in
+    ``.gz`` is gzip-decompressed first.
     """
     path = Path(path)
     try:
@@ -74,6 +77,11 @@ def read_text(path: str | Path) -> str:
         raise InputError(f"{path}: is a directory, expected a file") from None
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if path.name.endswith(".gz"):
+        try:
+            raw = gzip.decompress(raw)
+        except (OSError, EOFError, zlib.error) as exc:  # not gzip, truncated, corrupt
+            raise InputError(f"{path}: not a readable gzip file ({exc})") from None
     if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
         raise InputError(f"{path}: UTF-16 text; save it as UTF-8 (e.g. 'CSV UTF-8')")
     try:

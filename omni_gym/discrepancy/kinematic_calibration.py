@@ -1,16 +1,26 @@
-"""Kinematic odometry calibration: the anchor a dynamic model has to beat (issue 15, item 5).
+"""Kinematic odometry calibration: the anchor a dynamic model has to beat.
 
-The classical calibration of a three-wheeled omnidirectional robot (OptiOdom and its predecessors):
-dead-reckon every training run from its measured wheel angles with a purely kinematic model whose only
-unknowns are the three effective wheel diameters D_i [m] and one common centre-to-wheel distance L [m],
-and fit them by least squares against motion capture.
+The classical calibration of an OptiOdom robot type, by least squares of dead-reckoned poses against
+motion capture:
+
+* ``omni3`` (three omni wheels, OptiOdom's omni3): the three effective wheel diameters D_i [m] and one
+  common centre-to-wheel distance L [m];
+* ``omni4`` (four mecanum wheels at (±l1/2, ±l2/2), OptiOdom's omni4 after Lin et al., ICCSE 2019): the
+  four effective wheel diameters D_i [m] and l1 + l2 [m]. The wheel lengths enter the kinematics only as
+  the lever c = (l1 + l2)/2 of every wheel (Δ_i = ±dx ± dy − c·dθ), so only the sum is identified: the
+  fit scales l1 and l2 together.
+
+Both are one model: a :class:`Geometry` whose wheel matrix row i is (e_i, e_i·(z × s·p_i)) / (D_i / 2), with
+e_i the wheel's rolling direction (r times the first two columns of the robot's no-slip wheel matrix: the
+unit drive direction for an omni wheel, d + tan γ·(z × d) for a mecanum wheel of roller angle γ), p_i the
+nominal wheel position and s = size / nominal size the one fitted length scale (``size``: L for omni3,
+l1 + l2 for omni4).
 
 Dead reckoning (:func:`dead_reckon`), per control cycle (t_{k-1}, t_k]:
 
 1. wheel travel Δφ_i = enc_i(t_k) − enc_i(t_{k-1}) [rad] (the dataset's ``enc`` columns);
-2. body displacement Δq = (Δx_b, Δy_b, Δθ) by least squares on the wheel geometry, W⁺·Δφ, where row i of
-   W is (d_i, d_i·(z × p_i)) / (D_i / 2) (:meth:`omni_gym.physics.robot.RobotSpec.wheel_matrix`), with the
-   nominal drive directions d_i and the nominal wheel positions scaled to distance L;
+2. body displacement Δq = (Δx_b, Δy_b, Δθ) by least squares on the wheel geometry, W⁺·Δφ (for omni4 this is
+   the data README's forward kinematics, dx = (Δ1 − Δ2 + Δ3 − Δ4)/4, …);
 3. exact integration of that twist held constant over the cycle (an arc), from the pose at t_{k-1}.
 
 Every run starts at its start pose (the first row). The cost (:func:`calibrate`) is the pose residual
@@ -27,10 +37,8 @@ import numpy as np
 
 from omni_gym.discrepancy.dataset import Run
 from omni_gym.discrepancy.simulate import pose_residual
-from omni_gym.discrepancy.synth import pose_lever
 from omni_gym.physics import effects as effect_library
 from omni_gym.physics.model import SimModel
-from omni_gym.physics.robot import Wheel
 
 # Search box around the nominal values (as scales): a factor 1.5 either way is far outside any real
 # calibration (a few per cent) yet keeps the model from degenerating (D or L → 0).
@@ -39,36 +47,78 @@ _LO, _HI = 1.0 / 1.5, 1.5
 
 @dataclass(frozen=True)
 class Geometry:
-    """The kinematic model of one calibration: nominal wheel directions, fitted sizes.
+    """The kinematic model of one calibration: nominal wheel layout, fitted sizes.
 
-    ``units`` (n, 2): unit vectors from the geometric centre towards the wheels (body frame);
-    ``drives`` (n, 2): unit drive directions (body frame); ``diameters`` (n,) [m]; ``L`` [m]: every
-    wheel sits at L·units_i.
+    ``positions`` (n, 2) [m]: nominal wheel centres (body frame, at ``nominal_size``); ``directions``
+    (n, 2): rolling directions e_i (module docstring; unit length for omni wheels, √2 for 45° mecanum
+    wheels); ``diameters`` (n,) [m]; ``size`` [m]: the fitted length (``size_name``: ``L`` the
+    centre-to-wheel distance for omni wheels, ``l1+l2`` for mecanum wheels); every wheel sits at
+    positions_i · size / nominal_size.
     """
 
-    units: np.ndarray
-    drives: np.ndarray
+    positions: np.ndarray
+    directions: np.ndarray
     diameters: np.ndarray
-    L: float
+    size: float
+    nominal_size: float
+    size_name: str = "L"
+
+    @property
+    def L(self) -> float:
+        """The fitted length [m] (``size``; the name of the omni3 calibration)."""
+        return self.size
 
     def wheel_matrix(self) -> np.ndarray:
         """W (n×3): body displacement (Δx_b [m], Δy_b [m], Δθ [rad]) → wheel travel [rad]."""
-        p = self.L * self.units
-        d = self.drives
-        lever = d[:, 1] * p[:, 0] - d[:, 0] * p[:, 1]  # d · (z × p)
-        return np.column_stack([d[:, 0], d[:, 1], lever]) / (0.5 * self.diameters[:, None])
+        p = self.positions * (self.size / self.nominal_size)
+        e = self.directions
+        lever = e[:, 1] * p[:, 0] - e[:, 0] * p[:, 1]  # e · (z × p)
+        return np.column_stack([e[:, 0], e[:, 1], lever]) / (0.5 * self.diameters[:, None])
+
+    @property
+    def reach(self) -> float:
+        """Largest nominal wheel-centre distance [m] (the default heading lever of the cost)."""
+        return float(np.max(np.hypot(*self.positions.T)))
+
+
+def layout_geometry(positions, drives, roller_angles, diameters) -> Geometry:
+    """A :class:`Geometry` from a wheel layout: positions (n, 2) [m], unit drive directions (n, 2), roller
+    angles γ (n,) [rad] (0 for omni wheels) and diameters (n,) [m].
+
+    The rolling direction of a wheel whose rollers sit at γ to its plane is e = d + tan γ·(z × d) (the
+    rim speed is e · the wheel-centre velocity; ``docs/model.md``). The size is L (the mean wheel
+    distance) if every γ is 0, otherwise l1 + l2 = 2·mean |e·(z × p)| (the mecanum lever c is (l1 + l2)/2).
+    """
+    p = np.asarray(positions, dtype=float)
+    d = np.asarray(drives, dtype=float)
+    gamma = np.asarray(roller_angles, dtype=float)
+    e = d + np.tan(gamma)[:, None] * np.column_stack([-d[:, 1], d[:, 0]])
+    return _geometry(p, e, np.asarray(diameters, dtype=float), mecanum=bool(np.any(gamma != 0)))
+
+
+def _geometry(p: np.ndarray, e: np.ndarray, diameters: np.ndarray, mecanum: bool) -> Geometry:
+    dist = np.hypot(p[:, 0], p[:, 1])
+    if np.any(dist <= 0):
+        raise ValueError("a wheel sits at the geometric centre; no length to calibrate")
+    if mecanum:
+        size = 2.0 * float(np.mean(np.abs(e[:, 1] * p[:, 0] - e[:, 0] * p[:, 1])))
+        name = "l1+l2"
+    else:
+        size, name = float(np.mean(dist)), "L"
+    return Geometry(positions=p, directions=e, diameters=diameters, size=size, nominal_size=size, size_name=name)
 
 
 @dataclass(frozen=True)
 class KinematicCalibration:
     """Result of :func:`calibrate`.
 
-    ``diameters`` (n,) [m] effective wheel diameters and ``L`` [m] the common centre-to-wheel distance;
-    ``nominal_diameters``, ``nominal_L`` the nominal model's. ``train_position_rms`` [m]: RMS over every
-    observed training row of the position error (Euclidean, x and y), ``train_pose_rms`` [m]: RMS of the
-    fitted cost's components (x, y, heading × ``lever``); ``nominal_*`` the same with the nominal
-    geometry. ``model``: the calibrated :class:`SimModel` (:func:`to_model`); ``nominal``: the model it
-    started from. ``runs`` and ``rows``: training runs and observed rows used.
+    ``diameters`` (n,) [m] effective wheel diameters and ``L`` [m] the fitted length (``size_name``: ``L``
+    the common centre-to-wheel distance for omni3, ``l1+l2`` for omni4); ``nominal_diameters``,
+    ``nominal_L`` the nominal model's. ``train_position_rms`` [m]: RMS over every observed training row
+    of the position error (Euclidean, x and y), ``train_pose_rms`` [m]: RMS of the fitted cost's components
+    (x, y, heading × ``lever``); ``nominal_*`` the same with the nominal geometry. ``model``: the
+    calibrated :class:`SimModel` (:func:`to_model`); ``nominal``: the model it started from (both None when
+    calibrated from a bare :class:`Geometry`). ``runs`` and ``rows``: training runs and observed rows used.
     """
 
     diameters: np.ndarray
@@ -82,41 +132,49 @@ class KinematicCalibration:
     lever: float
     runs: int
     rows: int
-    nominal: SimModel = field(repr=False)
-    model: SimModel = field(repr=False)
+    nominal: SimModel | None = field(repr=False)
+    model: SimModel | None = field(repr=False)
+    start: Geometry = field(repr=False)
+
+    @property
+    def size_name(self) -> str:
+        """What ``L`` is: ``L`` (omni3) or ``l1+l2`` (omni4)."""
+        return self.start.size_name
 
     @property
     def geometry(self) -> Geometry:
         """The fitted kinematic model (for :func:`dead_reckon`)."""
-        g = nominal_geometry(self.nominal)
-        return replace(g, diameters=np.asarray(self.diameters, dtype=float), L=float(self.L))
+        return replace(self.start, diameters=np.asarray(self.diameters, dtype=float), size=float(self.L))
 
     def to_json(self) -> dict:
         """Plain numbers (metres) for reports."""
-        return {"diameters": [float(v) for v in self.diameters], "L": float(self.L),
+        return {"diameters": [float(v) for v in self.diameters], "L": float(self.L), "size_name": self.size_name,
                 "nominal_diameters": [float(v) for v in self.nominal_diameters], "nominal_L": float(self.nominal_L),
                 "train_position_rms": self.train_position_rms, "train_pose_rms": self.train_pose_rms,
                 "nominal_position_rms": self.nominal_position_rms, "nominal_pose_rms": self.nominal_pose_rms,
                 "lever": self.lever, "runs": self.runs, "rows": self.rows}
 
 
+def _is_mecanum(model: SimModel) -> bool:
+    return any(getattr(w, "roller_angle", 0.0) != 0.0 for w in model.robot.wheels)
+
+
 def nominal_geometry(model: SimModel) -> Geometry:
-    """The kinematic model of ``model``: its wheel directions and drives, effective diameters
-    2·r·scale_i (the ``wheel_radius`` effect's scales, if any) and L the mean wheel distance [m].
+    """The kinematic model of ``model``: its wheel positions, rolling directions (r times the first two
+    columns of its no-slip wheel matrix), effective diameters 2·r·scale_i (the ``wheel_radius`` effect's
+    scales, if any) and the size L (omni wheels: mean wheel distance) or l1 + l2 (mecanum wheels).
 
     Other effects (``wheel_geometry`` included) are not read: the calibration starts from the layout.
     """
     r = model.robot
-    pos = r.positions()
-    dist = np.hypot(pos[:, 0], pos[:, 1])
-    if np.any(dist <= 0):
-        raise ValueError(f"model {r.name!r}: a wheel sits at the geometric centre; no distance L to calibrate")
     scale = np.ones(r.n_wheels)
     if "wheel_radius" in model.effects:
         scale = np.asarray(model.effects["wheel_radius"]["scale"], dtype=float)
-    L = float(np.mean(dist))
-    # Scaling every position by L_new / L keeps wheels that are not on one circle in proportion.
-    return Geometry(units=pos / L, drives=r.drives(), diameters=2.0 * r.wheel_radius * scale, L=L)
+    e = r.wheel_matrix()[:, :2] * r.wheel_radius
+    try:
+        return _geometry(r.positions(), e, 2.0 * r.wheel_radius * scale, _is_mecanum(model))
+    except ValueError as exc:
+        raise ValueError(f"model {r.name!r}: {exc}") from None
 
 
 def _wheel_travel(run: Run) -> np.ndarray:
@@ -164,19 +222,20 @@ def position_rms(measured: np.ndarray, predicted: np.ndarray) -> float:
     return float(math.sqrt(np.mean(np.sum(e**2, axis=1)))) if ok.any() else math.nan
 
 
-def calibrate(runs: list[Run], nominal: SimModel, lever: float | None = None) -> KinematicCalibration:
-    """Fit the n effective wheel diameters and L to ``runs`` (module docstring); start at ``nominal``.
+def calibrate(runs: list[Run], nominal: SimModel | Geometry, lever: float | None = None) -> KinematicCalibration:
+    """Fit the n effective wheel diameters and the length (L or l1 + l2) to ``runs`` (module docstring);
+    start at ``nominal`` (a model, or a bare :class:`Geometry`: then the result has no ``model``).
 
-    ``lever`` [m] weighs the heading error as the workflow does (default
-    :func:`omni_gym.discrepancy.synth.pose_lever` of the nominal model, held fixed during the fit).
+    ``lever`` [m] weighs the heading error as the workflow does (default: the largest nominal wheel-centre
+    distance, :func:`omni_gym.discrepancy.synth.pose_lever`, held fixed during the fit).
     ValueError (naming the run) if a run has no encoder columns or no observed row after its start.
     """
     from scipy.optimize import least_squares
 
     if not runs:
         raise ValueError("kinematic calibration: no training runs")
-    lever = pose_lever(nominal) if lever is None else float(lever)
-    g0 = nominal_geometry(nominal)
+    g0 = nominal if isinstance(nominal, Geometry) else nominal_geometry(nominal)
+    lever = g0.reach if lever is None else float(lever)
     n = len(g0.diameters)
     prepared = []
     for run in runs:
@@ -187,10 +246,10 @@ def calibrate(runs: list[Run], nominal: SimModel, lever: float | None = None) ->
         if not obs.any():
             raise ValueError(f"run {run.name}: no observed pose after the start: nothing to calibrate against")
         prepared.append((_wheel_travel(run), run.start_pose, run.pose[obs], obs))
-    x0 = np.concatenate([g0.diameters, [g0.L]])
+    x0 = np.concatenate([g0.diameters, [g0.size]])
 
     def geometry(x: np.ndarray) -> Geometry:
-        return replace(g0, diameters=x[:n], L=float(x[n]))
+        return replace(g0, diameters=x[:n], size=float(x[n]))
 
     def residuals(x: np.ndarray) -> np.ndarray:
         g = geometry(x)
@@ -211,35 +270,45 @@ def calibrate(runs: list[Run], nominal: SimModel, lever: float | None = None) ->
     pos0, pose0 = rms(x0)
     rows = sum(int(p[3].sum()) for p in prepared)
     diameters = x[:n].copy()
+    model = None
+    if isinstance(nominal, SimModel):
+        model = calibrated_model(nominal, diameters, float(x[n]))
     return KinematicCalibration(
         diameters=diameters, L=float(x[n]), train_position_rms=pos1, train_pose_rms=pose1,
-        nominal_diameters=g0.diameters.copy(), nominal_L=g0.L, nominal_position_rms=pos0, nominal_pose_rms=pose0,
-        lever=lever, runs=len(runs), rows=rows, nominal=nominal,
-        model=calibrated_model(nominal, diameters, float(x[n])))
+        nominal_diameters=g0.diameters.copy(), nominal_L=g0.size, nominal_position_rms=pos0, nominal_pose_rms=pose0,
+        lever=lever, runs=len(runs), rows=rows, nominal=nominal if isinstance(nominal, SimModel) else None,
+        model=model, start=g0)
 
 
 def calibrated_model(nominal: SimModel, diameters: np.ndarray, L: float) -> SimModel:
-    """``nominal`` with the wheel diameters ``diameters`` (n,) [m] and the centre-to-wheel distance ``L`` [m].
+    """``nominal`` with the wheel diameters ``diameters`` (n,) [m] and the length ``L`` [m] (omni wheels: the
+    centre-to-wheel distance; mecanum wheels: l1 + l2, see :func:`nominal_geometry`).
 
     Diameters: a ``wheel_radius`` effect with scales D_i / (2·r_nominal) (replacing any the nominal has).
-    L: the ``wheel_geometry`` effect's ``distance`` (L / L_nominal on every wheel, no mount yaw) if the
-    effect library has it, otherwise the nominal wheel positions scaled by L / L_nominal.
+    Length: omni wheels: the ``wheel_geometry`` effect's ``distance`` (L / L_nominal on every wheel, no
+    mount yaw) if the effect library has it; otherwise, and always for mecanum wheels (whose lengths the
+    calibration scales together, as that effect would), the nominal wheel positions scaled by the ratio.
     """
     g0 = nominal_geometry(nominal)
     r = nominal.robot
     model = nominal.with_effect("wheel_radius",
                                 {"scale": [float(d / (2.0 * r.wheel_radius)) for d in np.asarray(diameters)]})
-    ratio = float(L / g0.L)
-    if "wheel_geometry" in effect_library.REGISTRY and "wheel_geometry" not in nominal.effects:
+    ratio = float(L / g0.size)
+    if (not _is_mecanum(nominal) and "wheel_geometry" in effect_library.REGISTRY
+            and "wheel_geometry" not in nominal.effects):
         effect = effect_library.REGISTRY["wheel_geometry"]
         params: dict = {"distance": [ratio] * r.n_wheels}
         if "mount" in effect.keys:
             params["mount"] = [0.0] * r.n_wheels
         return model.with_effect("wheel_geometry", params)
-    wheels = tuple(Wheel(position=(w.position[0] * ratio, w.position[1] * ratio), drive=w.drive) for w in r.wheels)
+    # replace(): a wheel keeps its drive and any other attribute (a mecanum wheel's roller angle)
+    wheels = tuple(replace(w, position=(w.position[0] * ratio, w.position[1] * ratio)) for w in r.wheels)
     return replace(model, robot=r.with_changes(wheels=wheels))
 
 
 def to_model(result: KinematicCalibration) -> SimModel:
-    """The calibrated :class:`SimModel` of ``result`` (the same as ``result.model``)."""
+    """The calibrated :class:`SimModel` of ``result`` (the same as ``result.model``); ValueError if it was
+    calibrated from a bare :class:`Geometry`."""
+    if result.nominal is None:
+        raise ValueError("this calibration started from a bare geometry: it has no model")
     return calibrated_model(result.nominal, result.diameters, result.L)

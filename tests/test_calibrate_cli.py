@@ -1,0 +1,96 @@
+"""``omni-gym calibrate DATASET --out model.json`` as a user runs it (a subprocess).
+
+The dataset: runs 1 and 2 of the bundled omni3 session circular/221220201730 (17 s each) imported.
+The written model is checked by what it is for: dead reckoning with its wheel radii and positions
+(read back through the force kernel's parameters) gives the "calibrated" RMS the command printed,
+below the nominal one.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from omni_gym.discrepancy.dataset import load_dataset, write_dataset
+from omni_gym.discrepancy.importers.optiodom import import_optiodom
+from omni_gym.discrepancy.kinematic_calibration import dead_reckon, layout_geometry
+from omni_gym.physics.layout import WP_DX, WP_DY, WP_PX, WP_PY, WP_R
+from omni_gym.physics.model import load_model
+
+ROOT = Path(__file__).resolve().parents[1]
+SESSION = ROOT / "data" / "optiodom-omni3" / "circular" / "221220201730"
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.run([sys.executable, "-m", "omni_gym.cli", *args], capture_output=True, text=True,
+                          env=env, cwd=ROOT, timeout=120)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("calibrate")
+    folder = root / "session"
+    folder.mkdir()
+    shutil.copy(SESSION / "221220201730_metadata.csv", folder)
+    for k in (1, 2):
+        shutil.copy(SESSION / f"221220201730_run-0{k}.csv", folder)
+    import_optiodom([folder], root / "ds")
+    return root / "ds"
+
+
+def _rms(runs, geometry) -> float:
+    """Position RMS [m] over every tracked row after the start, all runs pooled (as the calibration)."""
+    err = []
+    for run in runs:
+        obs = run.observed
+        obs[0] = False
+        err.append(np.sum((dead_reckon(run, geometry)[obs, :2] - run.pose[obs, :2]) ** 2, axis=1))
+    return float(np.sqrt(np.mean(np.concatenate(err))))
+
+
+def test_calibrate_writes_the_model_it_reports(dataset, tmp_path):
+    out = tmp_path / "model.json"
+    res = cli("calibrate", str(dataset), "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    text = res.stdout
+    assert "calibrated on 2 runs" in text and "L = " in text and f"wrote {out}" in text
+    before, after = (float(v) for v in re.search(r"([\d.]+) mm nominal -> ([\d.]+) mm calibrated", text).groups())
+    assert after < 0.7 * before  # the omni3 calibration more than halves this session's error (library test)
+    model = load_model(str(out), None, None)
+    _, wp = model.kernel_params()
+    geometry = layout_geometry(wp[:, [WP_PX, WP_PY]], wp[:, [WP_DX, WP_DY]], np.zeros(3), 2 * wp[:, WP_R])
+    runs = load_dataset(dataset).runs
+    assert 1e3 * _rms(runs, geometry) == pytest.approx(after, abs=0.06)  # printed to 0.1 mm
+    # The fitted diameters are printed as they are in the file.
+    printed = [float(v) for v in re.search(r"D = \[([^\]]+)\] mm", text).group(1).split(",")]
+    assert np.allclose(printed, 2e3 * wp[:, WP_R], atol=0.006)
+    # An existing file: refused in one line (exit 2), untouched; --force replaces it.
+    written = out.read_text()
+    again = cli("calibrate", str(dataset), "--out", str(out))
+    assert again.returncode == 2 and again.stderr.count("\n") == 1 and "use --force" in again.stderr
+    assert out.read_text() == written
+    assert cli("calibrate", str(dataset), "--out", str(out), "--force").returncode == 0
+    assert json.loads(out.read_text()) == json.loads(written)  # deterministic
+
+
+def test_a_dataset_without_wheel_odometry_is_refused_in_one_line(dataset, tmp_path):
+    ds = load_dataset(dataset)
+    bare = tmp_path / "no_enc"
+    runs = [type(r)(name=r.name, t=r.t, cmd=r.cmd, pose=r.pose) for r in ds.runs]  # no enc columns
+    write_dataset(bare, ds.model_json, "no encoders", runs)
+    out = tmp_path / "model.json"
+    res = cli("calibrate", str(bare), "--out", str(out))
+    assert res.returncode == 2 and res.stdout == ""
+    err = res.stderr.strip()
+    assert "\n" not in err and err.startswith("omni-gym: error: ") and str(bare) in err
+    assert "221220201730_run-01 has no wheel odometry" in err
+    assert not out.exists()
