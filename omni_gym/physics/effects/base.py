@@ -175,6 +175,10 @@ class Effect:
             else:
                 bound.check(json_number(value, label), label)
 
+    def check_robot(self, robot) -> None:
+        """Raise ValueError if the effect does not apply to ``robot`` (a RobotSpec). Default: applies to
+        every wheel type (omni and mecanum)."""
+
     # --- simulation ----------------------------------------------------------------------------
 
     def write_kernel(self, params: dict, sp: np.ndarray, wp: np.ndarray, model: SimModel) -> None:

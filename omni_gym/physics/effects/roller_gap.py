@@ -39,6 +39,12 @@ class RollerGap(Effect):
     recovery_sizes = {"small": {"mu_gap": 0.4}, "large": {"mu_gap": 0.56}}
     tolerances = {"mu_gap": 0.1, "roller_fraction": 0.03, "phase": 0.1}  # phase: share of the pitch
 
+    def check_robot(self, robot) -> None:
+        if robot.has_angled_rollers:
+            raise ValueError("effect 'roller_gap' applies to omni wheels only (rigid material between rollers in "
+                             "the wheel plane); this robot has mecanum wheels (roller_angle ≠ 0), whose rollers "
+                             "overlap and always touch the floor")
+
     def write_kernel(self, params, sp, wp, model) -> None:
         sp[SP_GAP] = (1.0 - params["roller_fraction"]) * sp[SP_PITCH]
         wp[:, WP_GAPW] = params["mu_gap"]

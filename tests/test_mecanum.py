@@ -1,0 +1,82 @@
+"""Mecanum wheels (roller angle γ ≠ 0): model JSON, refusals, and the preset through the model layer."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from omni_gym.physics.friction import surface_preset
+from omni_gym.physics.model import SimModel, load_model
+from omni_gym.physics.robot import optiodom_omni4, phunopas2018, williams2002
+
+
+def test_model_json_round_trip_keeps_roller_angles():
+    model = load_model("optiodom_omni4", "paper")
+    data = json.loads(json.dumps(model.to_json()))
+    assert [w["roller_angle"] for w in data["wheels"]] == pytest.approx([-math.pi / 4, math.pi / 4, math.pi / 4,
+                                                                         -math.pi / 4], abs=0)
+    back = SimModel.from_json(data)
+    assert back.robot.wheels == model.robot.wheels
+    np.testing.assert_array_equal(back.robot.wheel_matrix(), model.robot.wheel_matrix())
+
+
+def test_omni_json_has_no_roller_angle_key():
+    """Omni-wheel model files stay exactly as they were: the key is written only when non-zero."""
+    for robot in ("williams2002", "phunopas2018"):
+        data = load_model(robot).to_json()
+        assert all(set(w) == {"position", "drive"} for w in data["wheels"])
+    # A file with an explicit 0 reads as the omni wheel.
+    data = load_model("williams2002").to_json()
+    data["wheels"][0]["roller_angle"] = 0
+    assert SimModel.from_json(data).robot == williams2002()
+
+
+KEY = r"wheels\[1\].roller_angle"
+
+
+@pytest.mark.parametrize(("value", "message"), [(1.2, KEY + " must be a number in"), ("x", KEY), (None, KEY)])
+def test_bad_roller_angle_in_json_is_one_line(value, message):
+    data = load_model("phunopas2018").to_json()
+    data["wheels"][1]["roller_angle"] = value
+    with pytest.raises(ValueError, match=message) as err:
+        SimModel.from_json(data, where="m.json")
+    assert "\n" not in str(err.value) and str(err.value).startswith("m.json: ")
+
+
+def test_preset_defaults_to_initial_friction_and_refuses_roller_gap():
+    assert load_model("optiodom_omni4").friction == "initial"
+    assert load_model("phunopas2018").friction == "roller_gap"
+    with pytest.raises(ValueError, match="'roller_gap' applies to omni wheels only"):
+        load_model("optiodom_omni4", friction="roller_gap")
+    data = load_model("optiodom_omni4").to_json()
+    data["friction"] = "roller_gap"
+    with pytest.raises(ValueError, match="^f.json: friction model 'roller_gap' applies to omni wheels only"):
+        SimModel.from_json(data, where="f.json")
+
+
+def test_roller_gap_effect_refused_on_mecanum_others_accepted():
+    model = SimModel(robot=optiodom_omni4(), surface=surface_preset("carpet"), friction="initial")
+    with pytest.raises(ValueError, match="effect 'roller_gap' applies to omni wheels only"):
+        model.with_effect("roller_gap", {"mu_gap": 0.5, "roller_fraction": 0.9, "phase": [0.0] * 4})
+    # Every other effect applies to mecanum wheels (docs/model.md, per effect).
+    for name, params in {"kinetic_friction": {"ratio": 0.7, "v_s": 0.02}, "com_offset": {"com": [0.01, 0.0]},
+                         "wheel_radius": {"scale": [1.0, 1.01, 0.99, 1.0]}, "motor_lag": {"tau": 0.05},
+                         "wheel_liftoff": {"lift_rate": 0.5, "recover_rate": 5.0},
+                         "wheel_geometry": {"distance": [1.0] * 4, "mount": [0.0, 0.01, 0.0, 0.0]}}.items():
+        model.with_effect(name, params)
+    # The omni robot keeps the roller_gap effect.
+    SimModel(robot=phunopas2018(), surface=surface_preset("carpet"), friction="initial").with_effect(
+        "roller_gap", {"mu_gap": 0.5, "roller_fraction": 0.9, "phase": [0.0] * 4})
+
+
+def test_kernel_params_carry_roller_angle():
+    from omni_gym.physics.layout import WP_COSG, WP_SING
+
+    _, wp = load_model("optiodom_omni4").kernel_params()
+    np.testing.assert_allclose(wp[:, WP_COSG], math.sqrt(0.5))
+    np.testing.assert_allclose(wp[:, WP_SING], [-math.sqrt(0.5), math.sqrt(0.5), math.sqrt(0.5), -math.sqrt(0.5)])
+    _, wp = load_model("williams2002").kernel_params()
+    assert np.all(wp[:, WP_COSG] == 1.0) and np.all(wp[:, WP_SING] == 0.0)
