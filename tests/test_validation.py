@@ -129,7 +129,8 @@ CASES = [
 # Mecanum wheels (the optiodom_omni4 preset, rollers at ±45°): the 'initial' friction model only, the
 # one that applies to them (roller_gap's rigid material between rollers is an omni-wheel geometry).
 CASES += [
-    pytest.param("optiodom_omni4", surface, "initial", maneuver, False, id=f"optiodom_omni4-initial-{surface}-{maneuver}")
+    pytest.param("optiodom_omni4", surface, "initial", maneuver, False,
+                 id=f"optiodom_omni4-initial-{surface}-{maneuver}")
     for surface in ("paper", "carpet")
     for maneuver in MANEUVERS
 ] + [
