@@ -142,3 +142,27 @@ def test_replay_runs_the_preset_with_liftoff_deterministically():
     # sliding friction, so the forward speed decays at only (μ'_W − μ'_T)·g/2 ≈ 0.5 m/s² (docs/model.md)
     # and the robot moves left more slowly than commanded; it moves left all the same.
     assert a[2, 1] - a[1, 1] > 0.02
+
+
+def test_sideways_start_accelerates_at_the_saturated_friction_balance():
+    """From rest, commanded sideways on carpet, every roller slips and rolls at saturated friction.
+
+    Hand derivation (docs/model.md): each wheel's sliding friction μ'_W along its roller axis e and
+    rolling friction μ'_T along its free direction f both have a y component of magnitude N/√2, the
+    first pulling left, the second holding back, so m·a_y = 4·N·(μ'_W − μ'_T)/√2 and
+    a_y = g (μ'_W − μ'_T)/√2 = 0.694 m/s² on carpet, with no x motion or turn by symmetry. Over 0.2 s the
+    slips stay above 0.1 m/s (atan(k·v) within 0.7 % of saturation, 0.4 % on average), so
+    y(0.2 s) = a_y t²/2 less that share (measured −0.75 %); bound 2 %. A wrong roller angle sign or a
+    missing rolling term changes a_y by tens of per cent.
+    """
+    from omni_gym.physics.world import World
+
+    model = load_model("optiodom_omni4", "carpet")
+    s = model.surface
+    world = World(model)
+    world.reset()
+    world.set_commands(model.robot.wheel_matrix() @ [0.0, 0.3, 0.0])
+    world.step(0.2)
+    a_y = model.gravity * (s.mu_drive - s.mu_transverse) / math.sqrt(2.0)
+    assert world.pose[0, 1] == pytest.approx(0.5 * a_y * 0.2**2, rel=0.02)
+    assert abs(world.pose[0, 0]) < 1e-9 and abs(world.pose[0, 2]) < 1e-9
