@@ -67,6 +67,10 @@ def test_roller_gap_effect_refused_on_mecanum_others_accepted():
                          "wheel_liftoff": {"lift_rate": 0.5, "recover_rate": 5.0},
                          "wheel_geometry": {"distance": [1.0] * 4, "mount": [0.0, 0.01, 0.0, 0.0]}}.items():
         model.with_effect(name, params)
+    from omni_gym.physics.effects import REGISTRY
+
+    assert [n for n, e in REGISTRY.items() if not e.applies_to(model.robot)] == ["roller_gap"]
+    assert all(e.applies_to(phunopas2018()) for e in REGISTRY.values())
     # The omni robot keeps the roller_gap effect.
     SimModel(robot=phunopas2018(), surface=surface_preset("carpet"), friction="initial").with_effect(
         "roller_gap", {"mu_gap": 0.5, "roller_fraction": 0.9, "phase": [0.0] * 4})

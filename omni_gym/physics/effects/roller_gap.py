@@ -4,6 +4,9 @@ Williams et al. (2002): between two rollers the wheel rides on hub or frame mate
 coefficient μ'' (``mu_gap``) in both directions, for the share ``1 − roller_fraction`` of each roller
 pitch 2π/rollers; ``phase`` [rad] is each wheel's rotation at which its first gap starts. Turns the
 gap model on even for a nominal ``initial`` friction model.
+
+Omni wheels only: a robot with mecanum wheels (roller angle ≠ 0) refuses it (:meth:`RollerGap.check_robot`),
+since a mecanum wheel's rollers overlap seen from the side and it always touches the floor with a roller.
 """
 
 from __future__ import annotations
