@@ -102,6 +102,15 @@ RATE_REASON = ("as the environments' `lift_rate`: any tiny rate is safe (a switc
 # The effect parameters' rows (`effects.EFFECT.KEY`) live with their effects (omni_gym.physics.effects);
 # omni_gym.physics.model.MODEL_BOUNDS is this table followed by them, as docs/bounds.md shows it.
 
+# Largest roller angle |γ| [rad] of a wheel (0: omni wheel, π/4: mecanum wheel). A wheel transmits
+# drive only through the share cos γ of its rim speed (no-slip wheel speed ∝ 1/cos γ, infinite at
+# 90°, where the wheel no longer drives at all); beyond 60° (cos γ < 1/2) no wheel is built, and the
+# wheel matrix and the force law's wheel coupling grow steeply.
+ROLLER_ANGLE_MAX = math.pi / 3
+ROLLER_ANGLE_REASON = ("0 is an omni wheel (rollers in the wheel plane), ±π/4 (±0.785) a mecanum wheel; beyond ±60° "
+                       "(cos γ < 1/2) no wheel is built and the no-slip wheel speed, ∝ 1/cos γ, grows without bound "
+                       "towards 90°, where the wheel no longer drives")
+
 MODEL: dict[str, Bound] = {b.name: b for b in (
     Bound("mass", 1e-3, 1e4, "kg", "a 1 g micro-robot to a 10 t industrial omnidirectional platform; "
           "outside, the number is a unit error"),
@@ -112,6 +121,7 @@ MODEL: dict[str, Bound] = {b.name: b for b in (
     Bound("wheels[i].position", -10.0, 10.0, "m", "each coordinate; " + _LENGTH),
     Bound("wheels[i].drive (length)", 1e-6, 1e6, "", "a direction only (normalised on input); lengths "
           "outside lose precision when normalised or are typos"),
+    Bound("wheels[i].roller_angle", -ROLLER_ANGLE_MAX, ROLLER_ANGLE_MAX, "rad", ROLLER_ANGLE_REASON),
     Bound("com", -10.0, 10.0, "m", "each coordinate, as wheel positions"),
     Bound("rollers", 1, 100, "", "rollers per wheel: commercial omni wheels have 2 to about 30; the "
           "roller pitch 2π/rollers stays far above the wheel's turn in one substep", integer=True),

@@ -322,7 +322,7 @@ def test_every_physical_model_input_has_a_bound():
     data = load_model("williams2002").to_json()
     numeric = [k for k, v in data.items() if isinstance(v, (int, float))]
     numeric += [f"surface.{k}" for k, v in data["surface"].items() if isinstance(v, (int, float))]
-    numeric += ["wheels[i].position", "wheels[i].drive (length)", "com"]
+    numeric += ["wheels[i].position", "wheels[i].drive (length)", "wheels[i].roller_angle", "com"]
     numeric += [f"effects.{name}.{k}" for name, effect in REGISTRY.items() for k in effect.keys]
     assert sorted(numeric) == sorted(MODEL_BOUNDS)
 

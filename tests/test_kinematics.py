@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from omni_gym.physics import kinematics as kin
-from omni_gym.physics.robot import phunopas2018, regular, williams2002
+from omni_gym.physics.robot import RobotSpec, Wheel, optiodom_omni4, phunopas2018, regular, williams2002
 
 R, r = 0.10, 0.05
 ALPHAS = np.pi / 4 + np.arange(4) * np.pi / 2
@@ -80,3 +80,70 @@ def test_regular_generator_and_bad_wheel_count():
     np.testing.assert_allclose(np.linalg.norm(robot.positions(), axis=1), 0.1)
     with pytest.raises(ValueError, match="n must be an integer >= 3"):
         regular(2)
+
+
+# --- mecanum wheels: the OptiOdom omni4 robot --------------------------------------------------------
+
+def optiodom_inverse(l1: float, l2: float) -> np.ndarray:
+    """OptiOdom omni4 (Lin et al. 2019): body displacement (dx, dy, dθ) → wheel travels Δ [m], typed in.
+
+    Its least-squares inverse is the dataset's documented forward odometry (checked below).
+    """
+    c = (l1 + l2) / 2.0
+    return np.array([[1.0, -1.0, -c], [-1.0, -1.0, -c], [1.0, 1.0, -c], [-1.0, 1.0, -c]])
+
+
+def optiodom_forward(l1: float, l2: float) -> np.ndarray:
+    """OptiOdom's documented forward odometry Δ → (dx, dy, dθ), typed in from the data README."""
+    s = 2.0 * (l1 + l2)
+    return np.array([[0.25, -0.25, 0.25, -0.25], [-0.25, -0.25, 0.25, 0.25], [-1 / s, -1 / s, -1 / s, -1 / s]])
+
+
+@pytest.mark.parametrize(("l1", "l2"), [(0.2, 0.2), (0.205, 0.215), (0.3, 0.1)])
+def test_optiodom_omni4_reproduces_the_optiodom_matrix(l1, l2):
+    robot = optiodom_omni4(l1, l2)
+    # r·W maps a body displacement to wheel travels: OptiOdom's inverse, exactly up to round-off.
+    np.testing.assert_allclose(robot.wheel_radius * robot.wheel_matrix(), optiodom_inverse(l1, l2),
+                               rtol=0, atol=1e-15)
+    # And the least-squares forward kinematics is the dataset's forward formula.
+    np.testing.assert_allclose(optiodom_forward(l1, l2) @ optiodom_inverse(l1, l2), np.eye(3), atol=1e-12)
+    rng = np.random.default_rng(3)
+    travel = rng.normal(size=(6, 4))  # arbitrary, slipping wheel travels included
+    np.testing.assert_allclose(kin.forward(robot, travel / robot.wheel_radius), travel @ optiodom_forward(l1, l2).T,
+                               rtol=1e-12, atol=1e-12)
+
+
+def test_optiodom_omni4_equal_diameters_only():
+    assert optiodom_omni4(diameters=(0.05,) * 4).wheel_radius == 0.025
+    with pytest.raises(ValueError, match="diameters differ"):
+        optiodom_omni4(diameters=(0.06, 0.06, 0.061, 0.06))
+
+
+def test_mecanum_row_is_roller_axis_projection():
+    """Row i is u_i·(1, 0, z×p_i)/(r cos γ_i) = (d_i + tan γ_i a_i)·(…)/r, for any roller angle."""
+    gamma = 0.4
+    wheels = (Wheel((0.1, 0.05), (0.6, 0.8), gamma), Wheel((-0.1, 0.0), (0.0, 1.0)),
+              Wheel((0.0, -0.1), (1.0, 0.0), -0.7))
+    robot = RobotSpec(name="m", wheels=wheels, wheel_radius=0.04, mass=1.0, inertia=0.01)
+    for i, w in enumerate(robot.wheels):
+        d = np.array(w.drive)
+        a = np.array([-d[1], d[0]])
+        e = d + np.tan(w.roller_angle) * a
+        px, py = w.position
+        np.testing.assert_allclose(robot.wheel_matrix()[i], [e[0], e[1], e @ [-py, px]] / np.float64(0.04), atol=1e-14)
+
+
+def test_omni_wheel_matrices_unchanged():
+    """γ = 0 leaves every omni robot's matrix bit-identical to (d, d·(z × p))/r."""
+    for robot in (williams2002(), phunopas2018(), regular(5)):
+        p, d = robot.positions(), robot.drives()
+        old = np.column_stack([d[:, 0], d[:, 1], d[:, 1] * p[:, 0] - d[:, 0] * p[:, 1]]) / robot.wheel_radius
+        np.testing.assert_array_equal(robot.wheel_matrix(), old)
+        assert not robot.has_angled_rollers
+
+
+@pytest.mark.parametrize("gamma", [np.pi / 2, -1.1, np.nan])
+def test_roller_angle_beyond_bound_is_refused(gamma):
+    wheels = (Wheel((0.1, 0.0), (0.0, 1.0), gamma), Wheel((-0.1, 0.0), (0.0, 1.0)), Wheel((0.0, -0.1), (1.0, 0.0)))
+    with pytest.raises(ValueError, match="wheel 1 roller_angle must be in"):
+        RobotSpec(name="bad", wheels=wheels, wheel_radius=0.03, mass=1.0, inertia=0.01)

@@ -126,6 +126,18 @@ CASES = [
 ]
 
 
+# Mecanum wheels (the optiodom_omni4 preset, rollers at ±45°): the 'initial' friction model only, the
+# one that applies to them (roller_gap's rigid material between rollers is an omni-wheel geometry).
+CASES += [
+    pytest.param("optiodom_omni4", surface, "initial", maneuver, False,
+                 id=f"optiodom_omni4-initial-{surface}-{maneuver}")
+    for surface in ("paper", "carpet")
+    for maneuver in MANEUVERS
+] + [
+    pytest.param("optiodom_omni4", "carpet", "initial", "steps", True, id="optiodom_omni4-com-initial-carpet-steps"),
+]
+
+
 @pytest.mark.parametrize(("robot", "surface", "friction", "maneuver", "com"), CASES)
 def test_world_matches_reference(robot, surface, friction, maneuver, com):
     model = _model(robot, surface, friction, com)
@@ -135,19 +147,21 @@ def test_world_matches_reference(robot, surface, friction, maneuver, com):
     assert head <= HEAD_TOL, f"max heading error {head * 1e3:.3f} mrad > 2 mrad"
 
 
-def test_reference_is_converged():
+@pytest.mark.parametrize(("robot", "friction"), [("williams2002", "roller_gap"), ("optiodom_omni4", "initial")])
+def test_reference_is_converged(robot, friction):
     """The reference's own error is negligible: two different stiff methods agree to < 1e-8 m / rad.
 
     Radau (implicit Runge-Kutta, order 5) and LSODA (BDF/Adams) share nothing but the right-hand
     side and the switch times; 1e-8 is 1e-5 of the world bound. Short run (0.5 s, 15 switches)
     to keep Radau's cost down.
     """
-    model = _model("williams2002", "paper", "roller_gap")
+    model = _model(robot, "paper", friction)
     times, commands = _schedule(model, "steps")
     t_eval = _sample_times(0.5)
     a = reference_trajectory(model, times, commands, t_eval, method="LSODA")
     b = reference_trajectory(model, times, commands, t_eval, method="Radau")
-    assert len(a["switch_times"]) >= 10
+    if friction == "roller_gap":
+        assert len(a["switch_times"]) >= 10
     np.testing.assert_allclose(a["pose"], b["pose"], rtol=0, atol=1e-8)
     np.testing.assert_allclose(a["velocity"], b["velocity"], rtol=0, atol=1e-7)
 
@@ -230,6 +244,63 @@ def test_high_friction_follows_kinematics(twist):
     assert abs(ref["pose"][0, 2] - expected[2]) <= 2.0 * drift_head + 1e-9
 
 
+# The mecanum robot on a floor where nothing slips: drive grip μ 5 along every roller axis, rollers free
+# (μ_T = 0). OptiOdom's omni4 matrix, typed in here from the dataset's documentation (wheel travels
+# Δ = M·(dx, dy, dθ), c = (l1 + l2)/2, l1 = l2 = 0.2 m), is all the expected motion uses.
+OPTIODOM_C = 0.2
+OPTIODOM_M = np.array([[1.0, -1.0, -OPTIODOM_C], [-1.0, -1.0, -OPTIODOM_C], [1.0, 1.0, -OPTIODOM_C],
+                       [-1.0, 1.0, -OPTIODOM_C]])
+
+
+def _integrate_kinematics(wheel_speeds: np.ndarray, r: float, t: float, steps: int = 20000) -> np.ndarray:
+    """Pose after t seconds at constant wheel speeds by the kinematic matrix alone (classic RK4 on
+    ẋ = R(θ)·M⁺·r·w; the body twist is constant, so RK4 at 0.1 ms is exact to ~1e-15 m)."""
+    twist = np.linalg.lstsq(OPTIODOM_M, r * wheel_speeds, rcond=None)[0]
+
+    def f(pose):
+        c, s = np.cos(pose[2]), np.sin(pose[2])
+        return np.array([c * twist[0] - s * twist[1], s * twist[0] + c * twist[1], twist[2]])
+
+    pose, h = np.zeros(3), t / steps
+    for _ in range(steps):
+        k1 = f(pose)
+        k2 = f(pose + 0.5 * h * k1)
+        k3 = f(pose + 0.5 * h * k2)
+        k4 = f(pose + h * k3)
+        pose = pose + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return pose
+
+
+@pytest.mark.parametrize("twist", [(0.4, 0.0, 0.0), (0.0, 0.4, 0.0), (0.0, 0.0, 1.5), (0.3, 0.1, 1.0),
+                                   (-0.2, 0.3, -1.5)])
+def test_mecanum_without_slip_follows_the_optiodom_kinematics(twist):
+    """Constant wheel speeds on a no-slip floor: the mecanum robot follows the kinematic matrix within 1 mm.
+
+    The wheel speeds come from the typed-in matrix, never from the model; the robot starts already
+    moving with the matching twist (from rest the wheels slip for ~|v|/(μ g) ≈ 8 ms, a physical offset).
+    What remains is the steady slip that carries the centripetal force m ω |v| (≈ 2.4 N at most here):
+    spread over four rollers of stiffness N μ (2/π) k ≈ 3·10⁴ N/(m/s), it is ≲ 1e-4 m/s, ≲ 0.2 mm in 2 s.
+    Bound: 1 mm and 2 mrad (the validation bound); at the documented μ ≫ 1 step of 0.25 ms.
+    """
+    model = replace(load_model("optiodom_omni4", "paper", "initial"), surface=GRIP)
+    r = model.robot.wheel_radius
+    tw = np.asarray(twist, dtype=float)
+    wheel_speeds = OPTIODOM_M @ tw / r
+    world = World(model, dt=STIFF_DT)
+    world.reset()
+    world.bodies[0].velocity = (tw[0], tw[1])  # at θ = 0 body and world frames coincide; COM at centre
+    world.bodies[0].angular_velocity = tw[2]
+    world.set_commands(wheel_speeds)
+    world.step(DURATION)
+    expected = _integrate_kinematics(wheel_speeds, r, DURATION)
+    pos = np.hypot(*(world.pose[0, :2] - expected[:2]))
+    head = abs(_wrap(world.pose[0, 2] - expected[2]))
+    print(f"\n[mecanum kinematic] twist {twist}: pos {pos * 1e3:.4f} mm, head {head * 1e3:.4f} mrad")
+    assert pos <= POS_TOL, f"position {pos * 1e3:.3f} mm off the kinematics"
+    assert head <= HEAD_TOL, f"heading {head * 1e3:.3f} mrad off the kinematics"
+    assert np.hypot(*expected[:2]) + abs(expected[2]) > 0.5  # it did move (0.8 m or 3 rad)
+
+
 # Stiff cases from rest against the reference (same 1 mm / 2 mrad bound). With μ_drive = 5 the
 # friction stiffness N·μ·(2/π)·k/m is ~3e4 1/s, dt·λ ~ 15 at the default 0.5 ms: the implicit step stays
 # stable but is not accurate from rest there (measured at 0.5 ms: up to 7.8 mm / 121 mrad on the
@@ -240,9 +311,11 @@ STIFF_DT = 0.25e-3
 
 
 @pytest.mark.parametrize("surface", [GRIP, LOCKED], ids=lambda s: s.name)
-@pytest.mark.parametrize("maneuver", ["translate_x", "combined", "steps"])
-def test_stiff_world_matches_reference_at_the_documented_step(surface, maneuver):
-    model = replace(load_model("williams2002", "paper", "initial"), surface=surface)
+@pytest.mark.parametrize(("robot", "maneuver"), [("williams2002", "translate_x"), ("williams2002", "combined"),
+                                                 ("williams2002", "steps"), ("optiodom_omni4", "combined"),
+                                                 ("optiodom_omni4", "steps")])
+def test_stiff_world_matches_reference_at_the_documented_step(surface, robot, maneuver):
+    model = replace(load_model(robot, "paper", "initial"), surface=surface)
     times, commands = _schedule(model, maneuver)
     pos, head = _compare(f"stiff {surface.name} {maneuver}", model, times, commands, dt=STIFF_DT)
     assert pos <= POS_TOL, f"max position error {pos * 1e3:.3f} mm > 1 mm"
@@ -306,7 +379,8 @@ def test_frictionless_conserves_momentum(friction, com):
 # --- (d) a lifted wheel exerts no force ------------------------------------------------------------
 
 @pytest.mark.parametrize(("robot", "friction", "lifted"), [("phunopas2018", "roller_gap", 0),
-                                                          ("williams2002", "initial", 2)])
+                                                          ("williams2002", "initial", 2),
+                                                          ("optiodom_omni4", "initial", 1)])
 def test_lifted_wheel_exerts_no_force(robot, friction, lifted):
     """Changing a lifted wheel's command changes nothing but its encoder; the rest matches the reference.
 

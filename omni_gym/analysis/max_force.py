@@ -141,8 +141,8 @@ def max_static_force(
     N = _wheel_loads(loads, robot, gravity)
 
     R = _rotation(theta)
-    d = robot.drives() @ R.T  # (n, 2) world-frame drive directions
-    a = robot.axles() @ R.T  # (n, 2) world-frame axle directions
+    d = robot.roller_axes() @ R.T  # (n, 2) world-frame constrained directions (omni wheel: drive)
+    a = robot.free_directions() @ R.T  # (n, 2) world-frame free directions (omni wheel: axle)
     rho = (robot.positions() - np.asarray(robot.com, dtype=float)) @ R.T  # contact points about the com
 
     mu_w = np.where(gap, surface.mu_gap, surface.mu_drive)

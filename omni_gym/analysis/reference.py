@@ -1,4 +1,4 @@
-"""Validation reference: a slow, high-accuracy integration of the omni-robot slip model.
+"""Validation reference: a slow, high-accuracy integration of the omni/mecanum-robot slip model.
 
 This module is written independently of the world and its force kernel (it shares only the robot,
 surface, model and static-load definitions), so the tests can use it as ground truth for the
@@ -9,9 +9,15 @@ velocity V and yaw rate ω. With the centre of mass at c (body frame) and q = R(
 
     ẋ = V_x + ω q_y,   ẏ = V_y − ω q_x,   θ̇ = ω,
     m V̇ = Σ F_i,       I ω̇ = Σ ρ_i × F_i,      ρ_i = R(p_i − c),
-    F_i = −N_i [μ_W(v_W,i) d_i + μ_T(v_T,i) a_i]    (d_i, a_i rotated to the world),
-    v_W,i = u_i · d_i − r w_i,   v_T,i = u_i · a_i,   u_i = V + ω z × ρ_i,
-    μ(v) = μ_max (2/π) atan(k v).
+    F_i = −N_i [μ_W(v_W,i) e_i + μ_T(v_T,i) f_i]    (e_i, f_i rotated to the world),
+    v_W,i = u_i · e_i − r w_i cos γ_i,   v_T,i = u_i · f_i + r w_i sin γ_i,   u_i = V + ω z × ρ_i,
+    μ(v) = μ_max (2/π) atan(k v),
+
+where γ_i is wheel i's roller angle, e_i = cos γ_i d_i + sin γ_i a_i the axis of its floor roller
+(the direction it constrains) and f_i = z × e_i the direction the roller rolls freely (a_i = z × d_i).
+The floor roller's material moves at u_i − r w_i d_i plus its free roll along f_i; v_W is that
+velocity along e_i, v_T the roll velocity the rollers' rolling friction opposes, and d_i · e_i =
+cos γ_i, d_i · f_i = −sin γ_i. An omni wheel (γ = 0: e = d, f = a) gives Williams et al.'s law.
 
 Wheels are ideal velocity sources: wheel i turns at its commanded speed w_i (piecewise constant)
 and its angle φ_i = ∫ w_i dt is piecewise linear. In the ``roller_gap`` friction model the wheel
@@ -106,7 +112,8 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
         dict with
         ``pose`` (M, 3): geometric centre x, y [m] and heading θ [rad];
         ``velocity`` (M, 3): world velocity of the geometric centre [m/s] and ω [rad/s];
-        ``slip`` (M, n, 2): slip along the drive v_W and transverse velocity v_T [m/s] per wheel;
+        ``slip`` (M, n, 2): slip v_W along the roller axis and roll velocity v_T along the free direction
+        [m/s] per wheel (omni wheel: drive slip and transverse velocity);
         ``wheel_angle`` (M, n): φ_i [rad];
         ``switch_times``: the interval boundaries used.
     """
@@ -125,9 +132,14 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
 
     c = np.asarray(model.com, dtype=float)
     p_rel = robot.positions() - c  # wheel centres relative to the centre of mass, body frame
-    d_b = robot.drives()
-    a_b = robot.axles()
+    gamma = np.array([w.roller_angle for w in robot.wheels], dtype=float)
+    drive = robot.drives()
+    axle = np.column_stack([-drive[:, 1], drive[:, 0]])
+    d_b = np.cos(gamma)[:, None] * drive + np.sin(gamma)[:, None] * axle  # roller axis e_i (body frame)
+    a_b = np.column_stack([-d_b[:, 1], d_b[:, 0]])  # free direction f_i = z × e_i
     r = robot.wheel_radius
+    r_cos = r * np.cos(gamma)  # v_W = u·e − r w cos γ
+    r_sin = r * np.sin(gamma)  # v_T = u·f + r w sin γ
     m, inertia = robot.mass, robot.inertia
     k = surf.k
     loads = wheel_loads(robot.positions(), c, m, model.gravity, contact)
@@ -150,8 +162,8 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
         rho, dw, aw, q = frame(s[2])
         ux = s[3] - s[5] * rho[:, 1]
         uy = s[4] + s[5] * rho[:, 0]
-        v_w = ux * dw[:, 0] + uy * dw[:, 1] - r * w_cmd
-        v_t = ux * aw[:, 0] + uy * aw[:, 1]
+        v_w = ux * dw[:, 0] + uy * dw[:, 1] - r_cos * w_cmd
+        v_t = ux * aw[:, 0] + uy * aw[:, 1] + r_sin * w_cmd
         return rho, dw, aw, q, ux, uy, v_w, v_t
 
     def make_rhs(w_cmd, mu_w, mu_t):
@@ -180,9 +192,11 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
             rho_dot_dw = rho[:, 0] * dw[:, 0] + rho[:, 1] * dw[:, 1]
             rho_dot_aw = rho[:, 0] * aw[:, 0] + rho[:, 1] * aw[:, 1]
             u_dot_dw = ux * dw[:, 0] + uy * dw[:, 1]
-            dvw = np.stack([v_t - om * rho_dot_dw, dw[:, 0], dw[:, 1], rho_x_dw], axis=1)  # (n, 4)
+            u_dot_aw = ux * aw[:, 0] + uy * aw[:, 1]
+            # ∂(u·e)/∂θ = −ω ρ·e + u·f (∂u/∂θ = −ω ρ, ∂e/∂θ = f); ∂(u·f)/∂θ = −ω ρ·f − u·e.
+            dvw = np.stack([u_dot_aw - om * rho_dot_dw, dw[:, 0], dw[:, 1], rho_x_dw], axis=1)  # (n, 4)
             dvt = np.stack([-om * rho_dot_aw - u_dot_dw, aw[:, 0], aw[:, 1], rho_x_aw], axis=1)
-            # F_i = −(fw d + ft a);  ∂d/∂θ = a,  ∂a/∂θ = −d
+            # F_i = −(fw e + ft f);  ∂e/∂θ = f,  ∂f/∂θ = −e
             dfx = -(gw[:, None] * dvw * dw[:, 0:1] + gt[:, None] * dvt * aw[:, 0:1])
             dfy = -(gw[:, None] * dvw * dw[:, 1:2] + gt[:, None] * dvt * aw[:, 1:2])
             dfx[:, 0] += -(fw * aw[:, 0] - ft * dw[:, 0])

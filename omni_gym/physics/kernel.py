@@ -2,7 +2,9 @@
 
 For every robot and wheel it (1) advances the wheel speed and angle by the actuation model,
 (2) takes the share of the substep the wheel spends on rigid material between rollers, (3) computes
-the slip velocities and the regularised-Coulomb friction forces, and (4) returns the *effective*
+the slip velocities along the roller axis e = cos γ d + sin γ (z × d) and the free direction
+f = z × e (drive and axle for an omni wheel, γ = 0) and the regularised-Coulomb friction forces
+along them, and (4) returns the *effective*
 generalised force that makes one linearly-implicit (Rosenbrock–Euler) velocity step:
 
     (M + dt·A) Δq = dt·Q(q),     A = −∂Q/∂q  (symmetric, positive semi-definite),
@@ -44,6 +46,7 @@ from omni_gym.physics.layout import (
     WH_INT,
     WH_LOAD,
     WH_SPEED,
+    WP_COSG,
     WP_DX,
     WP_DY,
     WP_GAPT,
@@ -54,6 +57,7 @@ from omni_gym.physics.layout import (
     WP_PX,
     WP_PY,
     WP_R,
+    WP_SING,
 )
 
 TWO_OVER_PI = 2.0 / math.pi
@@ -130,18 +134,34 @@ def _robot_substep(b, dt, state, wheels, sp, wp, ext, out_force, out_slip):
     a12 = 0.0
     a22 = 0.0
     for i in range(n_wheels):
-        # Geometry in the world frame: lever arm from the centre of mass, drive and axle.
+        # Geometry in the world frame: lever arm from the centre of mass, the roller axis e (the
+        # constrained direction) and the free direction f = z × e. For an omni wheel (sin γ = 0)
+        # e = d (drive) and f = a (axle), and the arithmetic below is exactly the omni law's.
         rx0 = wp[b, i, WP_PX] - cx
         ry0 = wp[b, i, WP_PY] - cy
         rho_x = c * rx0 - s * ry0
         rho_y = s * rx0 + c * ry0
         dx = c * wp[b, i, WP_DX] - s * wp[b, i, WP_DY]
         dy = s * wp[b, i, WP_DX] + c * wp[b, i, WP_DY]
-        ax = -dy
-        ay = dx
         ux = vx - om * rho_y
         uy = vy + om * rho_x
         r = wp[b, i, WP_R]
+        sg = wp[b, i, WP_SING]
+        mecanum = sg != 0.0
+        if mecanum:
+            cg = wp[b, i, WP_COSG]
+            ex = cg * dx - sg * dy  # e = cos γ d + sin γ (z × d)
+            ey = cg * dy + sg * dx
+            rc = r * cg  # rim speed share along e: v_e = u·e − r w cos γ
+            rs = r * sg  # along f: v_f = u·f − r w (d·f) = u·f + r w sin γ
+        else:
+            cg = 1.0
+            ex = dx
+            ey = dy
+            rc = r
+            rs = 0.0
+        ax = -ey
+        ay = ex
         load = wheels[b, i, WH_LOAD]
         phase = wp[b, i, WP_PHASE]
         w0 = wheels[b, i, WH_SPEED]
@@ -151,8 +171,14 @@ def _robot_substep(b, dt, state, wheels, sp, wp, ext, out_force, out_slip):
         if servo:
             f0 = gap_fraction(th0 + phase, th0 + phase + w0 * dt, pitch, gap)
             mu_w_max = (1.0 - f0) * wp[b, i, WP_MUW] + f0 * wp[b, i, WP_GAPW]
-            mu, dmu = friction_coefficient(ux * dx + uy * dy - r * w0, mu_w_max, k, kin, v_s)
+            mu, dmu = friction_coefficient(ux * ex + uy * ey - rc * w0, mu_w_max, k, kin, v_s)
             f_drive = -load * mu  # force on the robot along the drive direction
+            if mecanum:
+                # F·d = −N (μ_e cos γ − μ_f sin γ); ∂(−r F·d)/∂w = −N r² (μ'_e cos²γ + μ'_f sin²γ).
+                mu_t_max = (1.0 - f0) * wp[b, i, WP_MUT] + f0 * wp[b, i, WP_GAPT]
+                mu_f, dmu_f = friction_coefficient(ux * ax + uy * ay + rs * w0, mu_t_max, k, kin, v_s)
+                f_drive = -load * (mu * cg - mu_f * sg)
+                dmu = dmu * cg * cg + dmu_f * sg * sg
             err = cmd - w0
             torque = sp[b, SP_KP] * err + sp[b, SP_KI] * wheels[b, i, WH_INT]
             kp_eff = sp[b, SP_KP]
@@ -185,25 +211,27 @@ def _robot_substep(b, dt, state, wheels, sp, wp, ext, out_force, out_slip):
         f = gap_fraction(th0 + phase, th1 + phase, pitch, gap)
         mu_w_max = (1.0 - f) * wp[b, i, WP_MUW] + f * wp[b, i, WP_GAPW]
         mu_t_max = (1.0 - f) * wp[b, i, WP_MUT] + f * wp[b, i, WP_GAPT]
-        v_w = ux * dx + uy * dy - r * w1
+        v_w = ux * ex + uy * ey - rc * w1
         v_t = ux * ax + uy * ay
+        if mecanum:
+            v_t += rs * w1
         out_slip[b, i, 0] = v_w
         out_slip[b, i, 1] = v_t
         if load <= 0.0:
             continue
         mu_w, dmu_w = friction_coefficient(v_w, mu_w_max, k, kin, v_s)
         mu_t, dmu_t = friction_coefficient(v_t, mu_t_max, k, kin, v_s)
-        fx = -load * (mu_w * dx + mu_t * ax)
-        fy = -load * (mu_w * dy + mu_t * ay)
+        fx = -load * (mu_w * ex + mu_t * ax)
+        fy = -load * (mu_w * ey + mu_t * ay)
         q0 += fx
         q1 += fy
         q2 += rho_x * fy - rho_y * fx
-        # 4) A = Σ Gᵀ K G with K = N(μ'_W d dᵀ + μ'_T a aᵀ) and G = [[1, 0, −ρ_y], [0, 1, ρ_x]].
+        # 4) A = Σ Gᵀ K G with K = N(μ'_W e eᵀ + μ'_T f fᵀ) and G = [[1, 0, −ρ_y], [0, 1, ρ_x]].
         kw = load * dmu_w
         kt = load * dmu_t
-        k11 = kw * dx * dx + kt * ax * ax
-        k12 = kw * dx * dy + kt * ax * ay
-        k22 = kw * dy * dy + kt * ay * ay
+        k11 = kw * ex * ex + kt * ax * ax
+        k12 = kw * ex * ey + kt * ax * ay
+        k22 = kw * ey * ey + kt * ay * ay
         a00 += k11
         a01 += k12
         a11 += k22
@@ -249,7 +277,8 @@ def substep(dt, state, wheels, sp, wp, ext, out_force, out_slip):
         sp (B, N_SP), wp (B, n, N_WP): parameters, layouts in :mod:`omni_gym.physics.layout`.
         ext (B, 3): extra generalised force (F_x, F_y [N], torque [N·m] about the centre of mass).
         out_force (B, 3): effective F_x, F_y [N] at the centre of mass and torque [N·m]; written.
-        out_slip (B, n, 2): drive slip v_W and transverse velocity v_T [m/s]; written.
+        out_slip (B, n, 2): slip along the roller axis v_W = u·e − r w cos γ and along the free direction
+            v_T = u·f + r w sin γ [m/s] (omni wheel: drive slip and transverse velocity); written.
     """
     for b in range(wheels.shape[0]):
         _robot_substep(b, dt, state, wheels, sp, wp, ext, out_force, out_slip)

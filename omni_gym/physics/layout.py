@@ -17,9 +17,12 @@ SP_MASS, SP_INERTIA, SP_K, SP_KIN_RATIO, SP_VS, SP_PITCH, SP_GAP, SP_CX, SP_CY, 
 SP_MODE, SP_KP, SP_KI, SP_TMAX, SP_JW = range(10, 15)
 N_SP = 15
 # Per-wheel parameter rows ``wp`` (B, n, N_WP): position x, y [m] and drive direction (body frame),
-# radius [m], drive and transverse friction coefficients, gap coefficients, roller phase [rad].
+# radius [m], friction coefficients along the roller axis u and the free direction f (for an omni
+# wheel: drive and transverse), gap coefficients, roller phase [rad],
 WP_PX, WP_PY, WP_DX, WP_DY, WP_R, WP_MUW, WP_MUT, WP_GAPW, WP_GAPT, WP_PHASE = range(10)
-N_WP = 10
+# cos γ and sin γ of the roller angle γ (1 and 0 for an omni wheel; u = cos γ d + sin γ z × d).
+WP_COSG, WP_SING = 10, 11
+N_WP = 12
 # Per-wheel state rows ``wheels`` (B, n, N_WH): angle [rad], speed [rad/s], command [rad/s],
 # servo integral [rad], normal load [N].
 WH_ANGLE, WH_SPEED, WH_CMD, WH_INT, WH_LOAD = range(5)

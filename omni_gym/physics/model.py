@@ -47,6 +47,7 @@ from omni_gym.physics.layout import (
     SP_TAU,
     SP_TMAX,
     SP_VS,
+    WP_COSG,
     WP_DX,
     WP_DY,
     WP_GAPT,
@@ -56,6 +57,7 @@ from omni_gym.physics.layout import (
     WP_PX,
     WP_PY,
     WP_R,
+    WP_SING,
 )
 from omni_gym.physics.liftoff import ContactProcess
 from omni_gym.physics.robot import GRAVITY, RobotSpec, Wheel, robot_preset
@@ -105,10 +107,15 @@ class SimModel:
 
     def __post_init__(self) -> None:
         check_friction_model(self.friction)
+        if self.friction == "roller_gap" and self.robot.has_angled_rollers:
+            raise ValueError("friction model 'roller_gap' applies to omni wheels only (rigid material between "
+                             "rollers in the wheel plane); this robot has mecanum wheels (roller_angle ≠ 0): "
+                             "use 'initial'")
         if not (math.isfinite(self.gravity) and self.gravity > 0):
             raise ValueError(f"gravity must be a positive number, got {self.gravity}")
         for name, params in self.effects.items():
             validate_effect(name, params, self.robot.n_wheels)
+            effect_library.get(name).check_robot(self.robot)
 
     @property
     def n_wheels(self) -> int:
@@ -155,6 +162,9 @@ class SimModel:
         wp[:, WP_MUT] = s.mu_transverse
         wp[:, WP_GAPW] = s.mu_gap
         wp[:, WP_GAPT] = s.mu_gap
+        gamma = r.roller_angles()
+        wp[:, WP_COSG] = np.cos(gamma)  # exactly 1 and 0 for omni wheels: the kernel's γ = 0 path
+        wp[:, WP_SING] = np.sin(gamma)
         for name, params in self.effects.items():
             effect_library.get(name).write_kernel(params, sp, wp, self)
         return sp, wp
@@ -177,7 +187,7 @@ class SimModel:
             "inertia": r.inertia,
             "gravity": self.gravity,
             "wheel_radius": r.wheel_radius,
-            "wheels": [{"position": list(w.position), "drive": list(w.drive)} for w in r.wheels],
+            "wheels": [_wheel_json(w) for w in r.wheels],
             "com": list(r.com),
             "rollers": r.rollers,
             "roller_fraction": r.roller_fraction,
@@ -249,8 +259,17 @@ def _vec2(value, name: str, key: str | None = None) -> tuple[float, float]:
     return (_bounded(value[0], key or name, f"{name}[0]"), _bounded(value[1], key or name, f"{name}[1]"))
 
 
+def _wheel_json(w: Wheel) -> dict:
+    """A wheel's JSON form; ``roller_angle`` only when non-zero (omni-wheel files stay as they were)."""
+    out = {"position": list(w.position), "drive": list(w.drive)}
+    if w.roller_angle != 0.0:
+        out["roller_angle"] = w.roller_angle
+    return out
+
+
 def _wheel(w, i: int, where: str) -> Wheel:
-    """Wheel ``i`` from ``{"position": [x, y], "drive": [dx, dy]}`` (drive normalised)."""
+    """Wheel ``i`` from ``{"position": [x, y], "drive": [dx, dy], "roller_angle": γ}`` (drive normalised;
+    ``roller_angle`` [rad] optional, default 0: an omni wheel)."""
     name = f"wheels[{i}]"
     if not isinstance(w, dict) or "position" not in w or "drive" not in w:
         raise ValueError(f"{where}: {name} needs 'position' and 'drive' as [x, y] numbers")
@@ -263,9 +282,10 @@ def _wheel(w, i: int, where: str) -> Wheel:
         if norm == 0:
             raise ValueError(f"{name}.drive must be a non-zero vector")
         MODEL_BOUNDS["wheels[i].drive (length)"].check(norm, f"{name}.drive length")
+        gamma = _bounded(w.get("roller_angle", 0.0), "wheels[i].roller_angle", f"{name}.roller_angle")
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None
-    return Wheel(position=pos, drive=(drive[0] / norm, drive[1] / norm))
+    return Wheel(position=pos, drive=(drive[0] / norm, drive[1] / norm), roller_angle=gamma)
 
 
 def _default_body_radius(wheels: list[Wheel]) -> float:
@@ -291,8 +311,15 @@ def load_model(name_or_path: str, surface: str | None = None, friction: str | No
         if friction is not None:
             model = replace(model, friction=check_friction_model(friction))
         return model
-    return SimModel(robot=robot_preset(name_or_path), surface=surface_preset(surface or "carpet"),
-                    friction=check_friction_model(friction or "roller_gap"))
+    robot = robot_preset(name_or_path)
+    return SimModel(robot=robot, surface=surface_preset(surface or "carpet"),
+                    friction=check_friction_model(friction or nominal_friction(robot)))
+
+
+def nominal_friction(robot: RobotSpec) -> str:
+    """A preset's default friction model: ``roller_gap`` for omni wheels, ``initial`` for mecanum wheels
+    (the rigid-material model is an omni-wheel geometry, ``docs/model.md``)."""
+    return "initial" if robot.has_angled_rollers else "roller_gap"
 
 
 def read_json(path: str | Path):

@@ -5,7 +5,10 @@ Frames and conventions (see ``docs/conventions.md``):
 * Body frame: origin at the robot's geometric centre, x forward, y to the left, z up.
 * Every wheel *i* has a centre ``position`` p_i [m] and a unit ``drive`` direction d_i in the body
   frame. A positive wheel speed w_i [rad/s] moves the wheel centre along +d_i at r·w_i without slip.
-* The ``axle`` direction is a_i = z × d_i = (-d_y, d_x): the transverse (roller) direction.
+* The ``axle`` direction is a_i = z × d_i = (-d_y, d_x): the transverse direction.
+* Every wheel has a ``roller_angle`` γ_i [rad]: the axis of the roller touching the floor points along
+  u_i = cos γ_i·d_i + sin γ_i·a_i (the direction the wheel constrains); the rollers roll freely along
+  f_i = z × u_i. γ = 0 is an omni wheel (u = d, f = a), γ = ±π/4 a mecanum wheel.
 * ``com`` [m] is the centre of mass in the body frame; the yaw ``inertia`` [kg·m²] is about it.
 """
 
@@ -16,29 +19,50 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from omni_gym.bounds import ROLLER_ANGLE_MAX, ROLLER_ANGLE_REASON
+
 GRAVITY = 9.81  # m/s², standard gravity
 
 
 @dataclass(frozen=True)
 class Wheel:
-    """One omni wheel: centre ``position`` [m] and unit ``drive`` direction, both in the body frame."""
+    """One wheel: centre ``position`` [m] and unit ``drive`` direction (body frame), ``roller_angle`` γ [rad].
+
+    γ is the angle of the floor roller's axis from the drive direction, counter-clockwise seen from
+    above: the axis is u = cos γ·d + sin γ·a (a = z × d). γ = 0: omni wheel (rollers in the wheel
+    plane, free across it); γ = ±π/4: mecanum wheel. Without slip the wheel centre's velocity v_c
+    satisfies v_c·u = r·w·cos γ (``docs/conventions.md``).
+    """
 
     position: tuple[float, float]
     drive: tuple[float, float]
+    roller_angle: float = 0.0
 
     @property
     def axle(self) -> tuple[float, float]:
-        """Unit transverse direction z × drive (the roller axis direction's normal in the plane)."""
+        """Unit transverse direction a = z × drive (the wheel's axle, horizontal)."""
         return (-self.drive[1], self.drive[0])
+
+    @property
+    def roller_axis(self) -> tuple[float, float]:
+        """Unit direction u = cos γ·d + sin γ·a the wheel constrains (the floor roller's axis)."""
+        c, s = math.cos(self.roller_angle), math.sin(self.roller_angle)
+        return (c * self.drive[0] - s * self.drive[1], c * self.drive[1] + s * self.drive[0])
+
+    @property
+    def free_direction(self) -> tuple[float, float]:
+        """Unit direction f = z × u along which the floor roller rolls freely."""
+        u = self.roller_axis
+        return (-u[1], u[0])
 
 
 @dataclass(frozen=True)
 class RobotSpec:
-    """Geometry and mass properties of an omnidirectional robot.
+    """Geometry and mass properties of an omnidirectional robot (omni or mecanum wheels).
 
     Attributes:
         name: preset or user name.
-        wheels: the omni wheels, body frame.
+        wheels: the wheels, body frame (omni wheels, or mecanum wheels by their roller angle).
         wheel_radius: rolling radius r [m].
         mass: total mass m [kg].
         inertia: yaw moment of inertia about the centre of mass [kg·m²].
@@ -69,6 +93,10 @@ class RobotSpec:
                 raise ValueError(f"robot {self.name!r}: wheel {i + 1} drive direction must be a unit vector")
             if not all(math.isfinite(c) for c in w.position):
                 raise ValueError(f"robot {self.name!r}: wheel {i + 1} position is not finite")
+            if not (math.isfinite(w.roller_angle) and abs(w.roller_angle) <= ROLLER_ANGLE_MAX):
+                raise ValueError(f"robot {self.name!r}: wheel {i + 1} roller_angle must be in "
+                                 f"[-{ROLLER_ANGLE_MAX:.4g}, {ROLLER_ANGLE_MAX:.4g}] rad, got {w.roller_angle!r} "
+                                 f"({ROLLER_ANGLE_REASON})")
         for attr in ("wheel_radius", "mass", "inertia", "body_radius"):
             value = getattr(self, attr)
             if not (math.isfinite(value) and value > 0):
@@ -99,15 +127,44 @@ class RobotSpec:
         d = self.drives()
         return np.stack([-d[:, 1], d[:, 0]], axis=1)
 
+    def roller_angles(self) -> np.ndarray:
+        """Roller angles γ_i [rad], shape (n,)."""
+        return np.array([w.roller_angle for w in self.wheels], dtype=float)
+
+    @property
+    def has_angled_rollers(self) -> bool:
+        """True if some wheel's rollers sit at an angle to its plane (γ ≠ 0: a mecanum wheel)."""
+        return any(w.roller_angle != 0.0 for w in self.wheels)
+
+    def roller_axes(self) -> np.ndarray:
+        """Constrained directions u_i = cos γ_i d_i + sin γ_i a_i, shape (n, 2), body frame (= d_i for γ = 0)."""
+        d = self.drives()
+        g = self.roller_angles()
+        if not np.any(g):
+            return d
+        a = self.axles()
+        return np.cos(g)[:, None] * d + np.sin(g)[:, None] * a
+
+    def free_directions(self) -> np.ndarray:
+        """Free rolling directions f_i = z × u_i, shape (n, 2), body frame (= a_i for γ = 0)."""
+        u = self.roller_axes()
+        return np.stack([-u[:, 1], u[:, 0]], axis=1)
+
     def wheel_matrix(self) -> np.ndarray:
         """W (n×3): body twist (vx, vy, ω) of the geometric centre → no-slip wheel speeds [rad/s].
 
-        Row i is (d_i · [1, 0], d_i · [0, 1], d_i · (z × p_i)) / r, from the wheel-centre velocity
-        V + ω z × p_i projected on d_i.
+        Row i is (u_i · [1, 0], u_i · [0, 1], u_i · (z × p_i)) / (r cos γ_i): the wheel-centre velocity
+        V + ω z × p_i projected on the roller axis u_i equals r·w_i·cos γ_i without slip. For an omni
+        wheel (γ = 0) u_i = d_i and the row is (d_i, d_i · (z × p_i)) / r; equivalently the row is
+        (d_i + tan γ_i a_i) · (…) / r.
         """
-        p, d = self.positions(), self.drives()
-        lever = d[:, 1] * p[:, 0] - d[:, 0] * p[:, 1]  # d · (z × p) = p_x d_y − p_y d_x
-        return np.column_stack([d[:, 0], d[:, 1], lever]) / self.wheel_radius
+        p, u = self.positions(), self.roller_axes()
+        lever = u[:, 1] * p[:, 0] - u[:, 0] * p[:, 1]  # u · (z × p) = p_x u_y − p_y u_x
+        m = np.column_stack([u[:, 0], u[:, 1], lever])
+        g = self.roller_angles()
+        if not np.any(g):
+            return m / self.wheel_radius
+        return m / (self.wheel_radius * np.cos(g))[:, None]
 
     def with_changes(self, **changes) -> RobotSpec:
         """A copy with some attributes replaced (validated again)."""
@@ -205,14 +262,89 @@ def regular(n: int, radius: float = 0.1, wheel_radius: float = 0.03, mass: float
     )
 
 
+OPTIODOM_MASS = 4.0  # kg; see the assumptions of optiodom_omni4
+
+
+def optiodom_omni4(l1: float = 0.2, l2: float = 0.2,
+                   diameters: tuple[float, float, float, float] = (0.06, 0.06, 0.06, 0.06)) -> RobotSpec:
+    """The four-wheeled mecanum robot of the OptiOdom dataset (Sousa et al. 2022; kinematics of Lin et al. 2019).
+
+    OptiOdom's omni4 odometry maps the wheel travels Δ_i [m] of one cycle to the body displacement
+    dx = (Δ1 − Δ2 + Δ3 − Δ4)/4, dy = (−Δ1 − Δ2 + Δ3 + Δ4)/4, dθ = −(Δ1 + Δ2 + Δ3 + Δ4)/(2(l1 + l2)),
+    the least-squares inverse of Δ1 = dx − dy − c·dθ, Δ2 = −dx − dy − c·dθ, Δ3 = dx + dy − c·dθ,
+    Δ4 = −dx + dy − c·dθ with c = (l1 + l2)/2. This layout reproduces it exactly (r·W is that matrix):
+    wheels at (±l1/2, ±l2/2) [m] (l1 along the body x axis, l2 along y; only l1 + l2 enters the
+    matrix), the left wheels 1 (front) and 3 (rear) driving along +x and the right wheels 2 (front)
+    and 4 (rear) along −x (mirror-mounted motors), rollers at γ = −45°, +45°, +45°, −45°.
+
+    ``diameters`` D_i [m]: the model has one nominal wheel radius, so they must be equal here
+    (ValueError otherwise); for per-wheel diameters use their mean and the ``wheel_radius`` effect
+    with scale D_i / mean (:func:`optiodom_omni4_radius_scales`).
+    """
+    diameters = tuple(float(v) for v in diameters)
+    if len(diameters) != 4 or not all(math.isfinite(v) and v > 0 for v in diameters):
+        raise ValueError(f"optiodom_omni4: diameters must be 4 positive numbers [m], got {diameters!r}")
+    if len(set(diameters)) != 1:
+        raise ValueError("optiodom_omni4: the wheel diameters differ; the robot has one nominal radius: use "
+                         "optiodom_omni4_radius_scales(diameters) for the mean diameter and a wheel_radius effect")
+    for name, value in (("l1", l1), ("l2", l2)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"optiodom_omni4: {name} must be a positive length [m], got {value!r}")
+    hx, hy = 0.5 * l1, 0.5 * l2
+    q = math.pi / 4
+    wheels = (
+        Wheel(position=(hx, hy), drive=(1.0, 0.0), roller_angle=-q),
+        Wheel(position=(hx, -hy), drive=(-1.0, 0.0), roller_angle=q),
+        Wheel(position=(-hx, hy), drive=(1.0, 0.0), roller_angle=q),
+        Wheel(position=(-hx, -hy), drive=(-1.0, 0.0), roller_angle=-q),
+    )
+    mass = OPTIODOM_MASS
+    side_x, side_y = l1 + diameters[0], l2 + diameters[0]  # chassis footprint with the wheels, m
+    return RobotSpec(
+        name="optiodom_omni4",
+        wheels=wheels,
+        wheel_radius=0.5 * diameters[0],
+        mass=mass,
+        inertia=mass * (side_x**2 + side_y**2) / 12.0,
+        rollers=9,
+        roller_fraction=1.0,
+        body_radius=math.hypot(hx, hy) + 0.5 * diameters[0],
+        assumptions={
+            "layout": "wheels at (±l1/2, ±l2/2) with l1 along x: the dataset documents only the kinematic matrix, "
+            "in which only l1 + l2 enters; drive directions and roller angles are the ones that reproduce it "
+            "exactly (tests/test_kinematics.py).",
+            "mass": "4.0 kg: not published with the dataset; a small mecanum base with 60 mm wheels, four geared "
+            "DC motors (~0.2 kg each), a battery (~0.5 kg) and an on-board computer on a ~0.25 m aluminium "
+            "chassis weighs 3-5 kg (e.g. educational 60 mm mecanum kits).",
+            "inertia": "m·(a² + b²)/12 with a = l1 + D, b = l2 + D: a uniform rectangular plate the size of the "
+            "footprint including the wheels (0.045 kg·m² at the nominal geometry); no number is published.",
+            "rollers": "9: a typical roller count of 60 mm mecanum wheels; it only sets the roller pitch, which "
+            "matters to the roller_gap model, and that model does not apply to mecanum wheels.",
+            "roller_fraction": "1.0: a mecanum wheel's rollers overlap seen from the side, so the wheel always "
+            "touches the floor with a roller (no rigid material between rollers).",
+            "surface": "not characterised with the data; any surface preset applies (model show and simulate "
+            "default to carpet, the import of real runs to grip, the rolling without slip that OptiOdom's "
+            "kinematic odometry assumes).",
+        },
+    )
+
+
+def optiodom_omni4_radius_scales(diameters) -> tuple[float, list[float]]:
+    """(nominal wheel diameter [m] = mean of ``diameters``, per-wheel ``wheel_radius`` effect scales D_i / mean)."""
+    d = [float(v) for v in diameters]
+    mean = sum(d) / len(d)
+    return mean, [v / mean for v in d]
+
+
 PRESETS = {
     "williams2002": williams2002,
     "phunopas2018": phunopas2018,
+    "optiodom_omni4": optiodom_omni4,
 }
 
 
 def robot_preset(name: str) -> RobotSpec:
-    """A preset by name: ``williams2002``, ``phunopas2018`` or ``regularN`` (N ≥ 3 wheels)."""
+    """A preset by name: ``williams2002``, ``phunopas2018``, ``optiodom_omni4`` or ``regularN`` (N ≥ 3 wheels)."""
     if name in PRESETS:
         return PRESETS[name]()
     if name.startswith("regular") and name[len("regular"):].isdigit():

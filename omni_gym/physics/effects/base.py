@@ -175,6 +175,19 @@ class Effect:
             else:
                 bound.check(json_number(value, label), label)
 
+    def check_robot(self, robot) -> None:
+        """Raise ValueError (one line, saying why) if the effect does not apply to ``robot`` (a
+        RobotSpec). Default: applies to every wheel type (omni and mecanum)."""
+
+    def applies_to(self, robot) -> bool:
+        """True if the effect applies to ``robot`` (:meth:`check_robot` passes): e.g. which candidates
+        a fit can try on a mecanum robot."""
+        try:
+            self.check_robot(robot)
+        except ValueError:
+            return False
+        return True
+
     # --- simulation ----------------------------------------------------------------------------
 
     def write_kernel(self, params: dict, sp: np.ndarray, wp: np.ndarray, model: SimModel) -> None:

@@ -4,6 +4,9 @@ Williams et al. (2002): between two rollers the wheel rides on hub or frame mate
 coefficient μ'' (``mu_gap``) in both directions, for the share ``1 − roller_fraction`` of each roller
 pitch 2π/rollers; ``phase`` [rad] is each wheel's rotation at which its first gap starts. Turns the
 gap model on even for a nominal ``initial`` friction model.
+
+Omni wheels only: a robot with mecanum wheels (roller angle ≠ 0) refuses it (:meth:`RollerGap.check_robot`),
+since a mecanum wheel's rollers overlap seen from the side and it always touches the floor with a roller.
 """
 
 from __future__ import annotations
@@ -38,6 +41,12 @@ class RollerGap(Effect):
     # paper's carpet value (μ' 0.15), "small" μ' 0.25.
     recovery_sizes = {"small": {"mu_gap": 0.4}, "large": {"mu_gap": 0.56}}
     tolerances = {"mu_gap": 0.1, "roller_fraction": 0.03, "phase": 0.1}  # phase: share of the pitch
+
+    def check_robot(self, robot) -> None:
+        if robot.has_angled_rollers:
+            raise ValueError("effect 'roller_gap' applies to omni wheels only (rigid material between rollers in "
+                             "the wheel plane); this robot has mecanum wheels (roller_angle ≠ 0), whose rollers "
+                             "overlap and always touch the floor")
 
     def write_kernel(self, params, sp, wp, model) -> None:
         sp[SP_GAP] = (1.0 - params["roller_fraction"]) * sp[SP_PITCH]
