@@ -452,7 +452,9 @@ class _TrainingMixin:
             self.best_saved = True
         self.write_curve()
         if self._bar is not None and self.show:
-            self._bar.set_postfix(val_rmse=f"{rmse:.4f}", best=f"{self.best['val_tracking_rmse']:.4f}")
+            # No best before the first trained validation (step 0 is a reference point, not a candidate).
+            best = "-" if self.best is None else f"{self.best['val_tracking_rmse']:.4f}"
+            self._bar.set_postfix(val_rmse=f"{rmse:.4f}", best=best)
         print_progress(row, self.show)
 
     def _train_reward(self) -> float | None:
@@ -490,8 +492,13 @@ def validation_row(env, policy, episodes: int, timesteps: int, wall_s: float, tr
 
 
 def print_progress(row: dict, to_stderr: bool) -> None:
-    """A validation row as one JSON line: on stderr beside a progress bar, else on stdout (also when piped)."""
-    print(json.dumps(row), file=sys.stderr if to_stderr else sys.stdout, flush=True)
+    """A validation row as one JSON line: on stderr above a progress bar, else on stdout (also when piped)."""
+    if to_stderr:
+        from tqdm import tqdm
+
+        tqdm.write(json.dumps(row), file=sys.stderr)  # clears the bar, writes the line, redraws the bar
+    else:
+        print(json.dumps(row), flush=True)
 
 
 def write_curve(out: Path, rows: list[dict], meta: dict) -> None:

@@ -391,3 +391,62 @@ def test_native_vec_env_trains_the_same_agent_as_dummy(tmp_path, capsys):
     err = capsys.readouterr().err
     assert meta["vec_env"] == "native" and meta["wrapper"] == "residual-ekf-pid" and meta["timesteps"] >= 16
     assert err == ""
+
+
+# --- progress on a terminal -----------------------------------------------------------------------
+
+
+def _run_on_a_terminal(argv: list[str], timeout: float = 120.0) -> tuple[int, str, str]:
+    """Run ``python -m omni_gym.cli ARGV`` with stderr on a pseudo-terminal (stdout piped); (rc, stdout, tty)."""
+    import fcntl
+    import pty
+    import select
+    import struct
+    import subprocess
+    import sys
+    import termios
+    import time
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # 100 columns, as a terminal has
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "SDL_VIDEODRIVER": "dummy", "MPLBACKEND": "Agg"}
+    proc = subprocess.Popen([sys.executable, "-m", "omni_gym.cli", *argv], stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=slave, cwd=ROOT, env=env)
+    os.close(slave)
+    chunks, deadline = [], time.monotonic() + timeout
+    try:
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([master], [], [], 0.5)
+            if ready:
+                try:
+                    data = os.read(master, 65536)
+                except OSError:  # EIO: the child closed the terminal
+                    break
+                if not data:
+                    break
+                chunks.append(data)
+            elif proc.poll() is not None:
+                break
+        out = proc.communicate(timeout=max(1.0, deadline - time.monotonic()))[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        os.close(master)
+    return proc.returncode, out.decode(), b"".join(chunks).decode(errors="replace")
+
+
+def test_train_shows_progress_on_a_terminal(tmp_path):
+    """With stderr a terminal the progress bar is on by default; validation at step 0 (no best yet) used to
+    crash it. The bar and the validation rows go to the terminal, the summary to stdout."""
+    f = tmp_path / "hp.yml"
+    f.write_text(yaml.safe_dump({ENV: {"policy": "MlpPolicy", "n_envs": 1, "n_steps": 64, "batch_size": 32,
+                                       "n_epochs": 1, "env_kwargs": {"obs_mode": "state"}}}))
+    rc, out, tty = _run_on_a_terminal(
+        ["train", "--algo", "ppo", "--env", ENV, "--timesteps", "128", "--out", str(tmp_path / "m"),
+         "--hyperparams", str(f), "--env-kwargs", json.dumps({"episode_seconds": 0.3}), "--eval-freq", "64",
+         "--eval-episodes", "1"])
+    assert rc == 0, tty
+    assert "train ppo" in tty and "val_rmse=" in tty and "best=" in tty  # the bar with its postfix
+    rows = [json.loads(line) for line in tty.replace("\r", "\n").splitlines() if line.startswith("{")]
+    assert [r["timesteps"] for r in rows] == [0, 64, 128]
+    assert out.startswith("trained 128 steps")
