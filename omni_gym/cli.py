@@ -56,7 +56,12 @@ def build_parser() -> argparse.ArgumentParser:
                          "an RLlib checkpoint folder (rllib_checkpoint.json)")
     ev.add_argument("--env", required=True, help="environment id, e.g. OmniPathFollow-Phunopas-v0")
     ev.add_argument("--episodes", type=int, required=True, help="number of episodes, 1 to 100000")
-    ev.add_argument("--seed", type=int, required=True, help="first seed (>= 0); episode i uses seed + i")
+    ev.add_argument("--seed", type=int, default=None,
+                    help="first seed (>= 0); episode i uses seed + i (default 10000: held out from training, which "
+                         "uses small seeds, and validation, 5000 and up)")
+    ev.add_argument("--against", default=None, metavar="POLICY",
+                    help="a second policy (same forms as --policy) run on the same seeds: paired ratio of mean "
+                         "tracking RMSE with a 95%% bootstrap interval, and the share of episodes each wins")
     ev.add_argument("--env-kwargs", default=None, help="gym.make keywords as a JSON object")
     ev.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     ev.add_argument("--algo", default=None, help="plain SB3 .zip: its algorithm (ppo, sac, td3)")
@@ -241,18 +246,33 @@ def _simulate_into(args: argparse.Namespace, out) -> int:
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from agents.evaluate import evaluate, format_table
+    from agents.evaluate import DEFAULT_SEED, check_policy_name, compare, evaluate, format_comparison, format_table
     from agents.options import check_evaluate_args, parse_env_kwargs
     from agents.sb3_policy import ModelOptions
 
+    if args.seed is None:
+        args.seed = DEFAULT_SEED
     check_evaluate_args(args)
     options = ModelOptions(args.algo, args.wrapper, args.residual_scale, args.vecnormalize)
     kwargs = parse_env_kwargs(args.env_kwargs) or {}
     try:
+        if args.against is not None:  # a typo in the second policy fails before the first runs
+            try:
+                check_policy_name(args.against)
+            except ValueError as exc:
+                raise ValueError(f"--against: {exc}") from None
         result = evaluate(args.policy, args.env, args.episodes, args.seed, kwargs, model_options=options)
+        other = None if args.against is None else evaluate(args.against, args.env, args.episodes, args.seed, kwargs)
     except ImportError as exc:  # a missing extra: one line naming it (agents.require_agents_extra)
         raise ValueError(str(exc)) from None
-    print(json.dumps(result) if args.json else format_table(result))
+    if other is None:
+        print(json.dumps(result) if args.json else format_table(result))
+        return 0
+    cmp = compare(result, other)
+    if args.json:
+        print(json.dumps({**result, "against": other, "comparison": cmp}))
+    else:
+        print("\n\n".join([format_table(result), format_table(other), format_comparison(result, other, cmp)]))
     return 0
 
 
