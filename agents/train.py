@@ -560,31 +560,61 @@ def write_curve(out: Path, rows: list[dict], meta: dict) -> None:
     _plot_curve(out / "curve.png", data, meta)
 
 
+def _zero_based(ax, values: np.ndarray) -> None:
+    """Y range from zero to the data (or from the data to zero): a 1 % change then looks like 1 %, not like
+    a cliff across an axis zoomed to the data's own span."""
+    v = values[np.isfinite(values)]
+    if v.size == 0:
+        return
+    lo, hi = min(0.0, float(v.min())), max(0.0, float(v.max()))
+    pad = 0.05 * (hi - lo) or 1.0
+    ax.set_ylim(lo - (pad if lo < 0 else 0.0), hi + (pad if hi > 0 else 0.0))
+
+
 def _plot_curve(path: Path, data: np.ndarray, meta: dict) -> None:
+    import matplotlib.pyplot as plt
+
+    from omni_gym.outputs import write_bytes_atomic
+
+    fig = curve_figure(data, meta)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    write_bytes_atomic(path, buf.getvalue())
+
+
+def curve_figure(data: np.ndarray, meta: dict):
+    """The figure of ``curve.png``: validation tracking RMSE [m] (axis from 0) and the training episode return
+    of the training reward named with its formula (axis to 0), against timesteps; ``data`` rows in
+    :data:`CURVE_COLUMNS` order."""
     os.environ.setdefault("MPLBACKEND", "Agg")
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from omni_gym.outputs import write_bytes_atomic
+    from agents.rewards import REWARD_FORMULAS
 
-    fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
+    reward = meta.get("reward", "env")
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2), layout="constrained")
     ax[0].plot(data[:, 0], data[:, 2], "o-", ms=3)
     ax[0].set_xlabel("timesteps")
     ax[0].set_ylabel("validation tracking RMSE [m]")
+    ax[0].set_title("validation: mean over the validation episodes (lower is better)", fontsize=9)
+    _zero_based(ax[0], data[:, 2])
     ax[0].grid(alpha=0.3)
     ax[1].plot(data[:, 0], data[:, 5], "o-", ms=3, color="C1")
     ax[1].set_xlabel("timesteps")
-    ax[1].set_ylabel("training episode reward (mean of last 100)")
+    ax[1].set_ylabel("training episode return (no unit)")
+    ax[1].set_title(f"training reward '{reward}' per control step, e: tracking error, a: action\n"
+                    f"{REWARD_FORMULAS.get(reward, reward)}\n"
+                    "summed over an episode; mean of the last 100 episodes (higher is better)", fontsize=8)
+    _zero_based(ax[1], data[:, 5])
+    ax[1].set_xlim(ax[0].get_xlim())  # the same steps under each other
     ax[1].grid(alpha=0.3)
     algo = meta["algo"] if meta.get("backend", "sb3") == "sb3" else f"{meta['backend']} {meta['algo']}"
     fig.suptitle(f"{algo} / {meta['wrapper']} on {meta['env_id']} (seed {meta['seed']})")
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
-    write_bytes_atomic(path, buf.getvalue())
+    return fig
 
 
 def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:

@@ -541,3 +541,31 @@ def test_train_shows_progress_on_a_terminal(tmp_path):
     rows = [json.loads(line) for line in tty.replace("\r", "\n").splitlines() if line.startswith("{")]
     assert [r["timesteps"] for r in rows] == [0, 64, 128]
     assert out.startswith("trained 128 steps")
+
+
+def test_curve_plot_reads_as_it_should():
+    """curve.png: the RMSE axis starts at 0 (a 1 % wiggle of 0.0505 m must not fill the panel), the reward
+    panel names the training reward and its formula, and no label overlaps the title or another label."""
+    import matplotlib.pyplot as plt
+
+    from agents.train import CURVE_COLUMNS, curve_figure
+
+    assert CURVE_COLUMNS[2] == "val_tracking_rmse" and CURVE_COLUMNS[5] == "train_ep_reward"
+    data = np.array([[0, 0, 0.0505, 0.1, 1, np.nan], [1000, 5, 0.0502, 0.1, 1, -3600.0],
+                     [2000, 9, 0.0507, 0.1, 1, -900.0]])
+    meta = {"algo": "ppo", "wrapper": "residual-ekf-pid", "env_id": ENV, "seed": 0, "reward": "squared"}
+    fig = curve_figure(data, meta)
+    rmse_ax, reward_ax = fig.axes
+    lo, hi = rmse_ax.get_ylim()
+    assert lo == 0.0 and 0.0507 <= hi <= 0.06  # from zero to just above the data
+    assert reward_ax.get_ylim()[1] == 0.0 and reward_ax.get_ylim()[0] < -3600  # returns ≤ 0: up to zero
+    assert "'squared'" in reward_ax.get_title() and "(e/0.1 m)²" in reward_ax.get_title()
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    boxes = [fig._suptitle.get_window_extent(renderer)] + [
+        t.get_window_extent(renderer) for ax in fig.axes for t in (ax.yaxis.label, ax.title)]
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            assert not a.overlaps(b), (a, b)
+        assert a.x0 >= 0 and a.x1 <= fig.bbox.width and a.y1 <= fig.bbox.height  # nothing cut off
+    plt.close(fig)
