@@ -139,7 +139,35 @@ def _add_force_option(p: argparse.ArgumentParser, what: str) -> None:
                         "see docs/formats.md)")
 
 
+def _foreign_agents() -> str | None:
+    """None when ``import agents`` finds omni-gym's package; else the one-line message saying whose it is.
+
+    The OpenAI Agents SDK (``openai-agents``) installs a top-level ``agents`` package too; with both
+    installed Python finds one of them, and train/evaluate must say so rather than fail on a missing module.
+    """
+    try:
+        import agents
+    except ImportError as exc:
+        return f"omni-gym's 'agents' package cannot be imported ({exc}); reinstall omni-gym"
+    if getattr(agents, "OMNI_GYM_AGENTS", False):
+        return None
+    where = getattr(agents, "__file__", None) or ", ".join(getattr(agents, "__path__", [])) or "?"
+    return (f"the package 'agents' that Python imports ({where}) is not omni-gym's: another distribution (e.g. the "
+            "OpenAI Agents SDK, openai-agents) installs one of the same name; train and evaluate need omni-gym's, "
+            "so keep the other in a separate virtual environment")
+
+
+def _require_our_agents() -> None:
+    problem = _foreign_agents()
+    if problem is not None:
+        raise ValueError(problem)
+
+
 def _add_train_options(p: argparse.ArgumentParser) -> None:
+    if _foreign_agents() is not None:  # the other commands must still work; the handler says what is wrong
+        p.prefix_chars = "\0"  # no options: every word after "train" lands in "rest", unchecked
+        p.add_argument("rest", nargs="*")
+        return
     from agents.train import build_arg_parser  # argparse only; the heavy imports happen in the handler
 
     build_arg_parser(p)
@@ -153,6 +181,7 @@ def check_option(option: str, value) -> None:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
+    _require_our_agents()
     from agents.options import check_backend_args, check_train_args
     from agents.train import command_line, run_from_args
 
@@ -246,6 +275,7 @@ def _simulate_into(args: argparse.Namespace, out) -> int:
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
+    _require_our_agents()
     from agents.evaluate import DEFAULT_SEED, check_policy_name, compare, evaluate, format_comparison, format_table
     from agents.options import check_evaluate_args, parse_env_kwargs
     from agents.sb3_policy import ModelOptions
