@@ -32,7 +32,7 @@ mkdir -p "$WORK/run"
 cd "$WORK/run"
 "$PY" -c "import omni_gym, sys; p = omni_gym.__file__; sys.exit(0 if '$REPO' not in p else 'imported from the source tree: ' + p)"
 "$WORK/venv/bin/omni-gym" --version
-"$WORK/venv/bin/omni-gym" train --algo ppo --env OmniPathFollow-Phunopas-v0 --timesteps 256 --n-envs 1 \
+"$WORK/venv/bin/omni-gym" train --algo ppo --env OmniPathFollow-Phunopas-v0 --hyperparams ppo_residual --timesteps 256 --n-envs 1 \
     --eval-freq 0 --seed 0 --out "$WORK/run/model" --no-progress
 for f in model.zip final_model.zip vecnormalize.pkl meta.json; do
     test -s "$WORK/run/model/$f" || { echo "install-check: model/$f missing" >&2; exit 1; }

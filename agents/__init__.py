@@ -1,7 +1,8 @@
 """Scripted baselines (EKF + PID) and Stable-Baselines3 agents for the omni-gym environments.
 
 The SB3 parts (training, loading a trained model) need the ``agents`` extra
-(``pip install 'omni-gym[agents]'``: torch, stable-baselines3, pyyaml); the scripted baselines do not.
+(``pip install -c constraints.txt 'omni-gym[agents]'``: torch, stable-baselines3, pyyaml); the scripted
+baselines do not.
 
 Modules import only downward (``tests/test_architecture.py``): :mod:`.algorithms` (the SB3 algorithm
 table) and :mod:`.rollout` (``make_env``, ``run_episode``, the ``Policy`` protocol) at the bottom;
@@ -18,6 +19,13 @@ import importlib.util
 
 # import name -> distribution name, for the message
 AGENTS_EXTRA = {"torch": "torch", "stable_baselines3": "stable-baselines3", "yaml": "pyyaml"}
+# How to install it: constraints.txt (in the source tree) pins torch's CPU build; without it pip may fetch a
+# multi-gigabyte CUDA build (README, "Install with pip").
+AGENTS_EXTRA_HINT = ("pip install -c constraints.txt 'omni-gym[agents]' (constraints.txt, in the omni-gym source, "
+                     "pins torch's CPU build; without it pip may download a multi-gigabyte CUDA build)")
+# Marks this package as omni-gym's: another distribution (the OpenAI Agents SDK, ``openai-agents``) installs a
+# top-level ``agents`` package too, and the command line checks which one Python finds.
+OMNI_GYM_AGENTS = True
 
 
 def require_agents_extra(purpose: str) -> None:
@@ -28,4 +36,4 @@ def require_agents_extra(purpose: str) -> None:
     missing = [dist for mod, dist in AGENTS_EXTRA.items() if importlib.util.find_spec(mod) is None]
     if missing:
         raise ModuleNotFoundError(f"{purpose} needs the agents extra (missing: {', '.join(missing)}): "
-                                  "pip install 'omni-gym[agents]'", name=missing[0])
+                                  f"{AGENTS_EXTRA_HINT}", name=missing[0])

@@ -32,7 +32,7 @@ Measurements, all of the state at the end of control period k:
   lag-1 correlation −1/2, which makes the wheel NIS somewhat larger than nominal in the environments).
 * gyro: z = ω + b_g, std ``gyro_std``.
 * compass: z = θ, std ``compass_std``.
-* camera: z = (x, y, θ) when ``camera_age`` == 0 (a fix taken this period), std ``camera_*_std``.
+* camera: z = (x, y, θ) when ``fix_age`` == 0 (a fix taken this period), std ``camera_*_std``.
 * accelerometer, as a weak update: the environments' accelerometer reads the change of the geometric
   centre's world velocity over the period, in the body frame,
   a = R(θ_k)ᵀ·(R(θ_k)·v_k − R(θ_{k−1})·v_{k−1})/Δt = (v_k − R(θ_{k−1} − θ_k)·v_{k−1})/Δt.
@@ -511,5 +511,5 @@ class OmniEKF:
         self.update_wheels(rates)
         if c.use_compass:
             self.update_compass(s.compass)
-        if c.use_camera and s.camera_age == 0.0:
-            self.update_camera(s.camera)
+        if c.use_camera and s.fix_age == 0.0:
+            self.update_camera(s.camera_fix)

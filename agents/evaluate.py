@@ -9,6 +9,14 @@ Episode i runs with ``env.reset(seed=seed + i)``. Per-episode metrics come from 
 * ``final_position_error`` [m]: info["tracking_error"] at the last step.
 * ``final_heading_error`` [rad]: |info["heading_error"]| at the last step.
 * ``success``: info["is_success"] at the last step and the episode was not terminated early.
+* ``episode_return``: the sum of the environment's own reward over the episode (the id's reward,
+  ``docs/environments.md``; not a training wrapper's, so every policy on an id is scored alike): the
+  figure SB3's ``evaluate_policy`` and the RL Zoo report. Higher is better.
+
+Paired comparison (:func:`compare`, ``omni-gym evaluate --against``): both policies run on the same seeds,
+so each seed gives both the same reference, lift-off schedule and sensor noise; the ratio of their mean
+tracking RMSE gets a 95 % paired-bootstrap interval (resampling seeds, from a seeded Generator), beside
+the share of episodes where the first policy tracks better.
 
 Aggregates: the mean of each metric with a 95 % bootstrap percentile interval (:func:`bootstrap_ci`;
 None for n = 1) and the success rate with a 95 % Wilson score interval. The metrics are errors, never
@@ -25,6 +33,8 @@ from __future__ import annotations
 import math
 import os
 import sys
+import time
+from collections.abc import Iterable, Iterator
 
 import numpy as np
 
@@ -36,6 +46,8 @@ from agents.sb3_policy import build
 
 METRICS = ("tracking_rmse", "final_position_error", "final_heading_error")
 Z95 = 1.959963984540054  # standard normal 97.5 % quantile
+DEFAULT_SEED = 10_000  # held out: training environments use small seeds, validation 5000…
+PROGRESS_EVERY_S = 10.0  # a progress line at most this often when stderr is not a terminal
 
 
 def mean_ci(values: np.ndarray, level: float = 0.95) -> dict:
@@ -80,6 +92,44 @@ def bootstrap_ci(values: np.ndarray, level: float = 0.95, resamples: int = BOOTS
     return {"mean": mean, "std": float(np.std(x, ddof=1)), "ci95": [float(lo), float(hi)]}
 
 
+def paired_bootstrap_ratio(num: np.ndarray, den: np.ndarray, rng: np.random.Generator,
+                           resamples: int = BOOTSTRAP_RESAMPLES) -> tuple[list[float], float]:
+    """Percentile bootstrap of mean(num)/mean(den), resampling seeds (pairs) with replacement.
+
+    ``num[i]`` and ``den[i]`` come from the same seed. Returns the two-sided 95 % interval and the
+    one-sided 95 % upper bound of the ratio. The draws come from ``rng`` (seed it: the same episodes then
+    give the same interval).
+    """
+    num, den = np.asarray(num, dtype=float), np.asarray(den, dtype=float)
+    idx = rng.integers(0, len(num), size=(resamples, len(num)))
+    ratios = num[idx].mean(axis=1) / den[idx].mean(axis=1)
+    return [float(np.quantile(ratios, 0.025)), float(np.quantile(ratios, 0.975))], float(np.quantile(ratios, 0.95))
+
+
+def compare(a: dict, b: dict, metric: str = "tracking_rmse") -> dict:
+    """Paired comparison of two :func:`evaluate` results on the same seeds (``a`` against ``b``).
+
+    Returns ``metric``, ``ratio`` = mean(a)/mean(b) (below 1: ``a`` has the smaller error), its 95 %
+    paired-bootstrap ``ci95`` (:func:`paired_bootstrap_ratio`, Generator seeded with
+    :data:`BOOTSTRAP_SEED`), ``a_better`` / ``ties`` / ``b_better``: the share of seeds where ``a``'s value
+    is lower / equal / higher, and ``episodes``. ValueError when the seeds differ.
+    """
+    sa, sb = a["per_episode"]["seed"], b["per_episode"]["seed"]
+    if sa != sb:
+        raise ValueError("a paired comparison needs the same seeds for both policies")
+    x, y = np.array(a["per_episode"][metric], dtype=float), np.array(b["per_episode"][metric], dtype=float)
+    ratio, ci = math.nan, None  # nan: b's errors are all zero, no ratio exists
+    if y.mean() > 0:
+        ratio = float(x.mean() / y.mean())
+        if len(x) >= 2 and np.all(y >= 0) and np.any(y > 0):
+            # A resample of only b-zero seeds has no ratio; errors are non-negative, so that needs all y = 0
+            # on the drawn seeds: with a single non-zero y among n such draws exist, and give inf or nan.
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ci, _ = paired_bootstrap_ratio(x, y, np.random.default_rng(BOOTSTRAP_SEED))
+    return {"metric": metric, "ratio": ratio, "ci95": ci, "a_better": float(np.mean(x < y)),
+            "ties": float(np.mean(x == y)), "b_better": float(np.mean(x > y)), "episodes": len(x)}
+
+
 def wilson_ci(successes: int, n: int, z: float = Z95) -> list[float]:
     """Wilson score interval for a binomial proportion (95 % with the default z)."""
     if n < 1:
@@ -102,14 +152,46 @@ def summarize(episodes: list[Episode], interval: str = "bootstrap") -> dict:
         raise ValueError(f"interval must be 'bootstrap' or 't', got {interval!r}")
     ci = bootstrap_ci if interval == "bootstrap" else mean_ci
     out = {m: ci(np.array([getattr(e, m) for e in episodes])) for m in METRICS}
+    out["episode_return"] = ci(np.array([e.episode_return for e in episodes]))
     wins = sum(e.success for e in episodes)
     out["success_rate"] = {"mean": wins / len(episodes), "successes": wins, "ci95": wilson_ci(wins, len(episodes))}
     out["terminated_rate"] = sum(e.terminated for e in episodes) / len(episodes)
-    out["per_episode"] = {k: [e.metrics()[k] for e in episodes] for k in ("seed", *METRICS, "success", "terminated")}
+    out["per_episode"] = {k: [e.metrics()[k] for e in episodes]
+                          for k in ("seed", *METRICS, "episode_return", "success", "terminated")}
     return out
 
 
-def evaluate(policy: str, env_id: str, episodes: int, seed: int, env_kwargs: dict | None = None,
+def progress_lines(items: Iterable[int], total: int, what: str, every_s: float | None = None,
+                   clock=time.monotonic) -> Iterator[int]:
+    """``items``, with a line ``WHAT: k/N episodes, T s, about R s left`` on stderr after an item when at
+    least ``every_s`` seconds (default :data:`PROGRESS_EVERY_S`) passed since the last line: progress where a
+    bar cannot draw (a pipe, a log file). No line after the last item: the result follows."""
+    every_s = PROGRESS_EVERY_S if every_s is None else every_s
+    t0 = last = clock()
+    for k, item in enumerate(items, 1):
+        yield item
+        now = clock()
+        if now - last >= every_s and k < total:
+            left = (now - t0) / k * (total - k)
+            print(f"{what}: {k}/{total} episodes, {now - t0:.0f} s, about {left:.0f} s left", file=sys.stderr,
+                  flush=True)
+            last = now
+
+
+def check_policy_name(policy: str) -> None:
+    """A scripted policy name, or an existing model path; else one line saying which it is not."""
+    if policy in POLICY_NAMES or os.path.isdir(policy) or policy.endswith(".zip"):
+        return
+    if os.path.exists(policy):
+        raise ValueError(f"policy {policy!r}: not a model (a model directory, an RL Zoo folder or an SB3 .zip)")
+    if os.sep in policy or "/" in policy or policy.startswith("."):
+        raise ValueError(f"policy {policy!r}: no such folder or file (a model directory, an RL Zoo folder, an "
+                         f"SB3 .zip or an RLlib checkpoint)")
+    raise ValueError(f"unknown policy {policy!r}; choose one of {', '.join(POLICY_NAMES)} or a saved model path "
+                     f"(no such folder or file either)")
+
+
+def evaluate(policy: str, env_id: str, episodes: int, seed: int = DEFAULT_SEED, env_kwargs: dict | None = None,
              progress: bool | None = None, model_options=None) -> dict:
     """Run ``episodes`` episodes of ``policy`` on seeds seed, seed+1, …; return the summary dict.
 
@@ -120,20 +202,18 @@ def evaluate(policy: str, env_id: str, episodes: int, seed: int, env_kwargs: dic
             model (our ``--backend rllib`` directory or a bare RLlib checkpoint; :mod:`agents.rllib.policy`).
         env_id: a registered omni-gym id.
         episodes: number of episodes (≥ 1).
-        seed: first seed.
+        seed: first seed (default :data:`DEFAULT_SEED`, held out from training and validation).
         env_kwargs: extra ``gym.make`` keywords.
-        progress: tqdm bar on stderr (None: only when stderr is a terminal).
+        progress: True: a tqdm bar on stderr; False: nothing; None: the bar when stderr is a terminal,
+            else a line every :data:`PROGRESS_EVERY_S` seconds (:func:`progress_lines`).
         model_options: :class:`agents.sb3_policy.ModelOptions` (algorithm, wrapper, ... of a plain SB3 zip).
 
     Returns a JSON-serialisable dict: ``policy``, ``env_id``, ``env_kwargs``, ``episodes``, ``seeds``
-    ([first, last]), per metric {mean, std, ci95}, ``success_rate`` {mean, successes, ci95},
+    ([first, last]), per metric and ``episode_return`` {mean, std, ci95}, ``success_rate`` {mean, successes, ci95},
     ``terminated_rate`` and ``per_episode`` lists.
     """
     scripted = policy in POLICY_NAMES
-    if not scripted and not os.path.isdir(policy) and not policy.endswith(".zip"):
-        if os.path.exists(policy):
-            raise ValueError(f"policy {policy!r}: not a model (a model directory, an RL Zoo folder or an SB3 .zip)")
-        raise ValueError(f"unknown policy {policy!r}; choose one of {', '.join(POLICY_NAMES)} or a saved model path")
+    check_policy_name(policy)
     if scripted and model_options is not None and model_options.given():
         raise ValueError(f"{model_options.given()[0]} applies to a trained model, not to the scripted policy "
                          f"{policy!r}")
@@ -154,9 +234,14 @@ def evaluate(policy: str, env_id: str, episodes: int, seed: int, env_kwargs: dic
     try:
         if scripted:
             pol = make_policy(policy, env)
-        eps = [run_episode(env, pol, int(seed) + i)
-               for i in tqdm(range(episodes), desc=f"{policy} on {env_id}", file=sys.stderr, disable=progress is False
-                             or (progress is None and not sys.stderr.isatty()), leave=False)]
+        bar = progress is True or (progress is None and sys.stderr.isatty())
+        what = f"{policy} on {env_id}"
+        seeds: Iterable[int] = range(episodes)
+        if bar:
+            seeds = tqdm(seeds, desc=what, file=sys.stderr, leave=False)
+        elif progress is None:
+            seeds = progress_lines(seeds, episodes, what)
+        eps = [run_episode(env, pol, int(seed) + i) for i in seeds]
     finally:
         env.close()
     return {"policy": policy, "env_id": env_id, "env_kwargs": dict(env_kwargs or {}), "episodes": episodes,
@@ -177,4 +262,19 @@ def format_table(result: dict) -> str:
     s = result["success_rate"]
     lines.append(f"{'success rate':<26}{s['mean']:>10.3f}   [{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}] (Wilson)")
     lines.append(f"{'terminated early':<26}{result['terminated_rate']:>10.3f}")
+    r = result["episode_return"]
+    ci = "n/a" if r["ci95"] is None else f"[{r['ci95'][0]:.2f}, {r['ci95'][1]:.2f}]"
+    lines.append(f"{'episode return':<26}{r['mean']:>10.2f}   {ci} (sum of the environment's reward; higher is "
+                 f"better)")
     return "\n".join(lines)
+
+
+def format_comparison(a: dict, b: dict, cmp: dict) -> str:
+    """Two lines: the paired ratio of mean tracking RMSE with its interval, and the shares of seeds."""
+    ci = "n/a (one episode)" if cmp["ci95"] is None else f"[{cmp['ci95'][0]:.3f}, {cmp['ci95'][1]:.3f}]"
+    return "\n".join([
+        f"paired on seeds {a['seeds'][0]}–{a['seeds'][1]}: {a['policy']} / {b['policy']}",
+        f"  ratio of mean {cmp['metric']}: {cmp['ratio']:.3f}   95% CI {ci} (paired bootstrap over seeds; "
+        f"below 1: {a['policy']} tracks better)",
+        f"  episodes where {a['policy']} is better: {cmp['a_better']:.0%}, equal: {cmp['ties']:.0%}, worse: "
+        f"{cmp['b_better']:.0%}"])

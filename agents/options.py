@@ -1,4 +1,5 @@
-"""Bounds of the numeric command-line options of ``omni-gym train`` and ``omni-gym evaluate``.
+"""Bounds of the numeric command-line options of ``omni-gym train`` and ``omni-gym evaluate``, and of the
+numeric keys of a hyperparameter file.
 
 ``docs/bounds.md`` (section "Command-line options", ``train`` and ``evaluate``) shows these tables as
 rendered by :func:`omni_gym.bounds.markdown_table` (a test compares them). Every option is checked
@@ -47,6 +48,85 @@ EVALUATE: dict[str, Bound] = {b.name: b for b in (
     Bound("--residual-scale", 0.0, 1.0, "", "fraction of the action range a residual agent may add to "
           "the PID's twist (agents.wrappers.EKFFeatures)"),
 )}
+
+
+# Numeric keys of a hyperparameter entry (agents/hyperparams/*.yml), checked before the library sees them:
+# Stable-Baselines3 answers a bad one with an assertion, a numpy error or a traceback that names no key.
+HYPERPARAMS: dict[str, Bound] = {b.name: b for b in (
+    Bound("n_timesteps", 1, 1e9, "steps", "as --timesteps", integer=True),
+    Bound("n_envs", 1, 256, "", "as --n-envs", integer=True),
+    Bound("n_steps", 1, 1e6, "steps", "PPO: steps per environment per rollout; the rollout buffer holds "
+          "n_steps × n_envs transitions in memory (committed files: 256 to 1024)", integer=True),
+    Bound("batch_size", 1, 1e6, "", "transitions per gradient step (committed files: 256 to 4096)", integer=True),
+    Bound("n_epochs", 1, 1000, "", "PPO: passes over each rollout (committed files: 5 to 10)", integer=True),
+    Bound("gamma", 0.0, 1.0, "", "discount factor per control step (10 ms)"),
+    Bound("gae_lambda", 0.0, 1.0, "", "PPO: GAE weighting"),
+    Bound("clip_range", 0.0, 10.0, "", "PPO: policy ratio clip; > 0", lo_open=True),
+    Bound("target_kl", 0.0, 100.0, "", "PPO: KL divergence that stops an update early; > 0", lo_open=True),
+    Bound("vf_coef", 0.0, 1e3, "", "PPO: weight of the value loss"),
+    Bound("ent_coef", 0.0, 1e3, "", "weight of the entropy bonus (SAC also: auto or auto_<initial value>)"),
+    Bound("max_grad_norm", 0.0, 1e6, "", "gradient norm clip; > 0", lo_open=True),
+    Bound("buffer_size", 1, 1e8, "transitions", "SAC, TD3: the replay buffer is allocated at the start "
+          "(committed files: 3·10⁵ to 10⁶); 10⁸ transitions are tens of GB", integer=True),
+    Bound("learning_starts", 0, 1e9, "steps", "SAC, TD3: random steps before learning", integer=True),
+    Bound("tau", 0.0, 1.0, "", "SAC, TD3: soft target update factor"),
+    Bound("gradient_steps", -1, 1e6, "", "SAC, TD3: per rollout (−1: as many as steps collected)", integer=True),
+    Bound("policy_delay", 1, 1e6, "", "TD3: critic updates per actor update", integer=True),
+    Bound("target_policy_noise", 0.0, 10.0, "", "TD3: target smoothing noise std (actions in [−1, 1])"),
+    Bound("target_noise_clip", 0.0, 10.0, "", "TD3: target smoothing noise clip"),
+    Bound("noise_std", 0.0, 10.0, "", "TD3, SAC with noise_type normal: exploration noise std (actions in "
+          "[−1, 1])"),
+    Bound("learning_rate", 0.0, 1.0, "", "a number or lin_<number> (linear schedule from it to 0); > 0",
+          lo_open=True),
+)}
+# Keys that also take a word (SB3's own spelling), and the algorithms that read it: SAC's automatic entropy
+# coefficient (``auto`` or ``auto_<initial value>``) and target entropy (``auto``).
+HYPERPARAM_WORDS = {"ent_coef": ("sac",), "target_entropy": ("sac",)}
+
+
+def _auto(value) -> bool:
+    if value == "auto":
+        return True
+    try:
+        return isinstance(value, str) and value.startswith("auto_") and float(value[5:]) > 0
+    except ValueError:
+        return False
+
+
+def _number(value, key: str, where: str) -> float:
+    """A YAML value as a number: int/float, or a string that reads as one (PyYAML reads ``1e-3`` as a string)."""
+    if isinstance(value, bool):
+        raise ValueError(f"{where}: {key}: must be a number, got {value!r}")
+    if isinstance(value, (int, float)):
+        return value
+    if isinstance(value, str):
+        try:
+            return float(value)
+        except ValueError:
+            pass
+    raise ValueError(f"{where}: {key}: must be a number, got {value!r}")
+
+
+def check_hyperparams(hp: dict, where: str, algo: str = "ppo") -> dict:
+    """The entry with every key of :data:`HYPERPARAMS` checked against its bound and made a number (an int for
+    integer bounds); ValueError ``FILE: KEY must be … in [lo, hi], got V`` on the first bad one.
+
+    ``learning_rate`` may be ``lin_<x>`` (x checked); with ``algo`` sac, ``ent_coef`` ``auto`` or ``auto_<x>``
+    and ``target_entropy`` ``auto``; other keys pass unchanged (the algorithm's constructor refuses unknown ones).
+    """
+    out = dict(hp)
+    for key, value in hp.items():
+        if algo in HYPERPARAM_WORDS.get(key, ()) and _auto(value):
+            continue
+        if key == "learning_rate" and isinstance(value, str) and value.startswith("lin_"):
+            HYPERPARAMS[key].check(_number(value[4:], key, where), f"{where}: {key} lin_<x>: x")
+            continue
+        bound = HYPERPARAMS.get(key)
+        if bound is None:
+            continue
+        x = bound.check(_number(value, key, where), f"{where}: {key}")
+        out[key] = int(x) if bound.integer else float(x)
+    return out
 
 
 def _check(table: dict[str, Bound], args: argparse.Namespace) -> None:

@@ -31,6 +31,12 @@ from gymnasium.vector import AutoresetMode, VectorWrapper
 REWARDS = ("env", "tracking", "squared")
 LOST_HORIZON = 50  # steps: the squared reward's penalty for getting lost (≈ 1/(1 − γ) at γ = 0.98)
 ERROR_SCALE = 0.1  # m: the squared reward's unit of tracking error
+# One line per mode, for plot labels and reports (e: true tracking error [m], a: the agent's action).
+REWARD_FORMULAS = {
+    "env": "the environment's reward (docs/environments.md)",
+    "tracking": "0.5·exp(−(e/0.05 m)²) + 0.5·exp(−e/0.1 m) − 0.02·mean(a²)",
+    "squared": "−(e/0.1 m)² − 0.01·mean(a²); once when lost −50·(lost_distance/0.1 m)²",
+}
 
 
 def check_reward(reward: str) -> None:

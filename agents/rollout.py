@@ -44,6 +44,7 @@ class Episode:
     success: bool
     terminated: bool
     steps: int
+    episode_return: float = math.nan  # sum of the environment's own reward (the id's, not a wrapper's)
     t: np.ndarray = field(default_factory=lambda: np.zeros(0))
     pose: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # true pose (x, y, θ)
     reference: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
@@ -53,7 +54,8 @@ class Episode:
     def metrics(self) -> dict:
         return {"seed": self.seed, "tracking_rmse": self.tracking_rmse,
                 "final_position_error": self.final_position_error, "final_heading_error": self.final_heading_error,
-                "success": self.success, "terminated": self.terminated, "steps": self.steps}
+                "success": self.success, "terminated": self.terminated, "steps": self.steps,
+                "episode_return": self.episode_return}
 
 
 def run_episode(env, policy: Policy, seed: int, record: bool = False) -> Episode:
@@ -65,7 +67,8 @@ def run_episode(env, policy: Policy, seed: int, record: bool = False) -> Episode
     obs, info = env.reset(seed=seed)
     policy.reset(obs)
     dt = env.unwrapped.cfg.control_dt
-    sq_sum, steps = 0.0, 0
+    core = env.unwrapped.core  # the environment's own reward, also under a wrapper that replaces it
+    sq_sum, steps, ret = 0.0, 0, 0.0
     rows = []
 
     def keep(info_) -> None:
@@ -81,6 +84,7 @@ def run_episode(env, policy: Policy, seed: int, record: bool = False) -> Episode
         obs, _, terminated, truncated, info = env.step(action)
         steps += 1
         sq_sum += info["tracking_error"] ** 2
+        ret += float(core.reward[0])
         if terminated or truncated:
             break
     if record:  # the estimate of the last pose: one more (unused) action updates it
@@ -89,7 +93,8 @@ def run_episode(env, policy: Policy, seed: int, record: bool = False) -> Episode
     ep = Episode(seed=int(seed), tracking_rmse=math.sqrt(sq_sum / steps),
                  final_position_error=float(info["tracking_error"]),
                  final_heading_error=abs(float(info["heading_error"])),
-                 success=bool(info["is_success"]) and not terminated, terminated=bool(terminated), steps=steps)
+                 success=bool(info["is_success"]) and not terminated, terminated=bool(terminated), steps=steps,
+                 episode_return=ret)
     if record:
         ep.t = np.array([r[0] for r in rows])
         ep.pose = np.array([r[1] for r in rows])

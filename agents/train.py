@@ -67,7 +67,7 @@ import numpy as np
 
 from agents import require_agents_extra
 from agents.algorithms import ALGOS, algorithm_class
-from agents.options import BACKENDS, check_backend_args, check_train_args, parse_env_kwargs
+from agents.options import BACKENDS, check_backend_args, check_hyperparams, check_train_args, parse_env_kwargs
 from agents.rollout import make_env, run_episode
 from agents.sb3_policy import SB3Policy
 from agents.wrappers import wrap_env
@@ -81,23 +81,69 @@ OWN_KEYS = ("n_timesteps", "policy", "n_envs", "normalize", "env_kwargs", "env_w
             "learning_rate", "callback")
 
 
-def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict:
-    """The YAML entry for ``env_id`` in ``path`` (default ``agents/hyperparams/<algo>.yml``)."""
-    require_agents_extra("reading hyperparameter files")
+def shipped_hyperparams() -> list[str]:
+    """The stems of the hyperparameter files shipped with the package (``agents/hyperparams/*.yml``), sorted."""
+    return sorted(p.stem for p in HYPERPARAM_DIR.glob("*.yml"))
+
+
+def hyperparams_path(algo: str, name: str | Path | None = None) -> Path:
+    """The file ``--hyperparams NAME`` means: an existing path; else the shipped file of that stem
+    (``ppo_residual`` → ``agents/hyperparams/ppo_residual.yml``, found in a checkout and after ``pip install``);
+    None: ``agents/hyperparams/<algo>.yml``. ValueError naming the shipped stems when neither exists."""
+    if name is None:
+        return HYPERPARAM_DIR / f"{algo}.yml"
+    path = Path(name)
+    if path.exists():
+        return path
+    stem = str(name).removesuffix(".yml")
+    if path.parent == Path(".") and stem in shipped_hyperparams():
+        return HYPERPARAM_DIR / f"{stem}.yml"
+    raise ValueError(f"--hyperparams {name}: no such file, nor a shipped hyperparameter file "
+                     f"(shipped: {', '.join(shipped_hyperparams())})")
+
+
+def _read_yaml(path: Path):
+    """A YAML file's content; ValueError naming the file. Bytes go to PyYAML, which reads UTF-8 and, with a
+    byte order mark, UTF-16 and UTF-32 (as the YAML specification allows)."""
     import yaml
 
-    if algo not in ALGOS:
-        raise ValueError(f"unknown algo {algo!r}; choose one of {', '.join(ALGOS)}")
-    path = Path(path) if path is not None else HYPERPARAM_DIR / f"{algo}.yml"
     try:
-        data = yaml.safe_load(path.read_text())
+        return yaml.safe_load(path.read_bytes())
     except yaml.YAMLError as exc:
         raise ValueError(f"{path}: not valid YAML ({' '.join(str(exc).split())})") from None
+
+
+def files_holding(env_id: str) -> list[str]:
+    """Stems of the shipped hyperparameter files with an entry for ``env_id`` (a file that does not read is
+    skipped: this only feeds a hint)."""
+    found = []
+    for stem in shipped_hyperparams():
+        try:
+            data = _read_yaml(HYPERPARAM_DIR / f"{stem}.yml")
+        except (ValueError, OSError):
+            continue
+        if isinstance(data, dict) and env_id in data:
+            found.append(stem)
+    return found
+
+
+def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict:
+    """The YAML entry for ``env_id`` in ``path`` (a file, or the stem of a shipped file; default
+    ``agents/hyperparams/<algo>.yml``). ValueError naming the file (and key) on any problem; a missing
+    entry names the shipped files that hold the id."""
+    require_agents_extra("reading hyperparameter files")
+    if algo not in ALGOS:
+        raise ValueError(f"unknown algo {algo!r}; choose one of {', '.join(ALGOS)}")
+    path = hyperparams_path(algo, path)
+    data = _read_yaml(path)
     if not isinstance(data, dict):
         raise ValueError(f"{path}: must map environment ids to hyperparameters")
     bare = env_id.rpartition(":")[2]
     if bare not in data:
-        raise ValueError(f"{path}: no entry for {bare!r} (entries: {', '.join(map(str, data))})")
+        holding = files_holding(bare)
+        hint = (f"; shipped files with an entry for it: {', '.join(holding)} (--hyperparams NAME)" if holding
+                else "; no shipped hyperparameter file has one")
+        raise ValueError(f"{path}: no entry for {bare!r} (entries: {', '.join(map(str, data))}){hint}")
     hp = data[bare]
     if not isinstance(hp, dict):
         raise ValueError(f"{path}: key {bare!r}: must be a mapping of hyperparameters")
@@ -282,8 +328,9 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     if env_kwargs is not None and not isinstance(env_kwargs, dict):
         raise ValueError(f"env_kwargs must be a dict (a JSON object), got {env_kwargs!r}")
-    where = str(hyperparams or HYPERPARAM_DIR / f"{algo}.yml")
-    hp = load_hyperparams(algo, env_id, hyperparams)
+    where = str(hyperparams_path(algo, hyperparams))
+    raw_hp = load_hyperparams(algo, env_id, hyperparams)
+    hp = check_hyperparams(raw_hp, where, algo)  # numbers in their bounds before the library sees them
     n_timesteps = int(float(timesteps if timesteps is not None else hp.get("n_timesteps", 0)))
     if n_timesteps < 1:
         raise ValueError(f"timesteps must be >= 1, got {n_timesteps} (--timesteps or n_timesteps in {where})")
@@ -342,7 +389,7 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
         "sensor_noise_range": noise, "obs_mode": kw.get("obs_mode", "sensors"), "seed": seed, "n_envs": n,
         "vec_env": vec_env, "reward": reward,
         "hyperparams_file": os.path.relpath(where, Path(__file__).resolve().parents[1]) if hyperparams is None
-        else str(hyperparams), "hyperparams": hp, "requested_timesteps": n_timesteps,
+        else str(hyperparams), "hyperparams": raw_hp, "requested_timesteps": n_timesteps,
         "validation_seeds": [VALIDATION_SEED, VALIDATION_SEED + eval_episodes - 1] if eval_freq > 0 else None,
         "vecnormalize": "vecnormalize.pkl" if norm is not None else None, "model": "model.zip",
         "command": command, "git_commit": git_commit(), "torch_threads": torch.get_num_threads(),
@@ -452,7 +499,9 @@ class _TrainingMixin:
             self.best_saved = True
         self.write_curve()
         if self._bar is not None and self.show:
-            self._bar.set_postfix(val_rmse=f"{rmse:.4f}", best=f"{self.best['val_tracking_rmse']:.4f}")
+            # No best before the first trained validation (step 0 is a reference point, not a candidate).
+            best = "-" if self.best is None else f"{self.best['val_tracking_rmse']:.4f}"
+            self._bar.set_postfix(val_rmse=f"{rmse:.4f}", best=best)
         print_progress(row, self.show)
 
     def _train_reward(self) -> float | None:
@@ -490,8 +539,13 @@ def validation_row(env, policy, episodes: int, timesteps: int, wall_s: float, tr
 
 
 def print_progress(row: dict, to_stderr: bool) -> None:
-    """A validation row as one JSON line: on stderr beside a progress bar, else on stdout (also when piped)."""
-    print(json.dumps(row), file=sys.stderr if to_stderr else sys.stdout, flush=True)
+    """A validation row as one JSON line: on stderr above a progress bar, else on stdout (also when piped)."""
+    if to_stderr:
+        from tqdm import tqdm
+
+        tqdm.write(json.dumps(row), file=sys.stderr)  # clears the bar, writes the line, redraws the bar
+    else:
+        print(json.dumps(row), flush=True)
 
 
 def write_curve(out: Path, rows: list[dict], meta: dict) -> None:
@@ -506,31 +560,61 @@ def write_curve(out: Path, rows: list[dict], meta: dict) -> None:
     _plot_curve(out / "curve.png", data, meta)
 
 
+def _zero_based(ax, values: np.ndarray) -> None:
+    """Y range from zero to the data (or from the data to zero): a 1 % change then looks like 1 %, not like
+    a cliff across an axis zoomed to the data's own span."""
+    v = values[np.isfinite(values)]
+    if v.size == 0:
+        return
+    lo, hi = min(0.0, float(v.min())), max(0.0, float(v.max()))
+    pad = 0.05 * (hi - lo) or 1.0
+    ax.set_ylim(lo - (pad if lo < 0 else 0.0), hi + (pad if hi > 0 else 0.0))
+
+
 def _plot_curve(path: Path, data: np.ndarray, meta: dict) -> None:
+    import matplotlib.pyplot as plt
+
+    from omni_gym.outputs import write_bytes_atomic
+
+    fig = curve_figure(data, meta)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    write_bytes_atomic(path, buf.getvalue())
+
+
+def curve_figure(data: np.ndarray, meta: dict):
+    """The figure of ``curve.png``: validation tracking RMSE [m] (axis from 0) and the training episode return
+    of the training reward named with its formula (axis to 0), against timesteps; ``data`` rows in
+    :data:`CURVE_COLUMNS` order."""
     os.environ.setdefault("MPLBACKEND", "Agg")
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from omni_gym.outputs import write_bytes_atomic
+    from agents.rewards import REWARD_FORMULAS
 
-    fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
+    reward = meta.get("reward", "env")
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2), layout="constrained")
     ax[0].plot(data[:, 0], data[:, 2], "o-", ms=3)
     ax[0].set_xlabel("timesteps")
     ax[0].set_ylabel("validation tracking RMSE [m]")
+    ax[0].set_title("validation: mean over the validation episodes (lower is better)", fontsize=9)
+    _zero_based(ax[0], data[:, 2])
     ax[0].grid(alpha=0.3)
     ax[1].plot(data[:, 0], data[:, 5], "o-", ms=3, color="C1")
     ax[1].set_xlabel("timesteps")
-    ax[1].set_ylabel("training episode reward (mean of last 100)")
+    ax[1].set_ylabel("training episode return (no unit)")
+    ax[1].set_title(f"training reward '{reward}' per control step, e: tracking error, a: action\n"
+                    f"{REWARD_FORMULAS.get(reward, reward)}\n"
+                    "summed over an episode; mean of the last 100 episodes (higher is better)", fontsize=8)
+    _zero_based(ax[1], data[:, 5])
+    ax[1].set_xlim(ax[0].get_xlim())  # the same steps under each other
     ax[1].grid(alpha=0.3)
     algo = meta["algo"] if meta.get("backend", "sb3") == "sb3" else f"{meta['backend']} {meta['algo']}"
     fig.suptitle(f"{algo} / {meta['wrapper']} on {meta['env_id']} (seed {meta['seed']})")
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
-    write_bytes_atomic(path, buf.getvalue())
+    return fig
 
 
 def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
@@ -547,7 +631,9 @@ def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.
     p.add_argument("--seed", type=int, default=0, help="training seed, 0 to 2^31 - 1 (default 0)")
     p.add_argument("--out", required=True, help="output directory (model.zip, meta.json, curve.csv, ...)")
     p.add_argument("--env-kwargs", default=None, help="gym.make keywords as a JSON object (merged over the YAML's)")
-    p.add_argument("--hyperparams", default=None, help="YAML file (default agents/hyperparams/<algo>.yml)")
+    p.add_argument("--hyperparams", default=None,
+                   help="YAML file, or the name of a shipped one: ppo, ppo_residual, sac_privileged, ... (the files "
+                        "of agents/hyperparams; default: <algo>)")
     p.add_argument("--n-envs", type=int, default=None, help="parallel environments (default: n_envs in YAML)")
     p.add_argument("--vec-env", choices=VEC_ENVS, default="native",
                    help="vectorisation: native (one vector env of all robots; default), dummy or subproc (one "

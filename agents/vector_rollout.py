@@ -83,6 +83,8 @@ def run_episodes_vector(vec_env, policy: VectorActor, seeds: Sequence[int]) -> l
     live = np.ones(num, dtype=bool)
     restart = np.zeros(num, dtype=bool)  # next_step: these rows of obs are first observations
     sq_sum = [0.0] * num  # Python floats, summed step by step as run_episode does
+    ret = [0.0] * num  # the environment's own reward (a wrapper may replace what step returns)
+    core = vec_env.unwrapped.core
     steps = np.zeros(num, dtype=np.int64)
     final: list[tuple[float, float, bool, bool] | None] = [None] * num
     while live.any():
@@ -95,9 +97,11 @@ def run_episodes_vector(vec_env, policy: VectorActor, seeds: Sequence[int]) -> l
         restart = np.asarray(terminated | truncated, dtype=bool)
         head = np.asarray(info["heading_error"], dtype=float)
         success = np.asarray(info["is_success"], dtype=bool)
+        reward = core.rewards()
         for i in np.flatnonzero(live):
             steps[i] += 1
             sq_sum[i] += float(err[i]) ** 2
+            ret[i] += float(reward[i])
             if terminated[i] or truncated[i]:
                 final[i] = (float(err[i]), abs(float(head[i])), bool(success[i]) and not bool(terminated[i]),
                             bool(terminated[i]))
@@ -107,5 +111,5 @@ def run_episodes_vector(vec_env, policy: VectorActor, seeds: Sequence[int]) -> l
         err_i, head_i, success_i, term_i = final[i]
         episodes.append(Episode(seed=seed, tracking_rmse=math.sqrt(sq_sum[i] / int(steps[i])),
                                 final_position_error=err_i, final_heading_error=head_i, success=success_i,
-                                terminated=term_i, steps=int(steps[i])))
+                                terminated=term_i, steps=int(steps[i]), episode_return=ret[i]))
     return episodes

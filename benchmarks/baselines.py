@@ -48,7 +48,7 @@ import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from agents.evaluate import METRICS, summarize  # noqa: E402
+from agents.evaluate import BOOTSTRAP_RESAMPLES, METRICS, paired_bootstrap_ratio, summarize  # noqa: E402
 from agents.policies import POLICY_NAMES, make_policy  # noqa: E402
 from agents.rollout import Episode, make_env, run_episode  # noqa: E402
 from omni_gym.parallel import SERIAL, Backend, add_ray_option, backend_from_options, parallel_map  # noqa: E402
@@ -62,7 +62,7 @@ CONDITIONS = {
     "slip + lift-off": {"surface": "carpet", "friction": "roller_gap", "lift_rate": 0.5},
 }
 GOAL_RATIO = 0.2  # ekf-pid / open-loop mean final position error under slip + lift-off
-BOOTSTRAP = 10_000
+BOOTSTRAP = BOOTSTRAP_RESAMPLES  # resamples of the paired bootstrap (agents.evaluate.paired_bootstrap_ratio)
 LABELS = {"tracking_rmse": "tracking RMSE [m]", "final_position_error": "final position error [m]",
           "final_heading_error": "final heading error [rad]", "success_rate": "success rate"}
 
@@ -126,16 +126,6 @@ def holm(pvalues: list[float]) -> list[float]:
         running = max(running, min(1.0, (m - rank) * pvalues[i]))
         adjusted[i] = running
     return adjusted.tolist()
-
-
-def paired_bootstrap_ratio(num: np.ndarray, den: np.ndarray, rng: np.random.Generator) -> tuple[list[float], float]:
-    """Percentile bootstrap of mean(num)/mean(den), resampling seeds (pairs) with replacement.
-
-    Returns the two-sided 95 % interval and the one-sided 95 % upper bound.
-    """
-    idx = rng.integers(0, len(num), size=(BOOTSTRAP, len(num)))
-    ratios = num[idx].mean(axis=1) / den[idx].mean(axis=1)
-    return [float(np.quantile(ratios, 0.025)), float(np.quantile(ratios, 0.975))], float(np.quantile(ratios, 0.95))
 
 
 def fmt_ci(r: dict, digits: int = 4) -> str:

@@ -56,7 +56,12 @@ def build_parser() -> argparse.ArgumentParser:
                          "an RLlib checkpoint folder (rllib_checkpoint.json)")
     ev.add_argument("--env", required=True, help="environment id, e.g. OmniPathFollow-Phunopas-v0")
     ev.add_argument("--episodes", type=int, required=True, help="number of episodes, 1 to 100000")
-    ev.add_argument("--seed", type=int, required=True, help="first seed (>= 0); episode i uses seed + i")
+    ev.add_argument("--seed", type=int, default=None,
+                    help="first seed (>= 0); episode i uses seed + i (default 10000: held out from training, which "
+                         "uses small seeds, and validation, 5000 and up)")
+    ev.add_argument("--against", default=None, metavar="POLICY",
+                    help="a second policy (same forms as --policy) run on the same seeds: paired ratio of mean "
+                         "tracking RMSE with a 95%% bootstrap interval, and the share of episodes each wins")
     ev.add_argument("--env-kwargs", default=None, help="gym.make keywords as a JSON object")
     ev.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     ev.add_argument("--algo", default=None, help="plain SB3 .zip: its algorithm (ppo, sac, td3)")
@@ -141,7 +146,35 @@ def _add_force_option(p: argparse.ArgumentParser, what: str) -> None:
                         "see docs/formats.md)")
 
 
+def _foreign_agents() -> str | None:
+    """None when ``import agents`` finds omni-gym's package; else the one-line message saying whose it is.
+
+    The OpenAI Agents SDK (``openai-agents``) installs a top-level ``agents`` package too; with both
+    installed Python finds one of them, and train/evaluate must say so rather than fail on a missing module.
+    """
+    try:
+        import agents
+    except ImportError as exc:
+        return f"omni-gym's 'agents' package cannot be imported ({exc}); reinstall omni-gym"
+    if getattr(agents, "OMNI_GYM_AGENTS", False):
+        return None
+    where = getattr(agents, "__file__", None) or ", ".join(getattr(agents, "__path__", [])) or "?"
+    return (f"the package 'agents' that Python imports ({where}) is not omni-gym's: another distribution (e.g. the "
+            "OpenAI Agents SDK, openai-agents) installs one of the same name; train and evaluate need omni-gym's, "
+            "so keep the other in a separate virtual environment")
+
+
+def _require_our_agents() -> None:
+    problem = _foreign_agents()
+    if problem is not None:
+        raise ValueError(problem)
+
+
 def _add_train_options(p: argparse.ArgumentParser) -> None:
+    if _foreign_agents() is not None:  # the other commands must still work; the handler says what is wrong
+        p.prefix_chars = "\0"  # no options: every word after "train" lands in "rest", unchecked
+        p.add_argument("rest", nargs="*")
+        return
     from agents.train import build_arg_parser  # argparse only; the heavy imports happen in the handler
 
     build_arg_parser(p)
@@ -155,6 +188,7 @@ def check_option(option: str, value) -> None:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
+    _require_our_agents()
     from agents.options import check_backend_args, check_train_args
     from agents.train import command_line, run_from_args
 
@@ -248,18 +282,34 @@ def _simulate_into(args: argparse.Namespace, out) -> int:
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from agents.evaluate import evaluate, format_table
+    _require_our_agents()
+    from agents.evaluate import DEFAULT_SEED, check_policy_name, compare, evaluate, format_comparison, format_table
     from agents.options import check_evaluate_args, parse_env_kwargs
     from agents.sb3_policy import ModelOptions
 
+    if args.seed is None:
+        args.seed = DEFAULT_SEED
     check_evaluate_args(args)
     options = ModelOptions(args.algo, args.wrapper, args.residual_scale, args.vecnormalize)
     kwargs = parse_env_kwargs(args.env_kwargs) or {}
     try:
+        if args.against is not None:  # a typo in the second policy fails before the first runs
+            try:
+                check_policy_name(args.against)
+            except ValueError as exc:
+                raise ValueError(f"--against: {exc}") from None
         result = evaluate(args.policy, args.env, args.episodes, args.seed, kwargs, model_options=options)
+        other = None if args.against is None else evaluate(args.against, args.env, args.episodes, args.seed, kwargs)
     except ImportError as exc:  # a missing extra: one line naming it (agents.require_agents_extra)
         raise ValueError(str(exc)) from None
-    print(json.dumps(result) if args.json else format_table(result))
+    if other is None:
+        print(json.dumps(result) if args.json else format_table(result))
+        return 0
+    cmp = compare(result, other)
+    if args.json:
+        print(json.dumps({**result, "against": other, "comparison": cmp}))
+    else:
+        print("\n\n".join([format_table(result), format_table(other), format_comparison(result, other, cmp)]))
     return 0
 
 

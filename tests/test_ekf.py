@@ -506,7 +506,7 @@ def test_env_lifted_wheel_detection_delay(wheel):
     dec = SensorObsDecoder.for_env(env)
     core = env.unwrapped.core
     ekf = OmniEKF(core.robot, EKFConfig.for_env(env))
-    ekf.reset(dec(o).camera)
+    ekf.reset(dec(o).camera_fix)
     cmd = core.W @ np.array([0.2, 0.1, 0.5])
     lifted = np.ones(4, dtype=bool)
     lifted[wheel] = False
@@ -557,7 +557,7 @@ def test_env_grip_feedforward_pose_within_cm(noise, use, pos_tol, head_tol):
         o, info = env.reset(seed=seed)
         dec = SensorObsDecoder.for_env(env)
         ekf = OmniEKF(env.unwrapped.core.robot, EKFConfig.for_env(env, **use))
-        ekf.reset(dec(o).camera)
+        ekf.reset(dec(o).camera_fix)
         scale = np.array([env.unwrapped.cfg.max_speed, env.unwrapped.cfg.max_speed, env.unwrapped.cfg.max_yaw_rate])
         for k in range(500):
             t = k * DT

@@ -162,6 +162,6 @@ def test_named_sensor_slices_hold_the_ground_truth():
         assert np.allclose(s.ref_pose[:2], ref[:2], atol=1e-6)
         assert abs(math.remainder(s.ref_pose[2] - ref[2], 2 * math.pi)) < 1e-6
         assert np.array_equal(obs[layout["last_action"]], np.clip(action, -1, 1))
-        assert 0.0 <= s.camera_age <= 1.0
+        assert 0.0 <= s.fix_age <= 1.0
         if term or trunc:
             break

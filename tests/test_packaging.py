@@ -3,6 +3,7 @@ a missing optional dependency. The full non-editable install and a short trainin
 source tree run in CI (``.ci/install_check.sh``, ``make install-check``).
 """
 
+import os
 import shutil
 import subprocess
 import sys
@@ -82,5 +83,26 @@ def test_missing_agents_extra_is_named_in_one_line(module, dist, monkeypatch, ca
         assert main(args) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("omni-gym: error: ") and "needs the agents extra" in err[0], err
-        assert err[0].endswith("pip install 'omni-gym[agents]'")
+        # The constraints keep pip from fetching a multi-gigabyte CUDA torch (README, "Install with pip").
+        assert "pip install -c constraints.txt 'omni-gym[agents]'" in err[0] and "CUDA" in err[0]
         assert not (tmp_path / "m").exists()
+
+
+def test_a_foreign_agents_package_is_named(tmp_path):
+    """The OpenAI Agents SDK installs a top-level ``agents`` too: when Python finds that one, train and evaluate
+    say so in one line (no ModuleNotFoundError traceback), and the other commands still work."""
+    fake = tmp_path / "agents"
+    fake.mkdir()
+    (fake / "__init__.py").write_text("class Agent:\n    pass\n")  # the SDK's package, as far as we care
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT)])}
+    for args in (["train", "--algo", "ppo", "--env", "OmniPathFollow-Phunopas-v0", "--out", str(tmp_path / "m")],
+                 ["evaluate", "--policy", "ekf-pid", "--env", "OmniPathFollow-Phunopas-v0", "--episodes", "1"]):
+        proc = subprocess.run([sys.executable, "-m", "omni_gym.cli", *args], capture_output=True, text=True, env=env,
+                              cwd=tmp_path, timeout=120)
+        err = proc.stderr.strip().splitlines()
+        assert proc.returncode == 2 and len(err) == 1, proc.stderr
+        assert err[0].startswith("omni-gym: error: the package 'agents' that Python imports (") and str(fake) in err[0]
+        assert not (tmp_path / "m").exists()
+    proc = subprocess.run([sys.executable, "-m", "omni_gym.cli", "model", "show", "williams2002"], capture_output=True,
+                          text=True, env=env, cwd=tmp_path, timeout=120)
+    assert proc.returncode == 0 and "williams2002" in proc.stdout, proc.stderr

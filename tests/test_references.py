@@ -65,7 +65,7 @@ def test_sensor_observation_decodes_to_physical_units():
     np.testing.assert_allclose(s.ref_pose[:2], info["reference_pose"][:2], atol=1e-5)
     assert abs(np.angle(np.exp(1j * (s.compass - info["pose"][2])))) < 1e-5  # compass is wrapped
     assert abs(s.gyro - info["velocity"][2]) < 1e-4 * 3.0
-    np.testing.assert_allclose(s.prev_action, [0.3, -0.2, 0.4], atol=1e-6)
+    np.testing.assert_allclose(s.last_action, [0.3, -0.2, 0.4], atol=1e-6)
     # Encoder rates are the quantised angle change over 10 ms: within one count per period of the truth.
     quantum = 2 * np.pi / 2048
     true_rates = core.world.wheel_speed[0]

@@ -208,6 +208,97 @@ def test_hyperparams_errors_name_file_and_key(tmp_path):
         train("ppo", ENV, 10, 0, tmp_path / "out", SHORT, f, n_envs=1, eval_freq=0, progress=False)
 
 
+@pytest.mark.parametrize("entry, expected", [
+    ({"n_steps": -1}, "n_steps must be an integer in [1, 1000000] steps, got -1"),
+    ({"n_steps": 10**15}, "n_steps must be an integer in [1, 1000000] steps"),  # numpy: "maximum dimension"
+    ({"gamma": "abc"}, "gamma: must be a number, got 'abc'"),
+    ({"gamma": 1.5}, "gamma must be a number in [0, 1]"),
+    ({"batch_size": 0}, "batch_size must be an integer"),
+    ({"learning_rate": "lin_x"}, "learning_rate: must be a number, got 'x'"),
+    ({"learning_rate": -1e-3}, "learning_rate must be a number in (0, 1]"),
+    ({"ent_coef": "automatic"}, "ent_coef: must be a number"),
+    ({"n_envs": True}, "n_envs: must be a number, got True"),
+])
+def test_bad_hyperparameters_are_refused_with_file_and_key(entry, expected, tmp_path, capsys):
+    """Before they reach Stable-Baselines3 (which answered with an AssertionError, "could not convert string to
+    float" or "Maximum allowed dimension exceeded"): one line naming the file and the key, exit 2, no output."""
+    f = tmp_path / "hp.yml"
+    f.write_text(yaml.safe_dump({ENV: {"policy": "MlpPolicy", "n_envs": 1, **entry}}))
+    out = tmp_path / "m"
+    assert main(["train", "--algo", "ppo", "--env", ENV, "--timesteps", "64", "--out", str(out), "--hyperparams",
+                 str(f), "--eval-freq", "0", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"omni-gym: error: {f}: ") and expected in err[0], err
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["hp.yml"]
+
+
+def test_hyperparameter_numbers_written_as_yaml_strings_are_read():
+    """PyYAML reads ``1e-3`` (no dot) as a string; SB3 and the RL Zoo take it as the number it spells."""
+    from agents.options import check_hyperparams
+
+    hp = check_hyperparams({"learning_rate": "1e-3", "n_steps": 256.0, "ent_coef": "auto_0.1", "policy": "x"}, "f",
+                           "sac")
+    assert hp == {"learning_rate": 1e-3, "n_steps": 256, "ent_coef": "auto_0.1", "policy": "x"}
+    assert isinstance(hp["n_steps"], int)
+    with pytest.raises(ValueError, match="f: ent_coef: must be a number, got 'auto'"):
+        check_hyperparams({"ent_coef": "auto"}, "f", "ppo")  # PPO has no automatic entropy coefficient
+    for path in sorted(HYPERPARAM_DIR.glob("*.yml")):  # every shipped entry passes, each value as written
+        algo = path.stem.partition("_")[0]
+        for env_id, raw in yaml.safe_load(path.read_text()).items():
+            checked = check_hyperparams(raw, path.name, algo)
+            assert checked == raw, (path.name, env_id)
+
+
+def test_hyperparameter_file_encodings(tmp_path, capsys):
+    """UTF-16 with a byte order mark is valid YAML and is read; bytes that are no text give one line naming
+    the file (UnicodeDecodeError without the file, before)."""
+    entry = {ENV: {"n_timesteps": 10, "gamma": 0.9}}
+    f = tmp_path / "hp.yml"
+    f.write_bytes(yaml.safe_dump(entry).encode("utf-16"))  # Python writes the BOM
+    assert load_hyperparams("ppo", ENV, f) == entry[ENV]
+    f.write_bytes(b"\xff\xfe\x00\xd8 broken")  # a BOM, then an unpaired surrogate
+    with pytest.raises(ValueError, match=r"hp.yml: not valid YAML"):
+        load_hyperparams("ppo", ENV, f)
+    f.write_bytes(b"gamma: \xe9t\xe9\n")  # Latin-1, not UTF-8
+    assert main(["train", "--algo", "ppo", "--env", ENV, "--out", str(tmp_path / "m"), "--hyperparams", str(f),
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"omni-gym: error: {f}: not valid YAML"), err
+
+
+def test_a_shipped_hyperparameter_file_is_named_by_its_stem(tmp_path, monkeypatch):
+    """``--hyperparams ppo_residual`` works from any folder (after pip install there is no agents/hyperparams
+    beside the user); a file of that name in the current folder wins."""
+    from agents.train import hyperparams_path, shipped_hyperparams
+
+    monkeypatch.chdir(tmp_path)
+    assert hyperparams_path("ppo", "ppo_residual") == HYPERPARAM_DIR / "ppo_residual.yml"
+    assert hyperparams_path("ppo", "ppo_residual.yml") == HYPERPARAM_DIR / "ppo_residual.yml"
+    assert load_hyperparams("ppo", "OmniPathFollow-Williams-v1", "ppo_residual") == yaml.safe_load(
+        (HYPERPARAM_DIR / "ppo_residual.yml").read_text())["OmniPathFollow-Williams-v1"]
+    assert {"ppo", "ppo_residual", "sac_privileged", "td3"} <= set(shipped_hyperparams())
+    (tmp_path / "ppo_residual").write_text(f"{ENV}: {{gamma: 0.5}}\n")
+    assert load_hyperparams("ppo", ENV, "ppo_residual") == {"gamma": 0.5}
+    with pytest.raises(ValueError, match=r"--hyperparams ppo_resid: no such file, nor a shipped .*ppo_residual"):
+        load_hyperparams("ppo", ENV, "ppo_resid")
+    with pytest.raises(ValueError, match=r"no such file"):
+        load_hyperparams("ppo", ENV, "sub/ppo_residual")  # a path is a path: no lookup among shipped files
+
+
+def test_a_missing_entry_names_the_shipped_files_that_hold_the_id(tmp_path):
+    """ppo.yml holds only the Phunopas id; the message points to the files with the Williams id."""
+    holding = sorted(p.stem for p in HYPERPARAM_DIR.glob("*.yml")
+                     if "OmniPathFollow-Williams-v1" in yaml.safe_load(p.read_text()))
+    assert "ppo_residual" in holding and "ppo" not in holding  # the premise of this test
+    with pytest.raises(ValueError) as info:
+        load_hyperparams("ppo", "OmniPathFollow-Williams-v1")
+    message = str(info.value)
+    assert "ppo.yml: no entry for 'OmniPathFollow-Williams-v1'" in message
+    assert f"shipped files with an entry for it: {', '.join(holding)}" in message
+    with pytest.raises(ValueError, match="no shipped hyperparameter file has one"):
+        load_hyperparams("ppo", "OmniGoToPose-v0")
+
+
 # --- smoke runs -----------------------------------------------------------------------------------
 
 
@@ -325,11 +416,11 @@ def test_tracking_reward_is_bounded_and_positive():
 
 
 def test_option_bounds_are_the_tables_in_docs_bounds_md():
-    from agents.options import EVALUATE, TRAIN
+    from agents.options import EVALUATE, HYPERPARAMS, TRAIN
     from omni_gym.bounds import markdown_table
 
     text = (ROOT / "docs" / "bounds.md").read_text()
-    for name, table in (("train", TRAIN), ("evaluate", EVALUATE)):
+    for name, table in (("train", TRAIN), ("evaluate", EVALUATE), ("hyperparameter", HYPERPARAMS)):
         assert markdown_table(table) in text, f"docs/bounds.md: the {name} options differ from agents/options.py"
 
 
@@ -391,3 +482,90 @@ def test_native_vec_env_trains_the_same_agent_as_dummy(tmp_path, capsys):
     err = capsys.readouterr().err
     assert meta["vec_env"] == "native" and meta["wrapper"] == "residual-ekf-pid" and meta["timesteps"] >= 16
     assert err == ""
+
+
+# --- progress on a terminal -----------------------------------------------------------------------
+
+
+def _run_on_a_terminal(argv: list[str], timeout: float = 120.0) -> tuple[int, str, str]:
+    """Run ``python -m omni_gym.cli ARGV`` with stderr on a pseudo-terminal (stdout piped); (rc, stdout, tty)."""
+    import fcntl
+    import pty
+    import select
+    import struct
+    import subprocess
+    import sys
+    import termios
+    import time
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # 100 columns, as a terminal has
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "SDL_VIDEODRIVER": "dummy", "MPLBACKEND": "Agg"}
+    proc = subprocess.Popen([sys.executable, "-m", "omni_gym.cli", *argv], stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=slave, cwd=ROOT, env=env)
+    os.close(slave)
+    chunks, deadline = [], time.monotonic() + timeout
+    try:
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([master], [], [], 0.5)
+            if ready:
+                try:
+                    data = os.read(master, 65536)
+                except OSError:  # EIO: the child closed the terminal
+                    break
+                if not data:
+                    break
+                chunks.append(data)
+            elif proc.poll() is not None:
+                break
+        out = proc.communicate(timeout=max(1.0, deadline - time.monotonic()))[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        os.close(master)
+    return proc.returncode, out.decode(), b"".join(chunks).decode(errors="replace")
+
+
+def test_train_shows_progress_on_a_terminal(tmp_path):
+    """With stderr a terminal the progress bar is on by default; validation at step 0 (no best yet) used to
+    crash it. The bar and the validation rows go to the terminal, the summary to stdout."""
+    f = tmp_path / "hp.yml"
+    f.write_text(yaml.safe_dump({ENV: {"policy": "MlpPolicy", "n_envs": 1, "n_steps": 64, "batch_size": 32,
+                                       "n_epochs": 1, "env_kwargs": {"obs_mode": "state"}}}))
+    rc, out, tty = _run_on_a_terminal(
+        ["train", "--algo", "ppo", "--env", ENV, "--timesteps", "128", "--out", str(tmp_path / "m"),
+         "--hyperparams", str(f), "--env-kwargs", json.dumps({"episode_seconds": 0.3}), "--eval-freq", "64",
+         "--eval-episodes", "1"])
+    assert rc == 0, tty
+    assert "train ppo" in tty and "val_rmse=" in tty and "best=" in tty  # the bar with its postfix
+    rows = [json.loads(line) for line in tty.replace("\r", "\n").splitlines() if line.startswith("{")]
+    assert [r["timesteps"] for r in rows] == [0, 64, 128]
+    assert out.startswith("trained 128 steps")
+
+
+def test_curve_plot_reads_as_it_should():
+    """curve.png: the RMSE axis starts at 0 (a 1 % wiggle of 0.0505 m must not fill the panel), the reward
+    panel names the training reward and its formula, and no label overlaps the title or another label."""
+    import matplotlib.pyplot as plt
+
+    from agents.train import CURVE_COLUMNS, curve_figure
+
+    assert CURVE_COLUMNS[2] == "val_tracking_rmse" and CURVE_COLUMNS[5] == "train_ep_reward"
+    data = np.array([[0, 0, 0.0505, 0.1, 1, np.nan], [1000, 5, 0.0502, 0.1, 1, -3600.0],
+                     [2000, 9, 0.0507, 0.1, 1, -900.0]])
+    meta = {"algo": "ppo", "wrapper": "residual-ekf-pid", "env_id": ENV, "seed": 0, "reward": "squared"}
+    fig = curve_figure(data, meta)
+    rmse_ax, reward_ax = fig.axes
+    lo, hi = rmse_ax.get_ylim()
+    assert lo == 0.0 and 0.0507 <= hi <= 0.06  # from zero to just above the data
+    assert reward_ax.get_ylim()[1] == 0.0 and reward_ax.get_ylim()[0] < -3600  # returns ≤ 0: up to zero
+    assert "'squared'" in reward_ax.get_title() and "(e/0.1 m)²" in reward_ax.get_title()
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    boxes = [fig._suptitle.get_window_extent(renderer)] + [
+        t.get_window_extent(renderer) for ax in fig.axes for t in (ax.yaxis.label, ax.title)]
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            assert not a.overlaps(b), (a, b)
+        assert a.x0 >= 0 and a.x1 <= fig.bbox.width and a.y1 <= fig.bbox.height  # nothing cut off
+    plt.close(fig)

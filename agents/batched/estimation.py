@@ -197,7 +197,7 @@ class BatchEKF:
         d = self.detector
         args = (self.x, self.P, self._rejections, self._since_camera, d.belief, d.ok, d._agree, self.wheel_ok,
                 self.wheel_belief, self.wheels_used, self.step_nis, _f64(s.encoder_rates), _f64(s.gyro),
-                _f64(s.compass), _f64(s.accel), _f64(s.camera), _f64(s.camera_age), self.W, d.hypotheses, self._fp,
+                _f64(s.compass), _f64(s.accel), _f64(s.camera_fix), _f64(s.fix_age), self.W, d.hypotheses, self._fp,
                 self._ip, m)
         if self.threads:
             k.ekf_process_threaded(*args, min(numba.get_num_threads(), self.num))

@@ -478,18 +478,18 @@ def detector_batch(nu, S, belief, ok, agree, hyp, fp, include_steps, active):
 
 @numba.njit(cache=True)
 def ekf_process(xs, Ps, rej, since_cam, belief, ok, agree, wheel_ok, wheel_belief, wheels_used, nis_out,
-                enc, gyro, compass, accel, camera, camera_age, W, hyp, fp, ip, active):
+                enc, gyro, compass, accel, camera, fix_age, W, hyp, fp, ip, active):
     """One control period of OmniEKF.process for every robot i with ``active[i]``; arrays over robots, in place.
 
     nis_out (N, 5): NIS of accel, gyro, compass, camera and the joint wheel NIS this period (NaN: not run).
     """
     _process_range(0, xs.shape[0], xs, Ps, rej, since_cam, belief, ok, agree, wheel_ok, wheel_belief, wheels_used,
-                   nis_out, enc, gyro, compass, accel, camera, camera_age, W, hyp, fp, ip, active)
+                   nis_out, enc, gyro, compass, accel, camera, fix_age, W, hyp, fp, ip, active)
 
 
 @numba.njit(cache=True, parallel=True)
 def ekf_process_threaded(xs, Ps, rej, since_cam, belief, ok, agree, wheel_ok, wheel_belief, wheels_used, nis_out,
-                         enc, gyro, compass, accel, camera, camera_age, W, hyp, fp, ip, active, chunks):
+                         enc, gyro, compass, accel, camera, fix_age, W, hyp, fp, ip, active, chunks):
     """:func:`ekf_process` with the robots split into ``chunks`` contiguous blocks run on numba's threads.
 
     Robots are independent, so the result does not depend on the number of threads or chunks.
@@ -499,12 +499,12 @@ def ekf_process_threaded(xs, Ps, rej, since_cam, belief, ok, agree, wheel_ok, wh
         lo = (N * c) // chunks
         hi = (N * (c + 1)) // chunks
         _process_range(lo, hi, xs, Ps, rej, since_cam, belief, ok, agree, wheel_ok, wheel_belief, wheels_used,
-                       nis_out, enc, gyro, compass, accel, camera, camera_age, W, hyp, fp, ip, active)
+                       nis_out, enc, gyro, compass, accel, camera, fix_age, W, hyp, fp, ip, active)
 
 
 @numba.njit(cache=True)
 def _process_range(lo, hi, xs, Ps, rej, since_cam, belief, ok, agree, wheel_ok, wheel_belief, wheels_used, nis_out,
-                   enc, gyro, compass, accel, camera, camera_age, W, hyp, fp, ip, active):
+                   enc, gyro, compass, accel, camera, fix_age, W, hyp, fp, ip, active):
     """The body of :func:`ekf_process` for robots lo…hi−1, with its own scratch space."""
     n = W.shape[0]
     dt = fp[F_DT]
@@ -599,7 +599,7 @@ def _process_range(lo, hi, xs, Ps, rej, since_cam, belief, ok, agree, wheel_ok, 
             nis_out[i, 2] = _scalar_gated(x, P, nu1, TH, -1, fp[F_R_COMPASS], fp[F_GATE_COMPASS], rej[i],
                                           REJ_COMPASS, reacquire, ws, wv, H1, R1, S1)
         # Camera fix z = (x, y, θ) when it arrived this period.
-        if ip[I_USE_CAMERA] and camera_age[i] == 0.0:
+        if ip[I_USE_CAMERA] and fix_age[i] == 0.0:
             nuc[0] = camera[i, 0] - x[X]
             nuc[1] = camera[i, 1] - x[Y]
             nuc[2] = _wrap(camera[i, 2] - x[TH])

@@ -287,12 +287,12 @@ class SensorObs:
     gyro: float  # rad/s, yaw rate (noise and bias)
     compass: float  # rad, heading in (−π, π]
     accel: np.ndarray  # (2,) m/s², body frame
-    camera: np.ndarray  # (3,) last camera fix x, y [m], θ [rad]
-    camera_age: float  # s since that fix (0: it arrived this step; capped at 1)
+    camera_fix: np.ndarray  # (3,) last camera fix x, y [m], θ [rad]
+    fix_age: float  # s since that fix (0: it arrived this step; capped at 1)
     ref_pose: np.ndarray  # (3,) reference x, y, θ now (θ wrapped)
     ref_velocity: np.ndarray  # (3,) reference world velocity ẋ, ẏ, θ̇ now
     lookahead: np.ndarray  # (K, 3) reference x, y, θ at LOOKAHEAD_SECONDS ahead
-    prev_action: np.ndarray  # previous clipped action
+    last_action: np.ndarray  # previous clipped action
 
 
 class _ObsDecoder:
@@ -356,12 +356,12 @@ class BatchSensorObs:
     gyro: np.ndarray  # (N,) rad/s
     compass: np.ndarray  # (N,) rad, in (−π, π]
     accel: np.ndarray  # (N, 2) m/s², body frame
-    camera: np.ndarray  # (N, 3) last camera fix x, y [m], θ [rad]
-    camera_age: np.ndarray  # (N,) s since that fix
+    camera_fix: np.ndarray  # (N, 3) last camera fix x, y [m], θ [rad]
+    fix_age: np.ndarray  # (N,) s since that fix
     ref_pose: np.ndarray  # (N, 3) reference x, y, θ now
     ref_velocity: np.ndarray  # (N, 3) reference world velocity ẋ, ẏ, θ̇ now
     lookahead: np.ndarray  # (N, K, 3) reference x, y, θ at LOOKAHEAD_SECONDS ahead
-    prev_action: np.ndarray  # (N, A) previous clipped action
+    last_action: np.ndarray  # (N, A) previous clipped action
 
 
 class BatchSensorObsDecoder(SensorObsDecoder):
