@@ -102,6 +102,7 @@ RATE_REASON = ("as the environments' `lift_rate`: any tiny rate is safe (a switc
 # The effect parameters' rows (`effects.EFFECT.KEY`) live with their effects (omni_gym.physics.effects);
 # omni_gym.physics.model.MODEL_BOUNDS is this table followed by them, as docs/bounds.md shows it.
 
+WHEELS = "wheels (count)"  # the one wheel-count bound: model files, regularN presets, the environments
 MODEL: dict[str, Bound] = {b.name: b for b in (
     Bound("mass", 1e-3, 1e4, "kg", "a 1 g micro-robot to a 10 t industrial omnidirectional platform; "
           "outside, the number is a unit error"),
@@ -109,6 +110,9 @@ MODEL: dict[str, Bound] = {b.name: b for b in (
     Bound("gravity", 0.1, 100.0, "m/s²", "every surface a wheeled robot has driven on (Moon 1.62, Earth "
           "9.81) and centrifuge tests; must be > 0 for the wheel loads"),
     Bound("wheel_radius", 1e-3, 2.0, "m", "the smallest (1 mm) to the largest (2 m) wheels made"),
+    Bound(WHEELS, 3, 16, "", "a planar omnidirectional base needs 3 wheels; more than 16 is not a wheel "
+          "layout of this kind (also `regularN` and the environments); checked before anything is built",
+          integer=True),
     Bound("wheels[i].position", -10.0, 10.0, "m", "each coordinate; " + _LENGTH),
     Bound("wheels[i].drive (length)", 1e-6, 1e6, "", "a direction only (normalised on input); lengths "
           "outside lose precision when normalised or are typos"),
@@ -174,3 +178,9 @@ def markdown_table(table: dict[str, Bound]) -> str:
         allowed = ("integer " if b.integer else "") + b.interval()
         lines.append(f"| `{b.name}` | {b.unit or '—'} | {allowed} | {b.reason} |")
     return "\n".join(lines)
+
+
+def wheel_count() -> tuple[int, int]:
+    """(fewest, most) wheels of any robot the package builds: ``MODEL["wheels (count)"]``."""
+    b = MODEL[WHEELS]
+    return int(b.lo), int(b.hi)

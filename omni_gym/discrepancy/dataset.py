@@ -24,8 +24,11 @@ from pathlib import Path
 import numpy as np
 
 from omni_gym import outputs
+from omni_gym.checks import known_keys
 from omni_gym.io import InputError, check_times, parse_cell, read_csv_rows
 from omni_gym.physics.model import SimModel, read_json
+
+DATASET_KEYS = ("model", "description")  # dataset.json: any other key is refused (a typo, not data)
 
 
 @dataclass
@@ -103,6 +106,10 @@ def load_dataset(folder: str | Path) -> Dataset:
     meta = read_json(meta_path)
     if not isinstance(meta, dict) or "model" not in meta:
         raise InputError(f"{meta_path}: expected an object with key 'model'")
+    try:
+        known_keys(meta, DATASET_KEYS)
+    except ValueError as exc:
+        raise InputError(f"{meta_path}: {exc}") from None
     model = SimModel.from_json(meta["model"], where=f"{meta_path}: model")
     desc = meta.get("description", "")
     if not isinstance(desc, str):

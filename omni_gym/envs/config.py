@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.bounds import RATE_MAX, Bound
-from omni_gym.checks import is_number
+from omni_gym.bounds import RATE_MAX, Bound, wheel_count
+from omni_gym.checks import is_number, unknown_key
 from omni_gym.physics import effects as effect_library
 from omni_gym.physics.friction import FRICTION_MODELS, SURFACES, Surface
 from omni_gym.physics.model import ACTUATIONS, SimModel, read_json
@@ -44,7 +44,7 @@ RESET_OPTIONS: tuple[str, ...] = ()  # reset(options=...) keys the environments 
 MAX_EPISODE_STEPS = 1_000_000  # reference tables: 48 bytes per step and robot (48 MB at the bound)
 MAX_OBSTACLES = 1000  # each is a pymunk shape in every robot's arena
 MAX_RATE = RATE_MAX  # 1/s: a mean holding time of 1 ms, two default physics substeps (omni_gym.physics.liftoff)
-WHEEL_COUNT = (3, 16)  # a planar omni robot needs 3 wheels; more than 16 is not a wheel layout of this kind
+WHEEL_COUNT = wheel_count()  # (3, 16): the one wheel-count bound (omni_gym.bounds, also model files and regularN)
 MIN_OBSTACLE_RADIUS = 0.001  # m
 WALL_RADIUS = 0.01  # m, thickness of the wall segments (omni_gym.physics.world)
 
@@ -294,7 +294,7 @@ def make_config(**kwargs) -> EnvConfig:
     known = {f.name for f in fields(EnvConfig)}
     for key in kwargs:
         if key not in known:
-            raise ValueError(f"unknown keyword argument {key!r}; allowed: {', '.join(sorted(known))}")
+            raise ValueError(unknown_key(key, sorted(known), what="keyword argument"))
     d = EnvConfig()
     get = kwargs.get
     values = {
