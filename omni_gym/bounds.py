@@ -144,6 +144,14 @@ FILES: dict[str, Bound] = {b.name: b for b in (
     Bound("gyro", -1e3, 1e3, "rad/s", "yaw rate: 30x the range of common MEMS gyros (±2000 °/s = 35 rad/s)"),
 )}
 
+# Rates no wheeled robot of this kind reaches, read from a dataset run as a whole (not per cell): a run
+# beyond them is in other units (omni_gym.discrepancy.units). 20 m/s (72 km/h) is beyond the fastest
+# omnidirectional bases (RoboCup small-size robots reach about 5 m/s); 30 rad/s is near the range of
+# common MEMS gyros (35 rad/s) and 5 turns a second. A pose in millimetres of a robot moving at
+# 2 cm/s, or a heading in degrees of a robot turning at 0.6 rad/s, already exceeds them.
+PLAUSIBLE_SPEED = 20.0  # m/s: tracked speed of the geometric centre, and a wheel's commanded rim speed r·|w|
+PLAUSIBLE_YAW_RATE = 30.0  # rad/s: tracked heading rate
+
 # --- Command-line options (simulate, synth, gap) --------------------------------------------------
 
 MAX_SUBSTEPS = 2e7

@@ -25,6 +25,7 @@ import numpy as np
 
 from omni_gym import outputs
 from omni_gym.checks import known_keys
+from omni_gym.discrepancy.units import check_run_units
 from omni_gym.io import InputError, check_times, parse_cell, read_csv_rows
 from omni_gym.physics.model import SimModel, read_json
 
@@ -119,6 +120,8 @@ def load_dataset(folder: str | Path) -> Dataset:
     if not files:
         raise InputError(f"{folder / 'runs'}: no run files (*.csv)")
     runs = [read_run(f, model.n_wheels) for f in files]
+    for f, run in zip(files, runs, strict=True):
+        check_run_units(f, run.t, run.cmd, run.pose, model.robot.wheel_radius)
     return Dataset(path=folder, model=model, model_json=meta["model"], description=desc, runs=runs)
 
 
