@@ -318,7 +318,7 @@ def validate_effect(name: str, params: dict, n_wheels: int) -> None:
 def load_model(name_or_path: str, surface: str | None = None, friction: str | None = None) -> SimModel:
     """A preset robot name or a model JSON file, with optional surface/friction overrides."""
     path = Path(name_or_path)
-    if name_or_path.endswith(".json") or path.is_file():
+    if name_or_path.endswith(".json") or _is_file(path):
         data = read_json(path)
         model = SimModel.from_json(data, where=name_or_path)
         if surface is not None:
@@ -328,6 +328,14 @@ def load_model(name_or_path: str, surface: str | None = None, friction: str | No
         return model
     return SimModel(robot=robot_preset(name_or_path), surface=surface_preset(surface or "carpet"),
                     friction=check_friction_model(friction or "roller_gap"))
+
+
+def _is_file(path: Path) -> bool:
+    """``path.is_file()``, False where the name cannot be a file (too long for the file system)."""
+    try:
+        return path.is_file()
+    except OSError:
+        return False
 
 
 def read_json(path: str | Path):

@@ -226,8 +226,12 @@ def robot_preset(name: str) -> RobotSpec:
         # The digit string is checked before int(): a 10⁵-digit N must not cost a conversion.
         if len(digits.lstrip("0")) > len(str(hi)) or not lo <= int(digits) <= hi:
             shown = digits if len(digits) <= 12 else f"{digits[:6]}…({len(digits)} digits)"
-            raise ValueError(f"robot {name[:20] + '…' if len(name) > 20 else name!r}: regularN takes "
-                             f"N from {lo} to {hi} wheels, got {shown}")
+            raise ValueError(f"robot {_short(name)}: regularN takes N from {lo} to {hi} wheels, got {shown}")
         return regular(int(digits))
-    raise ValueError(f"unknown robot {name!r}; choose one of {sorted(PRESETS)} or regularN, N from {lo} to {hi} "
+    raise ValueError(f"unknown robot {_short(name)}; choose one of {sorted(PRESETS)} or regularN, N from {lo} to {hi} "
                      "(e.g. regular5)")
+
+
+def _short(name: str, limit: int = 40) -> str:
+    """``repr(name)``, cut to ``limit`` characters with '…' (a 10⁵-character name stays one readable line)."""
+    return repr(name) if len(name) <= limit else repr(name[:limit]) + "…"
