@@ -4,7 +4,7 @@ SB3 cannot step a Gymnasium ``VectorEnv``; :class:`NativeVecEnv` adapts one in `
 mode (``omni_gym.envs.vector``) to SB3's semantics, so that an algorithm sees exactly what it would
 see from ``DummyVecEnv([Monitor(gym.make(ID, ...)), ...])`` seeded the same way::
 
-    venv = make_native_vec_env("OmniPathFollow-Williams-v0", 64, obs_mode="state")
+    venv = make_native_vec_env("OmniPathFollow-WilliamsPaper-v0", 64, obs_mode="state")
     model = PPO("MlpPolicy", venv, n_steps=256, batch_size=4096)
     model.learn(1_000_000)
 

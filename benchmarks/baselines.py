@@ -1,6 +1,6 @@
 """Baseline table: every scripted policy (open-loop, odometry-pid, ekf-pid, ekf-pid-traction) on two path-following ids.
 
-The ids: ``OmniPathFollow-Phunopas-v0`` (phunopas2018, 4 wheels) and ``OmniPathFollow-Williams-v0``
+The ids: ``OmniPathFollow-Phunopas-v0`` (phunopas2018, 4 wheels) and ``OmniPathFollow-WilliamsPaper-v0``
 (williams2002, 3 wheels); ``--env`` picks a subset. The same conditions, seeds and code path run on both,
 so a Phunopas row does not depend on whether the Williams rows are computed too.
 
@@ -54,7 +54,7 @@ from agents.rollout import Episode, make_env, run_episode  # noqa: E402
 from omni_gym.parallel import SERIAL, Backend, add_ray_option, backend_from_options, parallel_map  # noqa: E402
 
 GOAL_ENV = "OmniPathFollow-Phunopas-v0"  # the goal and the confirmation run are defined on this id
-ENV_IDS = (GOAL_ENV, "OmniPathFollow-Williams-v0")
+ENV_IDS = (GOAL_ENV, "OmniPathFollow-WilliamsPaper-v0")
 ENV_ID = GOAL_ENV  # imported by rl_vs_baselines.py, which compares on this id only
 CONDITIONS = {
     "no slip": {"surface": "grip", "friction": "initial", "lift_rate": 0.0},

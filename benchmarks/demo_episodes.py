@@ -12,7 +12,7 @@ rotated into the body frame and sent as the twist action (vx, vy, ω) / (max_spe
 max_yaw_rate), clipped to [−1, 1]. (Without the feed-forward the robot lags ~0.2 m behind the
 reference; that was the demo's controller up to now.)
 
-Why ``OmniPathFollow-Williams-v0`` ends lost (measured on seed 0 with this controller): at t ≈ 5.5 s
+Why ``OmniPathFollow-WilliamsPaper-v0`` ends lost (measured on seed 0 with this controller): at t ≈ 5.5 s
 the reference turns round and accelerates to ~0.4 m/s while the heading (``ref_heading="forward"``)
 turns with it. On carpet with roller-gap friction the three wheels cannot transmit that force: the
 drive saturates (action −1), the wheels slip, the robot yaws ~0.6 rad/s against the command and barely

@@ -33,7 +33,7 @@ import numpy as np
 import omni_gym  # noqa: F401  (registers the environments)
 from omni_gym.outputs import write_text_atomic
 
-ENV_ID = "OmniPathFollow-Williams-v0"
+ENV_ID = "OmniPathFollow-WilliamsPaper-v0"
 SENSORS_ID = "OmniPathFollow-Phunopas-v0"
 ACTION_POOL = 4096  # random actions drawn before timing and cycled
 

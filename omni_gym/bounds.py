@@ -111,6 +111,7 @@ ROLLER_ANGLE_REASON = ("0 is an omni wheel (rollers in the wheel plane), ±π/4 
                        "(cos γ < 1/2) no wheel is built and the no-slip wheel speed, ∝ 1/cos γ, grows without bound "
                        "towards 90°, where the wheel no longer drives")
 
+WHEELS = "wheels (count)"  # the one wheel-count bound: model files, regularN presets, the environments
 MODEL: dict[str, Bound] = {b.name: b for b in (
     Bound("mass", 1e-3, 1e4, "kg", "a 1 g micro-robot to a 10 t industrial omnidirectional platform; "
           "outside, the number is a unit error"),
@@ -118,6 +119,9 @@ MODEL: dict[str, Bound] = {b.name: b for b in (
     Bound("gravity", 0.1, 100.0, "m/s²", "every surface a wheeled robot has driven on (Moon 1.62, Earth "
           "9.81) and centrifuge tests; must be > 0 for the wheel loads"),
     Bound("wheel_radius", 1e-3, 2.0, "m", "the smallest (1 mm) to the largest (2 m) wheels made"),
+    Bound(WHEELS, 3, 16, "", "a planar omnidirectional base needs 3 wheels; more than 16 is not a wheel "
+          "layout of this kind (also `regularN` and the environments); checked before anything is built",
+          integer=True),
     Bound("wheels[i].position", -10.0, 10.0, "m", "each coordinate; " + _LENGTH),
     Bound("wheels[i].drive (length)", 1e-6, 1e6, "", "a direction only (normalised on input); lengths "
           "outside lose precision when normalised or are typos"),
@@ -149,6 +153,14 @@ FILES: dict[str, Bound] = {b.name: b for b in (
           "(3.6·10⁷ rad) with margin"),
     Bound("gyro", -1e3, 1e3, "rad/s", "yaw rate: 30x the range of common MEMS gyros (±2000 °/s = 35 rad/s)"),
 )}
+
+# Rates no wheeled robot of this kind reaches, read from a dataset run as a whole (not per cell): a run
+# beyond them is in other units (omni_gym.discrepancy.units). 20 m/s (72 km/h) is beyond the fastest
+# omnidirectional bases (RoboCup small-size robots reach about 5 m/s); 30 rad/s is near the range of
+# common MEMS gyros (35 rad/s) and 5 turns a second. A pose in millimetres of a robot moving at
+# 2 cm/s, or a heading in degrees of a robot turning at 0.6 rad/s, already exceeds them.
+PLAUSIBLE_SPEED = 20.0  # m/s: tracked speed of the geometric centre, and a wheel's commanded rim speed r·|w|
+PLAUSIBLE_YAW_RATE = 30.0  # rad/s: tracked heading rate
 
 # --- Command-line options (simulate, synth, gap) --------------------------------------------------
 
@@ -184,3 +196,9 @@ def markdown_table(table: dict[str, Bound]) -> str:
         allowed = ("integer " if b.integer else "") + b.interval()
         lines.append(f"| `{b.name}` | {b.unit or '—'} | {allowed} | {b.reason} |")
     return "\n".join(lines)
+
+
+def wheel_count() -> tuple[int, int]:
+    """(fewest, most) wheels of any robot the package builds: ``MODEL["wheels (count)"]``."""
+    b = MODEL[WHEELS]
+    return int(b.lo), int(b.hi)

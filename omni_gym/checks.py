@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import difflib
 import math
 import numbers
+from collections.abc import Iterable
 
 import numba
 import numpy as np
@@ -31,6 +33,29 @@ def json_number(value, name: str) -> float:
     if not math.isfinite(x):
         raise ValueError(f"{name} must be finite, got {value!r}")
     return x
+
+
+def unknown_key(key, allowed: Iterable[str], path: str = "", what: str = "key") -> str:
+    """``unknown key 'PATH.KEY'; did you mean 'K'? (allowed: …)``: the one message for a key that a
+    JSON object or a keyword set does not define (``path`` is where the object sits, e.g. ``wheels[2]``)."""
+    allowed = list(allowed)
+    name = str(key)
+    full = f"{path}.{name}" if path else name
+    close = difflib.get_close_matches(name, allowed, n=1, cutoff=0.6)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    return f"unknown {what} {full!r}{hint} (allowed: {', '.join(allowed)})"
+
+
+def known_keys(obj: dict, allowed: Iterable[str], path: str = "") -> None:
+    """Raise ValueError (:func:`unknown_key`) for the first key of ``obj`` outside ``allowed``.
+
+    A misspelt key would otherwise fall back to its default without a word (a calibrated model read
+    as the nominal one), so every JSON object the package reads is checked with this.
+    """
+    allowed = tuple(allowed)
+    for key in obj:
+        if key not in allowed:
+            raise ValueError(unknown_key(key, allowed, path))
 
 
 def finite_scalar(name: str, value: float) -> float:

@@ -90,6 +90,10 @@ def read_text(path: str | Path) -> str:
         raise InputError(f"{path}: not a UTF-8 text file (byte 0x{raw[exc.start]:02x} at offset {exc.start})") from None
 
 
+# Separators other than ',' that spreadsheets and loggers write: named when a header has only one cell.
+SEPARATORS = {";": "';'", "\t": "tabs", " ": "spaces", "|": "'|'"}
+
+
 def read_csv_rows(path: Path) -> list[list[str]]:
     """Non-blank rows of a CSV file (BOM and CRLF accepted); InputError naming the file."""
     text = read_text(path)
@@ -100,6 +104,11 @@ def read_csv_rows(path: Path) -> list[list[str]]:
         raise InputError(f"{path}: cannot read ({exc})") from None
     if not rows:
         raise InputError(f"{path}: row 1: empty file (expected a header row)")
+    if len(rows[0]) == 1:  # a one-cell header: the file is split by something other than commas
+        for sep, name in SEPARATORS.items():
+            if sep in rows[0][0].strip():
+                raise InputError(f"{path}: row 1: the file uses {name} as separator; omni-gym reads comma-separated "
+                                 "values (save it as CSV with ',' between values and '.' as decimal point)")
     return rows
 
 

@@ -27,7 +27,7 @@ import importlib.util
 from dataclasses import dataclass
 from typing import Any
 
-from omni_gym.envs import ENV_IDS
+from omni_gym.envs import CUSTOM_ID, ENV_IDS
 
 RLLIB_EXTRA = "pip install -c constraints.txt 'omni-gym[rllib]'"
 
@@ -64,12 +64,14 @@ class EnvCreator:
 
 
 def register_envs() -> list[str]:
-    """Register every omni-gym id (:data:`omni_gym.envs.ENV_IDS`) with ``ray.tune.registry.register_env``
+    """Register every omni-gym id (:data:`omni_gym.envs.ENV_IDS`, then ``OmniPathFollow-Custom-v0``, whose
+    ``env_config`` must hold ``model``) with ``ray.tune.registry.register_env``
     under the same name; returns the names. Call it in every process that builds or restores an RLlib
     algorithm on these ids (the registry is per process; env runners receive the creators from it)."""
     require_ray("omni_gym.rllib.register_envs")
     from ray.tune.registry import register_env
 
-    for env_id in ENV_IDS:
+    ids = [*ENV_IDS, CUSTOM_ID]
+    for env_id in ids:
         register_env(env_id, EnvCreator(env_id))
-    return list(ENV_IDS)
+    return ids

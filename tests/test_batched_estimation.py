@@ -36,7 +36,7 @@ from agents.wrappers import EKFFeatures, VectorEKFFeatures
 from omni_gym.envs.decode import BatchSensorObsDecoder, SensorObsDecoder
 
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"  # 4 wheels, slip and lift-off
-WILLIAMS = "OmniPathFollow-Williams-v0"  # 3 wheels, slip
+WILLIAMS = "OmniPathFollow-WilliamsPaper-v0"  # 3 wheels, slip
 EKF_TOL = 1e-9  # module docstring: measured differences <= 1.3e-12
 PID_TOL = 1e-12  # module docstring: vectorised cos/sin against math's
 F32_TOL = 1e-6  # module docstring: float32 outputs

@@ -87,7 +87,7 @@ def test_bad_commands_give_one_line_error(tmp_path, case):
     (lambda d: d.pop("mass"), "missing key 'mass'"),
     (lambda d: d["surface"].pop("mu_gap"), "missing key 'surface.mu_gap'"),
     (lambda d: d.__setitem__("inertia", float("nan")), "inertia must be finite"),
-    (lambda d: d.__setitem__("wheels", d["wheels"][:2]), "at least 3 wheels"),
+    (lambda d: d.__setitem__("wheels", d["wheels"][:2]), "wheels (count) must be an integer in [3, 16], got 2"),
     (lambda d: d.__setitem__("friction", "magic"), "unknown friction model 'magic'"),
 ])
 def test_bad_model_file_gives_one_line_error(tmp_path, mutate, expected):
@@ -322,7 +322,7 @@ def test_every_physical_model_input_has_a_bound():
     data = load_model("williams2002").to_json()
     numeric = [k for k, v in data.items() if isinstance(v, (int, float))]
     numeric += [f"surface.{k}" for k, v in data["surface"].items() if isinstance(v, (int, float))]
-    numeric += ["wheels[i].position", "wheels[i].drive (length)", "wheels[i].roller_angle", "com"]
+    numeric += ["wheels (count)", "wheels[i].position", "wheels[i].drive (length)", "wheels[i].roller_angle", "com"]
     numeric += [f"effects.{name}.{k}" for name, effect in REGISTRY.items() for k in effect.keys]
     assert sorted(numeric) == sorted(MODEL_BOUNDS)
 

@@ -148,7 +148,7 @@ def test_named_state_slices_hold_the_ground_truth():
 
 def test_named_sensor_slices_hold_the_ground_truth():
     """Reference now and the last action are exact in the sensors layout; the fix age stays in [0, 1] s."""
-    env = gym.make("OmniPathFollow-Williams-v0", obs_mode="sensors", action_mode="wheels")
+    env = gym.make("OmniPathFollow-WilliamsPaper-v0", obs_mode="sensors", action_mode="wheels")
     decode = SensorObsDecoder.for_env(env)
     layout = env.unwrapped.observation_layout
     obs, info = env.reset(seed=1)

@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 import omni_gym  # noqa: F401  (registers the ids)
 from omni_gym.physics.model import load_model
 
-IDS = ("OmniPathFollow-Williams-v0", "OmniPathFollow-Phunopas-v0", "OmniGoToPose-v0")
+IDS = ("OmniPathFollow-WilliamsPaper-v0", "OmniPathFollow-Phunopas-v0", "OmniGoToPose-v0")
 STEPS = 3
 
 # Values no numeric keyword may take, or that only some may (0, tiny, huge): wrong types included.

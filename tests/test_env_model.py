@@ -24,7 +24,7 @@ from omni_gym.physics.layout import SP_CX, SP_CY, WP_MUW, WP_R
 from omni_gym.physics.model import load_model
 from omni_gym.physics.replay import simulate_commands
 
-WILLIAMS = "OmniPathFollow-Williams-v0"
+WILLIAMS = "OmniPathFollow-WilliamsPaper-v0"
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"
 GOTO = "OmniGoToPose-v0"
 # Wheel commands as actions in [-1, 1] (wheels mode), held for a third of the run each: a turn, a

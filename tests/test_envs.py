@@ -25,10 +25,15 @@ from omni_gym.physics.friction import SURFACES
 from omni_gym.physics.layout import SP_MASS, WP_MUW
 from omni_gym.physics.liftoff import contact_cases
 
-WILLIAMS = "OmniPathFollow-Williams-v0"
+WILLIAMS = "OmniPathFollow-WilliamsPaper-v0"
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"
 GOTO = "OmniGoToPose-v0"
 IDS = (WILLIAMS, PHUNOPAS, GOTO)
+CUSTOM = "OmniPathFollow-Custom-v0"
+# "My robot": five wheels on paper with a calibrated lift-off (the custom id takes everything from it).
+CUSTOM_MODEL = omni_gym.load_model("regular5", surface="paper").with_effect(
+    "wheel_liftoff", {"lift_rate": 5.0, "recover_rate": 5.0}).to_json()
+ID_KWARGS = {CUSTOM: {"model": CUSTOM_MODEL}}  # keywords an id cannot be made without
 RANDOMIZE = {"randomize_friction": (0.7, 1.3), "randomize_mass": (0.8, 1.2), "randomize_lift_rate": (0.0, 2.0),
              "randomize_sensor_noise": (0.5, 2.0)}
 INFO_KEYS = {"pose", "velocity", "reference_pose", "tracking_error", "heading_error", "slip", "contact", "collided",
@@ -98,12 +103,12 @@ def tracking_action(env: gym.Env, obs: np.ndarray, gain: float = 3.0) -> np.ndar
 
 @pytest.mark.parametrize("action_mode", ["wheels", "twist"])
 @pytest.mark.parametrize("obs_mode", ["state", "sensors"])
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", (*IDS, CUSTOM))
 def test_env_checkers(env_id, obs_mode, action_mode):
     from gymnasium.utils.env_checker import check_env as gym_check_env
     from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-    env = gym.make(env_id, obs_mode=obs_mode, action_mode=action_mode)
+    env = gym.make(env_id, obs_mode=obs_mode, action_mode=action_mode, **ID_KWARGS.get(env_id, {}))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         gym_check_env(env.unwrapped)
@@ -141,9 +146,9 @@ def test_same_seed_same_episodes(extra):
         assert env_a.unwrapped.core.models[0] is not env_a.unwrapped.core.base_model
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", (*IDS, CUSTOM))
 def test_different_seeds_differ(env_id):
-    env_a, env_b = gym.make(env_id), gym.make(env_id)
+    env_a, env_b = gym.make(env_id, **ID_KWARGS.get(env_id, {})), gym.make(env_id, **ID_KWARGS.get(env_id, {}))
     actions = random_actions(env_a, 30, seed=5)
     ra, rb = rollout(env_a, actions, seed=0), rollout(env_b, actions, seed=1)
     # The first observation already holds the (random) reference look-ahead.
@@ -364,6 +369,8 @@ def test_bad_kwargs_rejected(kwargs, names, allowed):
                                                ({"sufrace": "paper"}, "'sufrace'"),
                                                ({"num_envs": 0}, "num_envs=0"),
                                                ({"num_envs": 2.5}, "num_envs=2.5"),
+                                               ({"num_envs": 4.0}, "num_envs=4.0"),
+                                               ({"num_envs": True}, "num_envs=True"),
                                                ({"num_envs": "2"}, "num_envs='2'"),
                                                ({"num_envs": 10**12}, "num_envs=1000000000000"),
                                                ({"num_envs": 256, "arena_half_size": 1000}, "num_envs=256"),
@@ -636,9 +643,9 @@ def test_registered_ids_from_fresh_interpreter(tmp_path):
     assert proc.stdout.strip().endswith("ok")
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", (*IDS, CUSTOM))
 def test_spec_max_episode_steps_matches_reference(env_id):
-    env = gym.make(env_id)
+    env = gym.make(env_id, **ID_KWARGS.get(env_id, {}))
     assert env.spec.max_episode_steps is not None
     assert env.spec.max_episode_steps == env.unwrapped.cfg.episode_steps == gym.spec(env_id).max_episode_steps
     assert env.spec.vector_entry_point is not None
@@ -732,3 +739,89 @@ def test_contact_mask_changes_with_lift_off(env_id, extra):
         assert {tuple(m) for m in masks} <= cases
     else:
         assert changes == 0 and masks.all()
+
+
+# --- the custom id, renamed ids, Gymnasium's own checks --------------------------------------------
+
+
+def test_custom_id_takes_robot_floor_and_liftoff_from_the_model():
+    env = gym.make(CUSTOM, model=CUSTOM_MODEL)
+    u = env.unwrapped
+    assert u.robot.n_wheels == 5 and u.cfg.base_model().surface == SURFACES["paper"]
+    assert u.cfg.contact_rates() == (5.0, 5.0)  # the model's wheel_liftoff effect
+    # Without the effect no wheel ever lifts: the keyword default is 0, not the Phunopas ids' 0.5 /s.
+    plain = omni_gym.load_model("regular5", surface="paper").to_json()
+    calm = gym.make(CUSTOM, model=plain)
+    assert calm.unwrapped.cfg.contact_rates()[0] == 0.0
+    calm.reset(seed=0)
+    for a in random_actions(calm, 300, seed=1, scale=0.3):
+        _, _, terminated, truncated, info = calm.step(a)
+        assert info["contact"].all()
+        if terminated or truncated:
+            calm.reset()
+    # With the effect, wheels do lift within 3 s (the robot leaves all-down at 5 /s: P(no lift) = e^-15).
+    env.reset(seed=0)
+    lifted = False
+    for a in random_actions(env, 300, seed=1, scale=0.3):
+        _, _, terminated, truncated, info = env.step(a)
+        lifted |= not info["contact"].all()
+        if terminated or truncated:
+            env.reset()
+    assert lifted
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({}, "OmniPathFollow-Custom-v0 needs model="),
+    ({"model": CUSTOM_MODEL, "robot": "williams2002"}, "invalid robot='williams2002' for OmniPathFollow-Custom-v0"),
+    ({"model": CUSTOM_MODEL, "surface": "carpet"}, "invalid surface='carpet' for OmniPathFollow-Custom-v0"),
+])
+def test_custom_id_needs_a_model_and_refuses_what_it_defines(kwargs, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        gym.make(CUSTOM, **kwargs)
+    with pytest.raises(ValueError, match=re.escape(message)):
+        gym.make_vec(CUSTOM, num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+
+
+def test_custom_id_is_deterministic_pickles_and_vectorises_exactly():
+    kwargs = {"model": CUSTOM_MODEL, "obs_mode": "sensors", "episode_seconds": 0.5}
+    env_a, env_b = gym.make(CUSTOM, **kwargs), gym.make(CUSTOM, **kwargs)
+    actions = random_actions(env_a, 120, seed=3)
+    ra = rollout(env_a, actions, seed=7)
+    assert_rollouts_equal(ra, rollout(env_b, actions, seed=7), "custom id, same seed")
+    env_a.reset(seed=7)
+    for a in actions[:20]:
+        env_a.step(a)
+    clone = pickle.loads(pickle.dumps(env_a))
+    for a in actions[20:40]:
+        assert_record_equal(env_a.step(a), clone.step(a), "custom id, pickled mid-episode")
+    n = 3
+    venv = gym.make_vec(CUSTOM, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+    singles = [gym.make(CUSTOM, **kwargs) for _ in range(n)]
+    vobs, _ = venv.reset(seed=10)
+    assert np.array_equal(vobs, np.stack([env.reset(seed=10 + i)[0] for i, env in enumerate(singles)]))
+    for k in range(40):  # 0.4 s, inside the 0.5 s episode: no autoreset to align
+        batch = random_actions(singles[0], n, seed=100 + k)
+        vobs, vrew, _, _, _ = venv.step(batch)
+        steps = [env.step(batch[i]) for i, env in enumerate(singles)]
+        assert np.array_equal(vobs, np.stack([s[0] for s in steps]))
+        assert np.array_equal(vrew, np.array([s[1] for s in steps]))
+
+
+def test_old_williams_id_names_its_new_name_and_the_new_names_make_without_warnings():
+    with pytest.raises(ValueError, match=r"OmniPathFollow-Williams-v0 was renamed OmniPathFollow-WilliamsPaper-v0.*"
+                                         r"OmniPathFollow-Williams-v1 is a different task") as err:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # Gymnasium's version hint comes first
+            gym.make("OmniPathFollow-Williams-v0")
+    assert isinstance(err.value, gym.error.Error)
+    for env_id in (WILLIAMS, "OmniPathFollow-Williams-v1", CUSTOM):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # no "out of date, consider upgrading" for any current id
+            gym.make(env_id, **ID_KWARGS.get(env_id, {})).close()
+
+
+@pytest.mark.parametrize("mode", [3, 1.5, b"human", ["rgb_array"]])
+def test_render_mode_that_is_not_a_string_is_a_one_line_value_error(mode):
+    # gym.make looks the mode up in metadata["render_modes"] before our constructor runs.
+    with pytest.raises(ValueError, match=r"^invalid render_mode=.*; allowed values: None, 'rgb_array', 'human'$"):
+        gym.make(PHUNOPAS, render_mode=mode)

@@ -170,13 +170,17 @@ def _run_rows(rng: np.random.Generator, k: int, encoders: bool, gyro: bool) -> l
     """A valid run CSV: random commands, poses (some rows not observed), optional encoders and gyro."""
     header = run_header(N_WHEELS, encoders, gyro)
     t = np.concatenate([[0.0], np.cumsum(rng.uniform(0.01, 0.1, k - 1))])
+    # Poses walk at up to 1 m/s and 1 rad/s per axis from a random start: a run a robot can drive
+    # (faster poses are refused as other units, omni_gym.discrepancy.units).
+    steps = rng.uniform(-1.0, 1.0, (k, 3)) * np.diff(t, prepend=0.0)[:, None]
+    poses = rng.normal(0, 0.5, 3) + np.cumsum(steps, axis=0)
     rows = [header]
     for j in range(k):
         cells = [repr(float(t[j]))] + [repr(float(v)) for v in rng.uniform(-20, 20, N_WHEELS)]
         if encoders:
             cells += [repr(float(v)) for v in rng.uniform(-50, 50, N_WHEELS)]
         observed = j == k - 1 or rng.random() < 0.6  # the last row is always observed
-        cells += [repr(float(v)) for v in rng.normal(0, 0.5, 3)] if observed else ["", "", ""]
+        cells += [repr(float(v)) for v in poses[j]] if observed else ["", "", ""]
         if gyro:
             cells.append(repr(float(rng.normal(0, 1))) if rng.random() < 0.8 else "")
         rows.append(cells)

@@ -78,8 +78,9 @@ def test_regular_generator_and_bad_wheel_count():
     robot = regular(5)
     assert robot.n_wheels == 5
     np.testing.assert_allclose(np.linalg.norm(robot.positions(), axis=1), 0.1)
-    with pytest.raises(ValueError, match="n must be an integer >= 3"):
-        regular(2)
+    for n in (2, 17, 3.5):  # the one wheel-count bound, 3 to 16 (omni_gym.bounds)
+        with pytest.raises(ValueError, match="n must be an integer from 3 to 16"):
+            regular(n)
 
 
 # --- mecanum wheels: the OptiOdom omni4 robot --------------------------------------------------------

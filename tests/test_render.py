@@ -17,7 +17,7 @@ pytest.importorskip("pygame")
 
 from omni_gym.envs import render  # noqa: E402
 
-WILLIAMS = "OmniPathFollow-Williams-v0"
+WILLIAMS = "OmniPathFollow-WilliamsPaper-v0"
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"
 
 

@@ -132,11 +132,11 @@ def test_registry_creators_build_the_native_vector_env_and_distinct_seeds():
     import gymnasium as gym
 
     from agents.rllib.env import DistinctSeeds, TrainingEnvCreator
-    from omni_gym.envs import ENV_IDS
+    from omni_gym.envs import CUSTOM_ID, ENV_IDS
     from omni_gym.envs.vector import OmniPathVectorEnv
     from omni_gym.rllib import EnvCreator, register_envs
 
-    assert register_envs() == list(ENV_IDS)
+    assert register_envs() == [*ENV_IDS, CUSTOM_ID]
     venv = EnvCreator("OmniPathFollow-Williams-v1")({"num_envs": 3, "obs_mode": "state", "episode_seconds": 1.0})
     single = EnvCreator("OmniPathFollow-Williams-v1")({"obs_mode": "state", "episode_seconds": 1.0})
     try:

@@ -25,7 +25,7 @@ import omni_gym  # noqa: E402, F401  (registers the ids)
 from agents.sb3_vec_env import NativeVecEnv, make_native_vec_env  # noqa: E402
 
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"
-WILLIAMS = "OmniPathFollow-Williams-v0"
+WILLIAMS = "OmniPathFollow-WilliamsPaper-v0"
 # Short episodes and a small lost distance (about 1 cm of tracking error builds up in 20 steps of full
 # forward action): the robots whose actions are biased forward terminate, the others are truncated.
 SHORT = {"episode_seconds": 0.3, "lost_distance": 0.006}

@@ -110,7 +110,7 @@ def test_limited_axes_count_as_saturated_for_anti_windup():
 def test_policy_matches_ekf_pid_without_slip():
     """On the no-slip floor the references and the PID's corrections are far inside the set: same actions."""
     kw = {"surface": "grip", "friction": "initial", "lift_rate": 0.0, "episode_seconds": 3.0}
-    env = make_env("OmniPathFollow-Williams-v0", kw)
+    env = make_env("OmniPathFollow-WilliamsPaper-v0", kw)
     actions = []
     for name in ("ekf-pid", "ekf-pid-traction"):
         policy = make_policy(name, env)

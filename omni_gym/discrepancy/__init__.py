@@ -3,6 +3,7 @@
 Modules (each one job):
 
 * :mod:`.dataset`: the dataset folder format (a contract, ``docs/formats.md``): read, validate, write.
+* :mod:`.units`: a run's rates beyond any wheeled robot (other units: millimetres, degrees, rpm) refused.
 * :mod:`.importers`: real robot logs converted to datasets (``omni-gym import``: OptiOdom).
 * :mod:`.synth`: datasets with a hidden effect, for testing the workflow where the truth is known.
 * :mod:`.simulate`: batched simulation of runs × candidate models in one :class:`~omni_gym.physics.world.World`.

@@ -24,8 +24,12 @@ from pathlib import Path
 import numpy as np
 
 from omni_gym import outputs
+from omni_gym.checks import known_keys
+from omni_gym.discrepancy.units import check_run_units
 from omni_gym.io import InputError, check_times, parse_cell, read_csv_rows
 from omni_gym.physics.model import SimModel, read_json
+
+DATASET_KEYS = ("model", "description")  # dataset.json: any other key is refused (a typo, not data)
 
 
 @dataclass
@@ -103,6 +107,10 @@ def load_dataset(folder: str | Path) -> Dataset:
     meta = read_json(meta_path)
     if not isinstance(meta, dict) or "model" not in meta:
         raise InputError(f"{meta_path}: expected an object with key 'model'")
+    try:
+        known_keys(meta, DATASET_KEYS)
+    except ValueError as exc:
+        raise InputError(f"{meta_path}: {exc}") from None
     model = SimModel.from_json(meta["model"], where=f"{meta_path}: model")
     desc = meta.get("description", "")
     if not isinstance(desc, str):
@@ -112,6 +120,8 @@ def load_dataset(folder: str | Path) -> Dataset:
     if not files:
         raise InputError(f"{folder / 'runs'}: no run files (*.csv)")
     runs = [read_run(f, model.n_wheels) for f in files]
+    for f, run in zip(files, runs, strict=True):
+        check_run_units(f, run.t, run.cmd, run.pose, model.robot.wheel_radius)
     return Dataset(path=folder, model=model, model_json=meta["model"], description=desc, runs=runs)
 
 

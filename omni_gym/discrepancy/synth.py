@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from omni_gym.bounds import CLI
+from omni_gym.checks import unknown_key
 from omni_gym.discrepancy.dataset import Run, write_dataset
 from omni_gym.discrepancy.simulate import Job, simulate_jobs
 from omni_gym.outputs import Output
@@ -65,7 +66,7 @@ def parse_hidden(spec: str, model: SimModel, rng: np.random.Generator) -> tuple[
         allowed = EFFECT_PARAMS.get(name) or EXTRA_EFFECTS.get(name, ())
         for key in given:
             if key not in allowed:
-                raise ValueError(f"--hidden {name}: unknown parameter {key!r}; allowed {list(allowed)}")
+                raise ValueError(f"--hidden {name}: {unknown_key(key, allowed, what='parameter')}")
         params.update(given)
     if name in EFFECT_PARAMS:
         try:

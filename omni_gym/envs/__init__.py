@@ -1,16 +1,23 @@
 """Gymnasium environments; importing :mod:`omni_gym` registers them.
 
-* ``OmniPathFollow-Williams-v0``: williams2002 (3 wheels) on carpet, roller-gap friction, no lift-off,
+* ``OmniPathFollow-WilliamsPaper-v0``: williams2002 (3 wheels) on carpet, roller-gap friction, no lift-off,
   random-waypoint paths, 20 s.
-* ``OmniPathFollow-Williams-v1``: as v0, but every waypoint's heading change is a turn in place before
+* ``OmniPathFollow-Williams-v1``: as WilliamsPaper-v0, but every waypoint's heading change is a turn in place before
   the translation (``ref_turn="before"``): references the robot's friction can follow (docs/agents.md).
 * ``OmniPathFollow-Phunopas-v0``: phunopas2018 (4 wheels) on carpet, roller-gap friction, random lift-off,
   random-waypoint paths, 20 s.
 * ``OmniGoToPose-v0``: phunopas2018, reach a random pose along a quintic while wheels slip and lift off
   (Phunopas & Inoue 2018), 8 s.
+* ``OmniPathFollow-Custom-v0``: "my robot": robot, surface, friction, effects and lift-off entirely from
+  ``model=`` (required); random-waypoint paths, 20 s.
 
 Every id takes ``model=`` (a model JSON file path or dict, as ``omni-gym model show --json`` prints it):
-the model then replaces the id's robot, surface and friction (``docs/environments.md``).
+the model then replaces the id's robot, surface and friction (``docs/environments.md``); the preset ids
+keep their own lift-off rates, the custom id has none unless the model has a ``wheel_liftoff`` effect.
+
+``OmniPathFollow-Williams-v0`` was the paper's task's first name; it stays registered only to say so
+(:data:`RENAMED`): with ``-v1`` registered beside it, Gymnasium told its users to "upgrade" to v1, a
+different task.
 """
 
 from __future__ import annotations
@@ -22,7 +29,7 @@ VECTOR_ENTRY = "omni_gym.envs.vector:OmniPathVectorEnv"
 LIFT_OFF = {"lift_rate": 0.5, "recover_rate": 5.0}
 
 ENV_IDS = {
-    "OmniPathFollow-Williams-v0": ({"robot": "williams2002", "surface": "carpet", "friction": "roller_gap",
+    "OmniPathFollow-WilliamsPaper-v0": ({"robot": "williams2002", "surface": "carpet", "friction": "roller_gap",
                                     "episode_seconds": 20.0}, 2000),
     "OmniPathFollow-Williams-v1": ({"robot": "williams2002", "surface": "carpet", "friction": "roller_gap",
                                     "episode_seconds": 20.0, "ref_turn": "before"}, 2000),
@@ -32,9 +39,37 @@ ENV_IDS = {
                          "trajectory": "goto", "episode_seconds": 8.0, **LIFT_OFF}, 800),
 }
 
+# "My robot": everything physical from model= (required; omni_gym.envs.config.check_custom).
+CUSTOM_ID = "OmniPathFollow-Custom-v0"
+CUSTOM = ({"episode_seconds": 20.0}, 2000)
+CUSTOM_ENTRY = "omni_gym.envs.omni_env:OmniCustomEnv"
+CUSTOM_VECTOR_ENTRY = "omni_gym.envs.vector:OmniCustomVectorEnv"
+
+# Old id → its new name: making one raises an error that names the new id.
+RENAMED = {"OmniPathFollow-Williams-v0": "OmniPathFollow-WilliamsPaper-v0"}
+RENAMED_ENTRY = "omni_gym.envs:williams_v0_renamed"  # a string, as every omni-gym entry point ("omni_gym.…")
+
+
+class RenamedIdError(gym.error.DeprecatedEnv, ValueError):
+    """A renamed id was made: a Gymnasium error and, as every bad input to the environments, a ValueError."""
+
+
+def williams_v0_renamed(**_: object):
+    """The entry point (single and vector) of ``OmniPathFollow-Williams-v0``: raise naming its new id."""
+    old = "OmniPathFollow-Williams-v0"
+    raise RenamedIdError(f"{old} was renamed {RENAMED[old]} (the same task: Williams et al.'s references, turning "
+                         "while translating); OmniPathFollow-Williams-v1 is a different task (turns in place before "
+                         "each translation)")
+
 
 def register_envs() -> None:
     for env_id, (kwargs, steps) in ENV_IDS.items():
         if env_id not in gym.registry:
             gym.register(id=env_id, entry_point=ENTRY, vector_entry_point=VECTOR_ENTRY, max_episode_steps=steps,
                          kwargs=dict(kwargs))
+    if CUSTOM_ID not in gym.registry:
+        gym.register(id=CUSTOM_ID, entry_point=CUSTOM_ENTRY, vector_entry_point=CUSTOM_VECTOR_ENTRY,
+                     max_episode_steps=CUSTOM[1], kwargs=dict(CUSTOM[0]))
+    for old in RENAMED:
+        if old not in gym.registry:
+            gym.register(id=old, entry_point=RENAMED_ENTRY, vector_entry_point=RENAMED_ENTRY)

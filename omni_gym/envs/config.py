@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.bounds import RATE_MAX, Bound
-from omni_gym.checks import is_number
+from omni_gym.bounds import RATE_MAX, Bound, wheel_count
+from omni_gym.checks import is_number, unknown_key
 from omni_gym.physics import effects as effect_library
 from omni_gym.physics.friction import FRICTION_MODELS, SURFACES, Surface
 from omni_gym.physics.model import ACTUATIONS, SimModel, read_json
@@ -39,12 +39,14 @@ REF_TURNS = ("during", "before")  # waypoints: turn while translating, or in pla
 OBS_MODES = ("state", "sensors")
 ACTION_MODES = ("wheels", "twist")
 RENDER_MODES = (None, "rgb_array", "human")
+CUSTOM_ID = "OmniPathFollow-Custom-v0"  # robot, floor and lift-off all from model= (omni_gym.envs.omni_env)
+MODEL_DEFINES = ("robot", "surface", "friction")  # the keywords a model replaces
 RESET_OPTIONS: tuple[str, ...] = ()  # reset(options=...) keys the environments understand (none yet)
 
 MAX_EPISODE_STEPS = 1_000_000  # reference tables: 48 bytes per step and robot (48 MB at the bound)
 MAX_OBSTACLES = 1000  # each is a pymunk shape in every robot's arena
 MAX_RATE = RATE_MAX  # 1/s: a mean holding time of 1 ms, two default physics substeps (omni_gym.physics.liftoff)
-WHEEL_COUNT = (3, 16)  # a planar omni robot needs 3 wheels; more than 16 is not a wheel layout of this kind
+WHEEL_COUNT = wheel_count()  # (3, 16): the one wheel-count bound (omni_gym.bounds, also model files and regularN)
 MIN_OBSTACLE_RADIUS = 0.001  # m
 WALL_RADIUS = 0.01  # m, thickness of the wall segments (omni_gym.physics.world)
 
@@ -144,6 +146,32 @@ def _show(value) -> str:
     """repr of a user value on one line, cut to 60 characters (a 400-digit integer stays readable)."""
     text = " ".join(repr(value).split())  # one line: numpy wraps long arrays
     return text if len(text) <= 60 else text[:57] + "..."
+
+
+class RenderModes(list):
+    """``metadata["render_modes"]``: a list whose ``in`` refuses a render mode that is not a string.
+
+    ``gym.make`` looks the requested mode up here before it calls the constructor, and for a mode that
+    is not listed it calls ``render_mode.endswith(...)``: ``render_mode=3`` raised AttributeError from
+    inside Gymnasium. The lookup raises our one-line ValueError first.
+    """
+
+    def __contains__(self, mode) -> bool:
+        if mode is not None and not isinstance(mode, str):
+            raise ValueError(f"invalid render_mode={_show(mode)}; allowed values: {', '.join(map(repr, RENDER_MODES))}")
+        return super().__contains__(mode)
+
+
+def check_custom(kwargs: dict) -> None:
+    """The keywords of :data:`CUSTOM_ID`: ``model=`` required, ``robot``/``surface``/``friction`` refused
+    (the model defines them; the other ids ignore them, which here would hide a mistake)."""
+    if kwargs.get("model") is None:
+        raise ValueError(f"{CUSTOM_ID} needs model=: a model JSON file path or its dict, e.g. "
+                         f"gym.make({CUSTOM_ID!r}, model='my_robot.json') (omni-gym model show NAME --json writes one)")
+    for key in MODEL_DEFINES:
+        if key in kwargs:
+            raise ValueError(f"invalid {key}={_show(kwargs[key])} for {CUSTOM_ID}: the robot, surface and friction "
+                             "come from model=")
 
 
 def _number(name: str, value, bound: Bound | None = None) -> float:
@@ -294,7 +322,7 @@ def make_config(**kwargs) -> EnvConfig:
     known = {f.name for f in fields(EnvConfig)}
     for key in kwargs:
         if key not in known:
-            raise ValueError(f"unknown keyword argument {key!r}; allowed: {', '.join(sorted(known))}")
+            raise ValueError(unknown_key(key, sorted(known), what="keyword argument"))
     d = EnvConfig()
     get = kwargs.get
     values = {

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from omni_gym.envs.config import check_reset_options, check_seed, make_config
+from omni_gym.envs.config import RenderModes, check_custom, check_reset_options, check_seed, make_config
 from omni_gym.envs.core import OBS_CLIP, RobotEnvAttributes, TaskCore, as_actions
 
 
@@ -113,16 +113,21 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
 
     ## Version History
 
-    * v0: initial version (ids ``OmniPathFollow-Williams-v0``, ``OmniPathFollow-Phunopas-v0``,
-      ``OmniGoToPose-v0``). Later, within v0: batched sensors (a seed's sensor noise values changed,
-      same distributions) and ``randomize_sensor_noise`` (``docs/environments.md``, Version history).
-    * v1 (``OmniPathFollow-Williams-v1`` only; v0 stays registered unchanged): references turn in place
-      before each translation (``ref_turn="before"``). On v0 the heading turns while the robot translates,
+    * v0: initial version (ids ``OmniPathFollow-Phunopas-v0``, ``OmniGoToPose-v0`` and the paper's
+      Williams task, now ``OmniPathFollow-WilliamsPaper-v0``). Before the first release, within v0:
+      batched sensors (a seed's sensor noise values changed, same distributions) and
+      ``randomize_sensor_noise`` (``docs/environments.md``, Version history).
+    * ``OmniPathFollow-Williams-v1``: references turn in place before each translation
+      (``ref_turn="before"``). On WilliamsPaper-v0 the heading turns while the robot translates,
       sweeping the motion through body x, where the robot's friction cannot sustain it
-      (``benchmarks/results/feasibility.md``, moving mode); the new keyword ``ref_turn``.
+      (``benchmarks/results/feasibility.md``, moving mode); the new keyword ``ref_turn``. The paper's
+      task was ``OmniPathFollow-Williams-v0`` until Gymnasium's "out of date, upgrade to v1" hint
+      pointed its users at this different task; that id now raises an error naming both.
+    * ``OmniPathFollow-Custom-v0``: robot, floor and lift-off entirely from ``model=``
+      (:class:`OmniCustomEnv`).
     """  # noqa: E501 (observation tables: one row per line)
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 100}
+    metadata = {"render_modes": RenderModes(["human", "rgb_array"]), "render_fps": 100}
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
         self.cfg = make_config(render_mode=render_mode, **kwargs)
@@ -183,3 +188,18 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+
+class OmniCustomEnv(OmniPathEnv):
+    """``OmniPathFollow-Custom-v0``: path following with the robot, surface, friction model, effects and
+    lift-off of ``model=`` alone (required).
+
+    The other ids keep their own lift-off rates under ``model=`` (``OmniPathFollow-Phunopas-v0``: 0.5 /s);
+    here a wheel lifts only if the model has a ``wheel_liftoff`` effect (or ``lift_rate`` is given).
+    ``robot``, ``surface`` and ``friction`` are refused: the model defines them. Everything else is as
+    :class:`OmniPathEnv`.
+    """
+
+    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
+        check_custom(kwargs)
+        super().__init__(render_mode=render_mode, **kwargs)

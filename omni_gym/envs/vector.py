@@ -22,6 +22,7 @@ model). Actions must have shape (num_envs, A) and hold real numbers; ``reset`` t
 from __future__ import annotations
 
 import math
+import numbers
 from typing import Any
 
 import numpy as np
@@ -30,7 +31,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from omni_gym.envs.config import check_reset_options, check_seed, is_number, make_config
+from omni_gym.envs.config import check_custom, check_reset_options, check_seed, is_number, make_config
 from omni_gym.envs.core import OBS_CLIP, RobotEnvAttributes, TaskCore, as_actions
 from omni_gym.physics.world import ARENA_ROOM
 
@@ -264,7 +265,18 @@ def _autoreset_mode(value: Any) -> AutoresetMode:
 
 
 def _positive_int(name: str, value: Any) -> int:
-    """A count: a positive integer (numpy integers and integral floats accepted), as a Python int."""
-    if is_number(value) and math.isfinite(value) and float(value).is_integer() and value >= 1:
+    """A count: a positive integer (numpy integers accepted), as a Python int; floats (``4.0``), bools
+    and strings are refused, as the environments' other integer inputs are (``check_seed``)."""
+    if isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_)) and value >= 1:
         return int(value)
     raise ValueError(f"invalid {name}={value!r}; must be a positive integer")
+
+
+class OmniCustomVectorEnv(OmniPathVectorEnv):
+    """The vector form of ``OmniPathFollow-Custom-v0`` (:class:`~omni_gym.envs.omni_env.OmniCustomEnv`):
+    ``model=`` required, ``robot``/``surface``/``friction`` refused."""
+
+    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, render_mode: str | None = None,
+                 autoreset_mode: str | AutoresetMode = "next_step", **kwargs: Any) -> None:
+        check_custom(kwargs)
+        super().__init__(num_envs, max_episode_steps, render_mode, autoreset_mode, **kwargs)

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from omni_gym import bounds
-from omni_gym.checks import json_number
+from omni_gym.checks import json_number, known_keys
 from omni_gym.io import InputError, read_text
 from omni_gym.physics import effects as effect_library
 from omni_gym.physics.friction import DEFAULT_K, Surface, check_friction_model, surface_preset
@@ -68,6 +68,14 @@ ACTUATIONS = ("ideal", "servo")
 EFFECT_PARAMS: dict[str, tuple[str, ...]] = {name: e.keys for name, e in effect_library.REGISTRY.items()}
 # Every bound of a model file: the nominal model's (omni_gym.bounds.MODEL), then the effects' parameters.
 MODEL_BOUNDS = {**bounds.MODEL, **effect_library.bounds()}
+
+# The keys of a model file, per level; any other key is refused with a "did you mean" (a misspelt
+# optional key would otherwise fall back to its default without a word). ``roller_angle`` [rad] is
+# the optional roller axis angle of a mecanum wheel.
+MODEL_KEYS = ("name", "mass", "inertia", "gravity", "wheel_radius", "wheels", "com", "rollers", "roller_fraction",
+              "body_radius", "friction", "surface", "effects")
+WHEEL_KEYS = ("position", "drive", "roller_angle")
+SURFACE_KEYS = ("name", "mu_drive", "mu_transverse", "mu_gap", "k")
 
 
 @dataclass(frozen=True)
@@ -202,6 +210,10 @@ class SimModel:
         """Build a model from its JSON form; errors name the offending key and ``where``."""
         if not isinstance(data, dict):
             raise ValueError(f"{where}: expected a JSON object")
+        try:
+            known_keys(data, MODEL_KEYS)
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
         required = ("name", "mass", "inertia", "wheel_radius", "wheels", "rollers", "roller_fraction",
                     "friction", "surface")
         for key in required:
@@ -210,10 +222,18 @@ class SimModel:
         wheels = data["wheels"]
         if not isinstance(wheels, list) or not wheels:
             raise ValueError(f"{where}: 'wheels' must be a non-empty list")
+        try:  # the count first: a 10⁶-wheel file is refused before any wheel is read
+            _bounded(len(wheels), bounds.WHEELS)
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
         parsed = [_wheel(w, i, where) for i, w in enumerate(wheels)]
         surf = data["surface"]
         if not isinstance(surf, dict):
             raise ValueError(f"{where}: 'surface' must be an object")
+        try:
+            known_keys(surf, SURFACE_KEYS, "surface")
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
         for key in ("mu_drive", "mu_transverse", "mu_gap"):
             if key not in surf:
                 raise ValueError(f"{where}: missing key 'surface.{key}'")
@@ -237,13 +257,27 @@ class SimModel:
                 roller_fraction=_bounded(data["roller_fraction"], "roller_fraction"),
                 body_radius=_bounded(data.get("body_radius", _default_body_radius(parsed)), "body_radius"),
             )
-            effects = data.get("effects", {}) or {}
-            if not isinstance(effects, dict):
-                raise ValueError("'effects' must be an object")
+            effects = _effects(data.get("effects", {}))
             return cls(robot=robot, surface=surface, friction=str(data["friction"]),
                        gravity=_bounded(data.get("gravity", GRAVITY), "gravity"), effects=effects)
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
+
+
+def _effects(value) -> dict[str, dict]:
+    """The ``effects`` object ``{EFFECT: {params}}``; names and parameter keys checked against the library.
+
+    A list (``[]`` or ``["motor_lag"]``) is refused alike: an effect needs its parameters.
+    """
+    if not isinstance(value, dict):
+        kind = "a list" if isinstance(value, list) else repr(value)
+        raise ValueError("'effects' must be an object {EFFECT: {parameters}}, e.g. {} for none or "
+                         f'{{"motor_lag": {{"tau": 0.05}}}}; got {kind}')
+    known_keys(value, effect_library.REGISTRY, "effects")
+    for name, params in value.items():
+        if isinstance(params, dict):
+            known_keys(params, effect_library.REGISTRY[name].keys, f"effects.{name}")
+    return value
 
 
 def _bounded(value, key: str, name: str | None = None) -> float:
@@ -274,6 +308,7 @@ def _wheel(w, i: int, where: str) -> Wheel:
     if not isinstance(w, dict) or "position" not in w or "drive" not in w:
         raise ValueError(f"{where}: {name} needs 'position' and 'drive' as [x, y] numbers")
     try:
+        known_keys(w, WHEEL_KEYS, name)
         pos = _vec2(w["position"], f"{name}.position", "wheels[i].position")
         if not isinstance(w["drive"], (list, tuple)) or len(w["drive"]) != 2:
             raise ValueError(f"{name}.drive must be [x, y], got {w['drive']!r}")
@@ -303,7 +338,7 @@ def validate_effect(name: str, params: dict, n_wheels: int) -> None:
 def load_model(name_or_path: str, surface: str | None = None, friction: str | None = None) -> SimModel:
     """A preset robot name or a model JSON file, with optional surface/friction overrides."""
     path = Path(name_or_path)
-    if name_or_path.endswith(".json") or path.is_file():
+    if name_or_path.endswith(".json") or _is_file(path):
         data = read_json(path)
         model = SimModel.from_json(data, where=name_or_path)
         if surface is not None:
@@ -320,6 +355,14 @@ def nominal_friction(robot: RobotSpec) -> str:
     """A preset's default friction model: ``roller_gap`` for omni wheels, ``initial`` for mecanum wheels
     (the rigid-material model is an omni-wheel geometry, ``docs/model.md``)."""
     return "initial" if robot.has_angled_rollers else "roller_gap"
+
+
+def _is_file(path: Path) -> bool:
+    """``path.is_file()``, False where the name cannot be a file (too long for the file system)."""
+    try:
+        return path.is_file()
+    except OSError:
+        return False
 
 
 def read_json(path: str | Path):

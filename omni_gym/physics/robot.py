@@ -19,7 +19,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from omni_gym.bounds import ROLLER_ANGLE_MAX, ROLLER_ANGLE_REASON
+from omni_gym.bounds import ROLLER_ANGLE_MAX, ROLLER_ANGLE_REASON, wheel_count
 
 GRAVITY = 9.81  # m/s², standard gravity
 
@@ -85,8 +85,9 @@ class RobotSpec:
     assumptions: dict[str, str] = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
-        if len(self.wheels) < 3:
-            raise ValueError(f"robot {self.name!r}: needs at least 3 wheels, got {len(self.wheels)}")
+        lo, hi = wheel_count()
+        if not lo <= len(self.wheels) <= hi:
+            raise ValueError(f"robot {self.name!r}: needs {lo} to {hi} wheels, got {len(self.wheels)}")
         for i, w in enumerate(self.wheels):
             norm = math.hypot(*w.drive)
             if not math.isfinite(norm) or abs(norm - 1.0) > 1e-6:
@@ -248,8 +249,9 @@ def phunopas2018() -> RobotSpec:
 def regular(n: int, radius: float = 0.1, wheel_radius: float = 0.03, mass: float = 2.0,
             offset: float = 0.0, name: str | None = None) -> RobotSpec:
     """``n`` wheels evenly spaced on a circle of ``radius`` [m], the first at ``offset`` [rad]."""
-    if int(n) != n or n < 3:
-        raise ValueError(f"regular robot: n must be an integer >= 3, got {n}")
+    lo, hi = wheel_count()
+    if int(n) != n or not lo <= n <= hi:  # before anything is built: n sets the allocation
+        raise ValueError(f"regular robot: n must be an integer from {lo} to {hi}, got {n}")
     angles = [offset + 2 * math.pi * k / n for k in range(int(n))]
     return RobotSpec(
         name=name or f"regular{int(n)}",
@@ -344,9 +346,22 @@ PRESETS = {
 
 
 def robot_preset(name: str) -> RobotSpec:
-    """A preset by name: ``williams2002``, ``phunopas2018``, ``optiodom_omni4`` or ``regularN`` (N ≥ 3 wheels)."""
+    """A preset by name: ``williams2002``, ``phunopas2018``, ``optiodom_omni4`` or ``regularN`` (N from 3 to 16
+    wheels, ``omni_gym.bounds.wheel_count``)."""
     if name in PRESETS:
         return PRESETS[name]()
-    if name.startswith("regular") and name[len("regular"):].isdigit():
-        return regular(int(name[len("regular"):]))
-    raise ValueError(f"unknown robot {name!r}; choose one of {sorted(PRESETS)} or regularN (e.g. regular5)")
+    lo, hi = wheel_count()
+    digits = name[len("regular"):]
+    if name.startswith("regular") and digits.isascii() and digits.isdigit():
+        # The digit string is checked before int(): a 10⁵-digit N must not cost a conversion.
+        if len(digits.lstrip("0")) > len(str(hi)) or not lo <= int(digits) <= hi:
+            shown = digits if len(digits) <= 12 else f"{digits[:6]}…({len(digits)} digits)"
+            raise ValueError(f"robot {_short(name)}: regularN takes N from {lo} to {hi} wheels, got {shown}")
+        return regular(int(digits))
+    raise ValueError(f"unknown robot {_short(name)}; choose one of {sorted(PRESETS)} or regularN, N from {lo} to {hi} "
+                     "(e.g. regular5)")
+
+
+def _short(name: str, limit: int = 40) -> str:
+    """``repr(name)``, cut to ``limit`` characters with '…' (a 10⁵-character name stays one readable line)."""
+    return repr(name) if len(name) <= limit else repr(name[:limit]) + "…"

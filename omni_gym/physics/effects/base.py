@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 
 from omni_gym.bounds import Bound
-from omni_gym.checks import json_number
+from omni_gym.checks import json_number, unknown_key
 
 if TYPE_CHECKING:
     from omni_gym.physics.liftoff import ContactProcess
@@ -156,7 +156,7 @@ class Effect:
         allowed = self.keys
         for key in params:
             if key not in allowed:
-                raise ValueError(f"effect {self.name!r}: unknown parameter {key!r}; allowed {list(allowed)}")
+                raise ValueError(f"effect {self.name!r}: {unknown_key(key, allowed, what='parameter')}")
         for key in allowed:
             if key not in params:
                 raise ValueError(f"effect {self.name!r}: missing parameter {key!r}")
