@@ -14,14 +14,27 @@ count. A large input every task needs (``shared``) is sent once per worker proce
 or put once into Ray's object store. Ray retries a task whose worker died (``max_retries``). Each
 worker runs its task on one thread (numba, BLAS): the parallelism is the tasks'.
 
+Local workers die with the process that started them, however it ends: an exception or an interrupt in
+:meth:`Executor.map` kills them at once (a running candidate fit is not waited for), and each worker
+watches its parent (Linux ``PR_SET_PDEATHSIG``, and a thread polling the parent's pid), so a parent
+killed with SIGKILL leaves no worker behind, nor multiprocessing's resource tracker (it exits when the
+last process holding its pipe is gone). Workers never see SIGINT (a Ctrl-C to the whole process group
+is the parent's to handle): it is blocked while they start and ignored in them.
+
 Ray is imported only when the Ray backend is used; without it the error names the extra to install.
 """
 
 from __future__ import annotations
 
 import argparse
+import ctypes
 import os
+import pickle
+import signal
 import socket
+import sys
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from contextlib import contextmanager
@@ -134,19 +147,48 @@ class Executor:
     # --- local processes -------------------------------------------------------------------------
 
     def _map_processes(self, fn: Callable, args: list, shared: Any, on_done: OnDone | None) -> list:
-        if self._pool is None or self._pool_shared is not shared:
-            self._close_pool()
-            has = shared is not _NO_SHARED
-            self._pool = ProcessPoolExecutor(self.backend.jobs, mp_context=get_context("spawn"),
-                                             initializer=_init_worker, initargs=(has, shared if has else None))
-            self._pool_shared = shared
-        futures = {self._pool.submit(_call_local, fn, a): i for i, a in enumerate(args)}
-        return _collect(futures, len(args), on_done)
+        try:
+            # The workers start (spawn: fork + exec) on submit; SIGINT blocked meanwhile, so they inherit
+            # it blocked and never raise KeyboardInterrupt; a Ctrl-C that came meanwhile is delivered to
+            # this process when the block is lifted.
+            with _sigint_blocked():
+                if self._pool is None or self._pool_shared is not shared:
+                    self._close_pool()
+                    # The shared input travels pickled and is unpickled after the worker pinned its threads:
+                    # unpickling imports numba, which reads NUMBA_NUM_THREADS once (see pin_threads).
+                    blob = None if shared is _NO_SHARED else pickle.dumps(shared, pickle.HIGHEST_PROTOCOL)
+                    self._pool = ProcessPoolExecutor(self.backend.jobs, mp_context=get_context("spawn"),
+                                                     initializer=_init_worker, initargs=(os.getpid(), blob))
+                    self._pool_shared = shared
+                futures = {self._pool.submit(_call_local, fn, a): i for i, a in enumerate(args)}
+            return _collect(futures, len(args), on_done)
+        except BaseException:  # an interrupt, a failed task: stop every worker now, not after its task
+            self._kill_pool()
+            raise
 
     def _close_pool(self) -> None:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+
+    def _kill_pool(self) -> None:
+        """Kill the worker processes (SIGKILL) and wait for them; a second Ctrl-C cannot cut this short."""
+        pool, self._pool, self._pool_shared = self._pool, None, _NO_SHARED
+        if pool is None:
+            return
+        with _sigint_blocked():
+            procs = list((getattr(pool, "_processes", None) or {}).values())  # no public handle before 3.14
+            for p in procs:
+                try:
+                    p.kill()
+                except (OSError, ValueError):  # already gone, or closed
+                    pass
+            pool.shutdown(wait=False, cancel_futures=True)
+            for p in procs:
+                try:
+                    p.join(timeout=10)
+                except (OSError, ValueError, AssertionError):
+                    pass
 
     # --- Ray -------------------------------------------------------------------------------------
 
@@ -225,6 +267,14 @@ def backend_from_options(jobs: int, ray: str | None) -> Backend:
     return backend
 
 
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system has one, else all)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:
+        return max(1, os.cpu_count() or 1)
+
+
 def parallel_map(fn: Callable, args: Sequence, backend: Backend = SERIAL, shared: Any = _NO_SHARED,
                  on_done: OnDone | None = None) -> list:
     """One :meth:`Executor.map` on a backend opened and closed for it."""
@@ -233,8 +283,19 @@ def parallel_map(fn: Callable, args: Sequence, backend: Backend = SERIAL, shared
 
 
 def pin_threads() -> None:
-    """One thread per task for numba's parallel kernel and BLAS (the workers are the parallelism)."""
+    """One thread per task for numba's parallel kernel and BLAS (the workers are the parallelism).
+
+    numba reads ``NUMBA_NUM_THREADS`` when it is imported and re-reads it at every compile, refusing a
+    value that differs from the one its thread pool was launched with. So the variable is set only while
+    numba is not yet loaded; once it is (a task's arguments import it on unpickling, e.g. in a Ray
+    worker), changing it would make the next compilation fail ("Cannot set NUMBA_NUM_THREADS to a
+    different value once the threads have been launched") on a cold cache, and ``set_num_threads(1)``
+    alone limits the threads that run.
+    """
+    numba_loaded = "numba" in sys.modules
     for k in THREAD_ENV:
+        if k == "NUMBA_NUM_THREADS" and numba_loaded:
+            continue
         os.environ[k] = "1"
     try:
         import numba
@@ -250,10 +311,50 @@ def pin_threads() -> None:
         pass
 
 
-def _init_worker(has_shared: bool, shared: Any) -> None:
+def _init_worker(parent: int, blob: bytes | None) -> None:
+    """A local worker's start: SIGINT ignored, die with ``parent`` (pid), one thread, then the shared input."""
     global _worker_shared
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops the workers
+    _die_with_parent(parent)
     pin_threads()
-    _worker_shared = shared if has_shared else _NO_SHARED  # the sentinel itself does not survive pickling
+    _worker_shared = _NO_SHARED if blob is None else pickle.loads(blob)
+
+
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+WATCH_PARENT_S = 0.5  # how often a worker checks that its parent lives (where PR_SET_PDEATHSIG is missing)
+
+
+def _die_with_parent(parent: int) -> None:
+    """Make this worker end when its parent process ends, however it ends (SIGKILL included)."""
+    if sys.platform.startswith("linux"):
+        try:  # the kernel sends SIGKILL when the parent exits
+            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:  # the parent died before the above took effect
+        os._exit(1)
+
+    def watch() -> None:  # also where prctl is missing (checks between the kernel's calls, which hold the GIL)
+        while True:
+            time.sleep(WATCH_PARENT_S)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="omni-gym-parent-watch", daemon=True).start()
+
+
+@contextmanager
+def _sigint_blocked() -> Iterator[None]:
+    """SIGINT held pending in this thread for the ``with`` block (delivered when it ends); no-op where
+    signal masks do not exist or off the main thread."""
+    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def _call_local(fn: Callable, a: Any) -> Any:
