@@ -51,18 +51,26 @@ def guard_startup() -> None:
 
 def main_handler() -> Callable[[], None]:
     """Install the work phase's handler (first interrupt raises ``KeyboardInterrupt``, later ones are
-    ignored); returns the function that restores the previous handler (``main()`` called from Python,
-    e.g. by the tests, leaves the caller's handling as it found it). A no-op off the main thread or
-    under an inherited ``SIG_IGN``."""
+    ignored); returns the function that restores the previous handler when ``main()`` returns, so that
+    ``main()`` called from Python (the tests) leaves the caller's handling as it found it. In the command
+    line after an interrupt, SIGINT stays ignored: Python's finalisation resets a Python-level handler to
+    the default, and a further Ctrl-C would then kill the exiting process (status -2, not 130).
+    A no-op off the main thread or under an inherited ``SIG_IGN``."""
     if threading.current_thread() is not threading.main_thread():
         return lambda: None
     previous = signal.getsignal(signal.SIGINT)
     if previous is signal.SIG_IGN:
         return lambda: None
+    interrupted = []
 
     def first(signum: int, frame: Any) -> None:
+        interrupted.append(signum)
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # the way out has begun: later interrupts wait for it
         raise KeyboardInterrupt
 
+    def restore() -> None:
+        if not (interrupted and is_command_line()):
+            signal.signal(signal.SIGINT, previous)
+
     signal.signal(signal.SIGINT, first)
-    return lambda: signal.signal(signal.SIGINT, previous)
+    return restore

@@ -345,16 +345,33 @@ def _die_with_parent(parent: int) -> None:
 
 @contextmanager
 def _sigint_blocked() -> Iterator[None]:
-    """SIGINT held pending in this thread for the ``with`` block (delivered when it ends); no-op where
-    signal masks do not exist or off the main thread."""
-    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
+    """No KeyboardInterrupt inside the ``with`` block: an interrupt that comes meanwhile is raised (passed to
+    the handler that was installed) when the block ends. Processes started inside inherit SIGINT blocked.
+
+    Two parts, because a process-wide SIGINT goes to any thread that does not block it (the executor's
+    manager thread, numba's threads) and Python then runs its handler in the main thread: the signal mask
+    of this thread is what the started processes inherit; the deferring Python handler is what keeps the
+    block free of KeyboardInterrupt (one raised inside ``Process.start`` left a half-started worker that
+    no one stopped). A no-op off the main thread (signal handlers live there).
+    """
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    came: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: came.append(signum))
+    masked = hasattr(signal, "pthread_sigmask")
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}) if masked else None
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        if masked:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        signal.signal(signal.SIGINT, previous)
+        if came:
+            if callable(previous):
+                previous(signal.SIGINT, None)  # raises KeyboardInterrupt (default_int_handler or the CLI's)
+            elif previous == signal.SIG_DFL:
+                os.kill(os.getpid(), signal.SIGINT)
 
 
 def _call_local(fn: Callable, a: Any) -> Any:
