@@ -326,6 +326,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     result["where"] = where
     result["settings"] = {"seed": seed, "folds": int(fold_of.max()) + 1, "dt": dt, "lever": lever,
                           "max_effects": max_effects,
+                          "fit_budget": None if math.isinf(fit_budget) else float(fit_budget),  # None: no limit
                           "liftoff": EVENT_METHOD, "rules": RULES, "robot_runs_simulated": ev.simulated}
     result["dataset"] = {"path": str(dataset), "runs": fitted.source_runs, "description": ds.description,
                          "fitted": fitted.to_json()}
