@@ -350,7 +350,8 @@ def test_plots_show_one_nominal_curve_when_no_effect_is_named(tmp_path, only_mot
 
 def test_staircase_title_says_what_ended_the_search(lag_dataset, tmp_path, monkeypatch):
     two = ("motor_lag", "wheel_radius")  # a second candidate: the search goes on after motor_lag and ends
-    monkeypatch.setattr(workflow, "candidates", lambda model: [c for c in candidates.candidates(model) if c.name in two])
+    monkeypatch.setattr(workflow, "candidates",
+                        lambda model: [c for c in candidates.candidates(model) if c.name in two])
     figures = _record_figures(monkeypatch)
     result = workflow.gap(lag_dataset, tmp_path / "rep", progress=False)
     assert result["effects"] == ["motor_lag"] and result["steps"][-1]["effect"] == "none"
