@@ -112,16 +112,20 @@ def test_workers_die_with_a_killed_parent(dataset, tmp_path):
     assert not (tmp_path / "report").exists()
 
 
-@pytest.mark.parametrize("delay", [0.5, 2.0])
-def test_interrupting_gap_with_workers_stops_them_and_writes_nothing(dataset, tmp_path, delay):
-    """SIGINT to the main process only, three times (the second and third while it stops the workers):
-    it exits 130 within seconds, says one line, and leaves no report and no worker."""
+@pytest.mark.parametrize(("delay", "target"), [(0.5, "main"), (2.0, "main"), (1.0, "group")])
+def test_interrupting_gap_with_workers_stops_them_and_writes_nothing(dataset, tmp_path, delay, target):
+    """SIGINT three times (the second and third while it stops the workers), to the main process only
+    (``timeout -s INT``) or to the whole process group (Ctrl-C in a terminal): it exits 130 within
+    seconds, says one line (no worker prints a KeyboardInterrupt), and leaves no report and no worker."""
     out = tmp_path / "report"
     proc, helpers = _start_gap(dataset, out)
     time.sleep(delay)
     try:
         for _ in range(3):
-            os.kill(proc.pid, signal.SIGINT)
+            if target == "main":
+                os.kill(proc.pid, signal.SIGINT)
+            else:
+                os.killpg(proc.pid, signal.SIGINT)  # its own session: the group is gap and its workers
             time.sleep(0.15)
         _, err = proc.communicate(timeout=30)  # it used to hang in multiprocessing's exit join
         assert proc.returncode == 130, err[-2000:]
