@@ -10,16 +10,17 @@ One ordered map of a picklable function over task arguments, with a backend chos
 The results come back in the order of the arguments whatever order the tasks finish in, so a caller
 that makes every task a pure function of its arguments (its random numbers from a seed in the
 arguments, never from the worker) gets the same result bit for bit from every backend and worker
-count. A large input every task needs (``shared``) is sent once per worker process (local processes)
-or put once into Ray's object store. Ray retries a task whose worker died (``max_retries``). Each
-worker runs its task on one thread (numba, BLAS): the parallelism is the tasks'.
+count. A large input every task needs (``shared``) is pickled once, travels with each task and is
+unpickled once per worker process (local processes), or is put once into Ray's object store. Ray
+retries a task whose worker died (``max_retries``). Each worker runs its task on one thread (numba,
+BLAS): the parallelism is the tasks'.
 
 Local workers die with the process that started them, however it ends: an exception or an interrupt in
 :meth:`Executor.map` kills them at once (a running candidate fit is not waited for), and each worker
 watches its parent (Linux ``PR_SET_PDEATHSIG``, and a thread polling the parent's pid), so a parent
 killed with SIGKILL leaves no worker behind, nor multiprocessing's resource tracker (it exits when the
 last process holding its pipe is gone). Workers never see SIGINT (a Ctrl-C to the whole process group
-is the parent's to handle): it is blocked while they start and ignored in them.
+is the parent's to handle): they start with it ignored.
 
 Ray is imported only when the Ray backend is used; without it the error names the extra to install.
 """
@@ -45,8 +46,10 @@ from typing import Any
 RAY_EXTRA = "omni-gym[rllib]"
 # Threading libraries whose thread count a task pins to 1 (set before a worker loads them).
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
-_NO_SHARED = object()  # module state of a local worker process: the shared input its initializer received
-_worker_shared: Any = _NO_SHARED
+_NO_SHARED = object()
+# Module state of a local worker process: the key and value of the shared input it last unpickled.
+_worker_shared: tuple[int, Any] = (-1, _NO_SHARED)
+_SHARED_KEYS = iter(range(1 << 62))  # in the driver: one key per shared input sent to a pool
 
 
 class BackendError(ValueError):
@@ -120,6 +123,7 @@ class Executor:
         self.backend = backend
         self._pool: ProcessPoolExecutor | None = None
         self._pool_shared: Any = _NO_SHARED
+        self._pool_blob: tuple[int, bytes | None] = (-1, None)  # the shared input pickled once, and its key
         self._ray: Any = None
         self._started_ray = False
         self._ray_shared: Any = _NO_SHARED  # the shared input last put into the object store, and its ref
@@ -148,19 +152,21 @@ class Executor:
 
     def _map_processes(self, fn: Callable, args: list, shared: Any, on_done: OnDone | None) -> list:
         try:
-            # The workers start (spawn: fork + exec) on submit; SIGINT blocked meanwhile, so they inherit
-            # it blocked and never raise KeyboardInterrupt; a Ctrl-C that came meanwhile is delivered to
-            # this process when the block is lifted.
-            with _sigint_blocked():
-                if self._pool is None or self._pool_shared is not shared:
-                    self._close_pool()
-                    # The shared input travels pickled and is unpickled after the worker pinned its threads:
-                    # unpickling imports numba, which reads NUMBA_NUM_THREADS once (see pin_threads).
-                    blob = None if shared is _NO_SHARED else pickle.dumps(shared, pickle.HIGHEST_PROTOCOL)
+            # The workers start (spawn: fork + exec) on submit. SIGINT is ignored meanwhile, a few
+            # milliseconds: they inherit it ignored and so never raise KeyboardInterrupt, not even while
+            # they start (a worker that died then left Process.start blocked in its pipe write).
+            with _sigint_ignored():
+                if self._pool is None:
                     self._pool = ProcessPoolExecutor(self.backend.jobs, mp_context=get_context("spawn"),
-                                                     initializer=_init_worker, initargs=(os.getpid(), blob))
-                    self._pool_shared = shared
-                futures = {self._pool.submit(_call_local, fn, a): i for i, a in enumerate(args)}
+                                                     initializer=_init_worker, initargs=(os.getpid(),))
+                if self._pool_shared is not shared:
+                    # Pickled once here; it travels with every task (the start of a worker stays small and
+                    # quick) and is unpickled once per worker, after the worker pinned its threads:
+                    # unpickling it imports numba, which reads NUMBA_NUM_THREADS once (see pin_threads).
+                    blob = None if shared is _NO_SHARED else pickle.dumps(shared, pickle.HIGHEST_PROTOCOL)
+                    self._pool_shared, self._pool_blob = shared, (next(_SHARED_KEYS), blob)
+                key, blob = self._pool_blob
+                futures = {self._pool.submit(_call_local, fn, a, key, blob): i for i, a in enumerate(args)}
             return _collect(futures, len(args), on_done)
         except BaseException:  # an interrupt, a failed task: stop every worker now, not after its task
             self._kill_pool()
@@ -170,13 +176,14 @@ class Executor:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+        self._pool_shared, self._pool_blob = _NO_SHARED, (-1, None)
 
     def _kill_pool(self) -> None:
         """Kill the worker processes (SIGKILL) and wait for them; a second Ctrl-C cannot cut this short."""
-        pool, self._pool, self._pool_shared = self._pool, None, _NO_SHARED
+        pool, self._pool, self._pool_shared, self._pool_blob = self._pool, None, _NO_SHARED, (-1, None)
         if pool is None:
             return
-        with _sigint_blocked():
+        with _sigint_ignored():
             procs = list((getattr(pool, "_processes", None) or {}).values())  # no public handle before 3.14
             for p in procs:
                 try:
@@ -311,13 +318,11 @@ def pin_threads() -> None:
         pass
 
 
-def _init_worker(parent: int, blob: bytes | None) -> None:
-    """A local worker's start: SIGINT ignored, die with ``parent`` (pid), one thread, then the shared input."""
-    global _worker_shared
+def _init_worker(parent: int) -> None:
+    """A local worker's start: SIGINT ignored (also inherited so), die with ``parent`` (pid), one thread."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops the workers
     _die_with_parent(parent)
     pin_threads()
-    _worker_shared = _NO_SHARED if blob is None else pickle.loads(blob)
 
 
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
@@ -344,38 +349,26 @@ def _die_with_parent(parent: int) -> None:
 
 
 @contextmanager
-def _sigint_blocked() -> Iterator[None]:
-    """No KeyboardInterrupt inside the ``with`` block: an interrupt that comes meanwhile is raised (passed to
-    the handler that was installed) when the block ends. Processes started inside inherit SIGINT blocked.
-
-    Two parts, because a process-wide SIGINT goes to any thread that does not block it (the executor's
-    manager thread, numba's threads) and Python then runs its handler in the main thread: the signal mask
-    of this thread is what the started processes inherit; the deferring Python handler is what keeps the
-    block free of KeyboardInterrupt (one raised inside ``Process.start`` left a half-started worker that
-    no one stopped). A no-op off the main thread (signal handlers live there).
-    """
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored for the ``with`` block (processes started inside inherit it ignored, before their
+    Python even starts); the previous handler afterwards. A no-op off the main thread (handlers live there)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    came: list[int] = []
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: came.append(signum))
-    masked = hasattr(signal, "pthread_sigmask")
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}) if masked else None
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         yield
     finally:
-        if masked:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
         signal.signal(signal.SIGINT, previous)
-        if came:
-            if callable(previous):
-                previous(signal.SIGINT, None)  # raises KeyboardInterrupt (default_int_handler or the CLI's)
-            elif previous == signal.SIG_DFL:
-                os.kill(os.getpid(), signal.SIGINT)
 
 
-def _call_local(fn: Callable, a: Any) -> Any:
-    return fn(a) if _worker_shared is _NO_SHARED else fn(_worker_shared, a)
+def _call_local(fn: Callable, a: Any, key: int, blob: bytes | None) -> Any:
+    global _worker_shared
+    if blob is None:
+        return fn(a)
+    if _worker_shared[0] != key:  # a new shared input: unpickled once per worker
+        _worker_shared = (key, pickle.loads(blob))
+    return fn(_worker_shared[1], a)
 
 
 def _call_ray(fn: Callable, a: Any, shared: Any, has_shared: bool) -> Any:
