@@ -411,7 +411,8 @@ def _plots(out: Path, result: dict, ds: Dataset, nominal: SimModel, model: SimMo
     ol = [1e3 * (r["open_loop_rms"] or 0) for r in w["runs"]]
     sh = [1e3 * (r["shooting_rms"] or 0) for r in w["runs"]]
     axes[0].bar(x - 0.2, ol, 0.4, label="open loop")
-    axes[0].bar(x + 0.2, sh, 0.4, label=f"restarted every {WINDOW:g} s from the measured state")
+    axes[0].bar(x + 0.2, sh, 0.4, label=f"restarted every {WINDOW:g} s")
+    axes[0].set_ylim(0, 1.3 * max(ol + sh + [1e-3]))  # room for the legend above the bars
     axes[0].set_xticks(x, names, rotation=90, fontsize=7)
     axes[0].set_ylabel("RMS residual [mm]")
     axes[0].legend(fontsize=8)
