@@ -13,6 +13,12 @@ from typing import TYPE_CHECKING
 # and documented); a value the user set is never changed.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
+# The command line's Ctrl-C handling starts here, before the slow imports below: the console script and
+# `python -m omni_gym.cli` import this package first. Nothing changes for `import omni_gym` elsewhere.
+from omni_gym.interrupts import guard_startup  # noqa: E402
+
+guard_startup()
+
 from omni_gym.envs import ENV_IDS, register_envs  # noqa: E402
 
 # The everyday physics entry points, imported on first use (PEP 562): `import omni_gym` stays light,

@@ -173,6 +173,11 @@ CLI: dict[str, Bound] = {b.name: b for b in (
           "file: about two minutes at the measured 2·10⁵ substeps/s; checked before the run starts"),
     Bound("--seed", 0, 2**53, "", "simulate, synth, gap: seeds are written to JSON, whose readers keep "
           "integers exact up to 2^53", integer=True),
+    Bound("--jobs", 1, 1024, "", "gap: worker processes (with --ray and no address: the local Ray's CPUs); local "
+          "processes beyond this machine's cores are cut to the core count, with a warning (the result does not "
+          "depend on the count)", integer=True),
+    Bound("--max-effects", 1, 100, "", "gap: effects named one after another; the search also ends when the "
+          "candidates (7 today) run out", integer=True),
     Bound("--runs", 1, 1000, "", "synth: runs per dataset; gap's time grows with the runs (10 runs: "
           "about a minute)", integer=True),
     Bound("--duration", 0.2, RUN_SECONDS, "s", "synth: seconds per run; at least one 0.2 s maneuver "

@@ -14,8 +14,11 @@ import numpy as np
 
 from omni_gym import __version__
 from omni_gym.bounds import CLI as CLI_BOUNDS
+from omni_gym.discrepancy.budget import FIT_BUDGET, MIN_FIT_BUDGET, MIN_SEGMENT, SEGMENT, check_fit_budget
 from omni_gym.discrepancy.importers import FORMATS as IMPORT_FORMATS
-from omni_gym.parallel import add_ray_option, backend_from_options
+from omni_gym.interrupts import EXIT_INTERRUPTED, main_handler
+from omni_gym.interrupts import MESSAGE as INTERRUPTED
+from omni_gym.parallel import add_ray_option, backend_from_options, usable_cores
 from omni_gym.physics.friction import FRICTION_MODELS, SURFACES
 
 EXIT_BAD_INPUT = 2
@@ -88,13 +91,14 @@ def build_parser() -> argparse.ArgumentParser:
                     help="most effects named one after another (each step searches the gap left by the last; "
                          "1: name one effect only)")
     gp.add_argument("--fit-budget", type=float, default=None, metavar="SECONDS",
-                    help="most robot time fitted [s] (default 120); a longer dataset is fitted on an even sample "
-                         "of 10 s segments of its runs, each replayed from the tracked state at its start; "
-                         "inf: always whole runs")
+                    help=f"most robot time fitted [s] (default {FIT_BUDGET:g}, at least {MIN_FIT_BUDGET:g}); a "
+                         "longer dataset is fitted on an even sample of segments of every run, each "
+                         f"SECONDS / runs long ({MIN_SEGMENT:g} to {SEGMENT:g} s; 24 runs and the default: 5 s) "
+                         "and replayed from the tracked state at its start; inf: always whole runs")
     add_ray_option(gp, "the candidate fits", "all (or --jobs N > 1)")
     gp.add_argument("--jobs", type=int, default=1,
-                    help="local worker processes for the candidate fits (with --ray and no ADDRESS: the local "
-                         "Ray's CPUs); default 1, this process")
+                    help="local worker processes for the candidate fits, at most this machine's cores (with "
+                         "--ray and no ADDRESS: the local Ray's CPUs); default 1, this process")
     _add_force_option(gp, "an existing report folder")
     gp.set_defaults(handler=_cmd_gap)
     sc = sub.add_parser("score", help="replay a dataset's runs open loop with its nominal model and other models; "
@@ -322,13 +326,19 @@ def _cmd_gap(args: argparse.Namespace) -> int:
     from omni_gym.discrepancy.workflow import gap
 
     check_option("--seed", args.seed)
-    if args.max_effects < 1:
-        raise ValueError(f"--max-effects must be an integer >= 1, got {args.max_effects}")
+    check_option("--max-effects", args.max_effects)
+    check_option("--jobs", args.jobs)
     budget = {} if args.fit_budget is None else {"fit_budget": args.fit_budget}
-    if args.fit_budget is not None and not args.fit_budget > 0:
-        raise ValueError(f"--fit-budget must be a positive number of seconds (inf: no limit), got {args.fit_budget}")
+    if args.fit_budget is not None:
+        check_fit_budget(args.fit_budget, "--fit-budget")
+    jobs = args.jobs
+    cores = usable_cores()
+    if args.ray is None and jobs > cores:  # more processes than cores only share them (same result, more memory)
+        print(f"omni-gym: warning: --jobs {jobs} is more than the {cores} core{'s' * (cores > 1)} this process may "
+              f"use; running {cores} local process{'es' * (cores > 1)}", file=sys.stderr)
+        jobs = cores
     # ray missing, an address nothing listens on: one line now (BackendError: ValueError), not after the first stages
-    backend = backend_from_options(args.jobs, args.ray)
+    backend = backend_from_options(jobs, args.ray)
     result = gap(args.dataset, args.out, seed=args.seed, plots=not args.no_plots, force=args.force,
                  max_effects=args.max_effects, backend=backend, **budget)
     if args.json:
@@ -425,18 +435,27 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+# What bad input raises on its way through the handlers (the standard library's int/float/JSON parsers,
+# numpy, file access): each is one line and status 2. OverflowError: a number too large for a float or
+# a C integer (e.g. a 400-digit value).
+INPUT_ERRORS = (ValueError, OSError, OverflowError)
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    restore = main_handler()  # Ctrl-C from here on: rolled back, workers stopped, one line, status 130
     try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
         return args.handler(args)
-    except (ValueError, OSError) as exc:
+    except INPUT_ERRORS as exc:
         message = " ".join(str(exc).split())  # one line, whatever the source
         print(f"omni-gym: error: {message}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
-        print("omni-gym: interrupted", file=sys.stderr)
-        return 130
+        print(INTERRUPTED, file=sys.stderr)
+        return EXIT_INTERRUPTED
+    finally:
+        restore()
 
 
 if __name__ == "__main__":

@@ -160,6 +160,7 @@ class Output:
     _lock_fd: int | None = field(default=None, init=False, repr=False)
     _lock_path: Path = field(init=False, repr=False)
     _staged: dict[Path, Path] = field(default_factory=dict, init=False, repr=False)
+    _created: list[Path] = field(default_factory=list, init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.kind not in ("file", "dir"):
@@ -206,8 +207,12 @@ class Output:
         self._check_not_input()
         if self.target.name in ("", ".", ".."):
             raise OutputError(f"{self.target}: not a usable {self.what} name")
-        self.target.parent.mkdir(parents=True, exist_ok=True)
-        self._lock()
+        self._make_parents()
+        try:
+            self._lock()
+        except BaseException:
+            self._unlock()  # removes the parents made for it
+            raise
         try:
             self._recover_stale()
             self._check_existing()
@@ -243,6 +248,7 @@ class Output:
         for companion, tmp in self._staged.items():
             os.replace(tmp, companion)
         self._staged.clear()
+        self._created = []  # the output now lives in them
         _fsync_dir(parent)
         if old is not None:
             _remove(old)
@@ -324,16 +330,34 @@ class Output:
             os.close(fd)
         raise OutputError(f"{self.target}: cannot take the lock {self._lock_path}")
 
+    def _make_parents(self) -> None:
+        """Create the target's missing parent folders (the lock and the temporary live there) and remember
+        them: a run that does not commit removes them again (:meth:`_unlock`), so a refused or failed run
+        leaves no empty folder behind."""
+        missing = []
+        p = self.target.parent
+        while not os.path.lexists(p) and p != p.parent:
+            missing.append(p)
+            p = p.parent
+        self.target.parent.mkdir(parents=True, exist_ok=True)
+        self._created = missing  # deepest first
+
     def _unlock(self) -> None:
-        """Remove the lock file (while holding it: a waiter re-checks the inode) and release it."""
-        if self._lock_fd is None:
-            return
-        try:
-            os.unlink(self._lock_path)
-        except FileNotFoundError:
-            pass
-        os.close(self._lock_fd)
-        self._lock_fd = None
+        """Remove the lock file (while holding it: a waiter re-checks the inode) and release it; remove the
+        parent folders this output created unless it was committed into them."""
+        if self._lock_fd is not None:
+            try:
+                os.unlink(self._lock_path)
+            except FileNotFoundError:
+                pass
+            os.close(self._lock_fd)
+            self._lock_fd = None
+        for folder in self._created:  # deepest first; a folder another writer uses is not empty: kept
+            try:
+                os.rmdir(folder)
+            except OSError:
+                break
+        self._created = []
 
     def _recover_stale(self) -> None:
         """With the lock held no other run writes this target: every temporary sibling is stale.

@@ -10,9 +10,17 @@ One ordered map of a picklable function over task arguments, with a backend chos
 The results come back in the order of the arguments whatever order the tasks finish in, so a caller
 that makes every task a pure function of its arguments (its random numbers from a seed in the
 arguments, never from the worker) gets the same result bit for bit from every backend and worker
-count. A large input every task needs (``shared``) is sent once per worker process (local processes)
-or put once into Ray's object store. Ray retries a task whose worker died (``max_retries``). Each
-worker runs its task on one thread (numba, BLAS): the parallelism is the tasks'.
+count. A large input every task needs (``shared``) is pickled once, travels with each task and is
+unpickled once per worker process (local processes), or is put once into Ray's object store. Ray
+retries a task whose worker died (``max_retries``). Each worker runs its task on one thread (numba,
+BLAS): the parallelism is the tasks'.
+
+Local workers die with the process that started them, however it ends: an exception or an interrupt in
+:meth:`Executor.map` kills them at once (a running candidate fit is not waited for), and each worker
+watches its parent (Linux ``PR_SET_PDEATHSIG``, and a thread polling the parent's pid), so a parent
+killed with SIGKILL leaves no worker behind, nor multiprocessing's resource tracker (it exits when the
+last process holding its pipe is gone). Workers never see SIGINT (a Ctrl-C to the whole process group
+is the parent's to handle): they start with it ignored.
 
 Ray is imported only when the Ray backend is used; without it the error names the extra to install.
 """
@@ -20,8 +28,14 @@ Ray is imported only when the Ray backend is used; without it the error names th
 from __future__ import annotations
 
 import argparse
+import ctypes
 import os
+import pickle
+import signal
 import socket
+import sys
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from contextlib import contextmanager
@@ -32,8 +46,10 @@ from typing import Any
 RAY_EXTRA = "omni-gym[rllib]"
 # Threading libraries whose thread count a task pins to 1 (set before a worker loads them).
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
-_NO_SHARED = object()  # module state of a local worker process: the shared input its initializer received
-_worker_shared: Any = _NO_SHARED
+_NO_SHARED = object()
+# Module state of a local worker process: the key and value of the shared input it last unpickled.
+_worker_shared: tuple[int, Any] = (-1, _NO_SHARED)
+_SHARED_KEYS = iter(range(1 << 62))  # in the driver: one key per shared input sent to a pool
 
 
 class BackendError(ValueError):
@@ -107,6 +123,7 @@ class Executor:
         self.backend = backend
         self._pool: ProcessPoolExecutor | None = None
         self._pool_shared: Any = _NO_SHARED
+        self._pool_blob: tuple[int, bytes | None] = (-1, None)  # the shared input pickled once, and its key
         self._ray: Any = None
         self._started_ray = False
         self._ray_shared: Any = _NO_SHARED  # the shared input last put into the object store, and its ref
@@ -134,19 +151,51 @@ class Executor:
     # --- local processes -------------------------------------------------------------------------
 
     def _map_processes(self, fn: Callable, args: list, shared: Any, on_done: OnDone | None) -> list:
-        if self._pool is None or self._pool_shared is not shared:
-            self._close_pool()
-            has = shared is not _NO_SHARED
-            self._pool = ProcessPoolExecutor(self.backend.jobs, mp_context=get_context("spawn"),
-                                             initializer=_init_worker, initargs=(has, shared if has else None))
-            self._pool_shared = shared
-        futures = {self._pool.submit(_call_local, fn, a): i for i, a in enumerate(args)}
-        return _collect(futures, len(args), on_done)
+        try:
+            # The workers start (spawn: fork + exec) on submit. SIGINT is ignored meanwhile, a few
+            # milliseconds: they inherit it ignored and so never raise KeyboardInterrupt, not even while
+            # they start (a worker that died then left Process.start blocked in its pipe write).
+            with _sigint_ignored():
+                if self._pool is None:
+                    self._pool = ProcessPoolExecutor(self.backend.jobs, mp_context=get_context("spawn"),
+                                                     initializer=_init_worker, initargs=(os.getpid(),))
+                if self._pool_shared is not shared:
+                    # Pickled once here; it travels with every task (the start of a worker stays small and
+                    # quick) and is unpickled once per worker, after the worker pinned its threads:
+                    # unpickling it imports numba, which reads NUMBA_NUM_THREADS once (see pin_threads).
+                    blob = None if shared is _NO_SHARED else pickle.dumps(shared, pickle.HIGHEST_PROTOCOL)
+                    self._pool_shared, self._pool_blob = shared, (next(_SHARED_KEYS), blob)
+                key, blob = self._pool_blob
+                futures = {self._pool.submit(_call_local, fn, a, key, blob): i for i, a in enumerate(args)}
+            return _collect(futures, len(args), on_done)
+        except BaseException:  # an interrupt, a failed task: stop every worker now, not after its task
+            self._kill_pool()
+            raise
 
     def _close_pool(self) -> None:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+        self._pool_shared, self._pool_blob = _NO_SHARED, (-1, None)
+
+    def _kill_pool(self) -> None:
+        """Kill the worker processes (SIGKILL) and wait for them; a second Ctrl-C cannot cut this short."""
+        pool, self._pool, self._pool_shared, self._pool_blob = self._pool, None, _NO_SHARED, (-1, None)
+        if pool is None:
+            return
+        with _sigint_ignored():
+            procs = list((getattr(pool, "_processes", None) or {}).values())  # no public handle before 3.14
+            for p in procs:
+                try:
+                    p.kill()
+                except (OSError, ValueError):  # already gone, or closed
+                    pass
+            pool.shutdown(wait=False, cancel_futures=True)
+            for p in procs:
+                try:
+                    p.join(timeout=10)
+                except (OSError, ValueError, AssertionError):
+                    pass
 
     # --- Ray -------------------------------------------------------------------------------------
 
@@ -225,6 +274,14 @@ def backend_from_options(jobs: int, ray: str | None) -> Backend:
     return backend
 
 
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system has one, else all)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:
+        return max(1, os.cpu_count() or 1)
+
+
 def parallel_map(fn: Callable, args: Sequence, backend: Backend = SERIAL, shared: Any = _NO_SHARED,
                  on_done: OnDone | None = None) -> list:
     """One :meth:`Executor.map` on a backend opened and closed for it."""
@@ -233,8 +290,19 @@ def parallel_map(fn: Callable, args: Sequence, backend: Backend = SERIAL, shared
 
 
 def pin_threads() -> None:
-    """One thread per task for numba's parallel kernel and BLAS (the workers are the parallelism)."""
+    """One thread per task for numba's parallel kernel and BLAS (the workers are the parallelism).
+
+    numba reads ``NUMBA_NUM_THREADS`` when it is imported and re-reads it at every compile, refusing a
+    value that differs from the one its thread pool was launched with. So the variable is set only while
+    numba is not yet loaded; once it is (a task's arguments import it on unpickling, e.g. in a Ray
+    worker), changing it would make the next compilation fail ("Cannot set NUMBA_NUM_THREADS to a
+    different value once the threads have been launched") on a cold cache, and ``set_num_threads(1)``
+    alone limits the threads that run.
+    """
+    numba_loaded = "numba" in sys.modules
     for k in THREAD_ENV:
+        if k == "NUMBA_NUM_THREADS" and numba_loaded:
+            continue
         os.environ[k] = "1"
     try:
         import numba
@@ -250,14 +318,57 @@ def pin_threads() -> None:
         pass
 
 
-def _init_worker(has_shared: bool, shared: Any) -> None:
-    global _worker_shared
+def _init_worker(parent: int) -> None:
+    """A local worker's start: SIGINT ignored (also inherited so), die with ``parent`` (pid), one thread."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops the workers
+    _die_with_parent(parent)
     pin_threads()
-    _worker_shared = shared if has_shared else _NO_SHARED  # the sentinel itself does not survive pickling
 
 
-def _call_local(fn: Callable, a: Any) -> Any:
-    return fn(a) if _worker_shared is _NO_SHARED else fn(_worker_shared, a)
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+WATCH_PARENT_S = 0.5  # how often a worker checks that its parent lives (where PR_SET_PDEATHSIG is missing)
+
+
+def _die_with_parent(parent: int) -> None:
+    """Make this worker end when its parent process ends, however it ends (SIGKILL included)."""
+    if sys.platform.startswith("linux"):
+        try:  # the kernel sends SIGKILL when the parent exits
+            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:  # the parent died before the above took effect
+        os._exit(1)
+
+    def watch() -> None:  # also where prctl is missing (checks between the kernel's calls, which hold the GIL)
+        while True:
+            time.sleep(WATCH_PARENT_S)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="omni-gym-parent-watch", daemon=True).start()
+
+
+@contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored for the ``with`` block (processes started inside inherit it ignored, before their
+    Python even starts); the previous handler afterwards. A no-op off the main thread (handlers live there)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _call_local(fn: Callable, a: Any, key: int, blob: bytes | None) -> Any:
+    global _worker_shared
+    if blob is None:
+        return fn(a)
+    if _worker_shared[0] != key:  # a new shared input: unpickled once per worker
+        _worker_shared = (key, pickle.loads(blob))
+    return fn(_worker_shared[1], a)
 
 
 def _call_ray(fn: Callable, a: Any, shared: Any, has_shared: bool) -> Any:

@@ -301,6 +301,87 @@ def test_simulate_never_writes_a_non_finite_number(tmp_path, capsys, monkeypatch
     assert code == 2 and "non-finite at t = 0.5 s" in line and not out.exists()
 
 
+def test_refused_simulate_leaves_no_folder_it_created(tmp_path, capsys):
+    """--out in folders that do not exist: they appear with the output, never for a refused run."""
+    cmds = tmp_path / "c.csv"
+    cmds.write_text("t,w1,w2,w3\n0,1,1,1\n1,0,0,0\n")
+    out = tmp_path / "nodir" / "sub" / "traj.csv"
+    for argv in (["--commands", str(tmp_path / "missing.csv")], ["--commands", str(cmds), "--seed", "-1"]):
+        assert main(["simulate", "--model", "williams2002", "--out", str(out), *argv]) == 2
+        _one_error_line(capsys)
+        assert not (tmp_path / "nodir").exists()
+    assert main(["simulate", "--model", "williams2002", "--out", str(out), "--commands", str(cmds)]) == 0
+    assert out.is_file() and sorted(p.name for p in out.parent.iterdir()) == ["traj.csv"]  # no lock, no temporary
+
+
+def _fake_gap(monkeypatch) -> list:
+    """Replace the workflow by a recorder of its backend (the CLI's checks and messages are under test)."""
+    import omni_gym.discrepancy.workflow as workflow
+
+    seen = []
+    monkeypatch.setattr(workflow, "gap", lambda *a, backend, **kw: seen.append(backend) or {})
+    return seen
+
+
+@pytest.mark.parametrize(("value", "expected"), [
+    ("0", "--jobs must be an integer in [1, 1024], got 0"),
+    ("1000000000000000000000000000000", "--jobs must be an integer in [1, 1024], got 1000000000000000000000000000000"),
+    ("-3", "--jobs must be an integer in [1, 1024], got -3"),
+])
+def test_gap_jobs_out_of_bounds_is_one_line_naming_the_option(tmp_path, capsys, monkeypatch, value, expected):
+    seen = _fake_gap(monkeypatch)
+    assert main(["gap", str(tmp_path / "ds"), "--out", str(tmp_path / "rep"), "--jobs", value]) == 2
+    assert expected in _one_error_line(capsys)
+    assert not seen and not (tmp_path / "rep").exists()
+
+
+def test_gap_jobs_beyond_the_cores_is_capped_with_a_warning(tmp_path, capsys, monkeypatch):
+    import omni_gym.cli
+
+    seen = _fake_gap(monkeypatch)
+    monkeypatch.setattr(omni_gym.cli, "usable_cores", lambda: 2)
+    assert main(["gap", str(tmp_path / "ds"), "--out", str(tmp_path / "rep"), "--jobs", "64", "--json"]) == 0
+    err = capsys.readouterr().err
+    assert "warning: --jobs 64 is more than the 2 cores" in err and "running 2 local processes" in err
+    assert seen[0].jobs == 2
+    assert main(["gap", str(tmp_path / "ds"), "--out", str(tmp_path / "rep"), "--jobs", "2", "--json"]) == 0
+    assert "warning" not in capsys.readouterr().err and seen[1].jobs == 2
+
+
+def test_gap_fit_budget_below_the_minimum_says_the_minimum(tmp_path, capsys, monkeypatch):
+    from omni_gym.discrepancy.budget import MIN_FIT_BUDGET, MIN_SEGMENT
+
+    seen = _fake_gap(monkeypatch)
+    assert main(["gap", str(tmp_path / "ds"), "--out", str(tmp_path / "rep"), "--fit-budget", "0.5"]) == 2
+    line = _one_error_line(capsys)
+    assert f"--fit-budget must be at least {MIN_FIT_BUDGET:g} s" in line and "got 0.5" in line
+    assert MIN_FIT_BUDGET == 2 * MIN_SEGMENT  # two runs' shortest segments: held-out folds need 2 source runs
+    for ok in (str(MIN_FIT_BUDGET), "inf"):
+        assert main(["gap", str(tmp_path / "ds"), "--out", str(tmp_path / "rep"), "--fit-budget", ok, "--json"]) == 0
+    assert len(seen) == 2
+
+
+def test_gap_help_states_the_segment_length_gap_uses(capsys):
+    from omni_gym.discrepancy.budget import FIT_BUDGET, segment_seconds
+
+    with pytest.raises(SystemExit):
+        main(["gap", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"24 runs and the default: {segment_seconds(FIT_BUDGET, 24):g} s" in text
+    assert "10 s segments" not in text
+
+
+def test_an_overflow_anywhere_is_one_line(tmp_path, capsys, monkeypatch):
+    import omni_gym.discrepancy.workflow as workflow
+
+    def overflow(*args, **kwargs):
+        return int(float(10**400))  # OverflowError: int too large to convert to float
+
+    monkeypatch.setattr(workflow, "gap", overflow)
+    assert main(["gap", str(tmp_path / "ds"), "--out", str(tmp_path / "rep")]) == 2
+    assert "too large" in _one_error_line(capsys)
+
+
 # --- the bounds table and the docs --------------------------------------------------------------
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"

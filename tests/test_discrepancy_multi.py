@@ -107,6 +107,6 @@ def test_cli_passes_max_effects_and_refuses_zero(two_effects, tmp_path, capsys, 
     assert seen["max_effects"] == 1
     assert main(["gap", str(two_effects), "--out", str(tmp_path / "zero"), "--max-effects", "0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err[-1].endswith("--max-effects must be an integer >= 1, got 0") and not (tmp_path / "zero").exists()
+    assert err[-1].endswith("--max-effects must be an integer in [1, 100], got 0") and not (tmp_path / "zero").exists()
     with pytest.raises(ValueError, match="max_effects must be an integer >= 1"):
         gap(two_effects, None, max_effects=0)

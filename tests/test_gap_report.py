@@ -162,6 +162,11 @@ def test_unexplained_report_compares_one_kind_of_percentage_and_gives_next_steps
     assert "not in the library" in steps.lower() and "drag" in steps  # the effect that is not there
     assert "model.json" in report and "omni-gym simulate --model" in report and 'model=\\"' not in report
     assert 'gym.make(ENV_ID, model="REPORT/model.json")' in report
+    # The kinematic calibration, as the next thing to try; how much data was fitted; how the gap relates
+    # to score's whole-run error.
+    assert f"`omni-gym calibrate {folder} --out model.json`" in steps
+    assert "**Data fitted**: all 3 runs, 6.0 s of robot time" in report  # 3 runs of 2 s: within the budget
+    assert "This gap and `omni-gym score`" in report
 
 
 def test_named_effect_headline_and_ranking_agree(lag_dataset, tmp_path, only_motor_lag):
@@ -264,3 +269,92 @@ def test_none_outcome_says_what_none_means_and_what_to_try(tmp_path, only_motor_
     steps = report[report.index("## Next steps"):report.index("## How to read")]
     assert "within the tracker noise" in steps and "nominal model" in steps and "more and longer runs" in steps
     assert "the nominal model unchanged" in report  # what model.json then holds
+
+
+# --- how much data was fitted, imported logs, plots ---------------------------------------------------
+
+
+def test_report_says_how_much_of_the_data_the_fit_budget_used(tmp_path, only_motor_lag):
+    folder = tmp_path / "long"
+    write_synthetic(folder, nominal_model(), 'motor_lag:{"tau": 0.08}', 3, 0.001, 2, 4.0)
+    total = sum(r.t[-1] - r.t[0] for r in load_dataset(folder).runs)  # 12 s of robot time
+    result = workflow.gap(folder, tmp_path / "rep", progress=False, plots=False, fit_budget=6.0)
+    fitted = result["dataset"]["fitted"]
+    assert fitted["segmented"] and fitted["total_seconds"] == pytest.approx(total)
+    assert fitted["seconds"] <= 6.0 + 1e-9 and result["settings"]["fit_budget"] == 6.0
+    report = (tmp_path / "rep" / "report.md").read_text()
+    assert (f"**Data fitted**: {fitted['seconds']:.0f} s of the {total:.0f} s of robot time "
+            f"({100 * fitted['seconds'] / total:.0f} %), as {fitted['fitted_runs']} segments of at most "
+            f"{fitted['segment_seconds']:g} s from 3 runs") in report
+    assert "fit budget 6 s" in report
+    # Segments are short and start from the tracked state: the report says why score's whole-run
+    # error is larger.
+    assert "drift that builds up over a whole run" in report
+
+
+def test_commands_taken_from_the_encoders_drop_the_actuation_figures(lag_dataset, tmp_path, only_motor_lag):
+    """An imported log whose commands are the encoder speeds: encoder − command is round-off, not shown."""
+    ds = load_dataset(lag_dataset)
+    for run in ds.runs:  # the encoders integrate the commands exactly (as the importers derive commands)
+        run.enc = np.vstack([np.zeros((1, run.cmd.shape[1])),
+                             np.cumsum(run.cmd[:-1] * np.diff(run.t)[:, None], axis=0)])
+    folder = tmp_path / "imported"
+    write_dataset(folder, ds.model_json, ds.description, ds.runs)
+    result = workflow.gap(folder, tmp_path / "rep", progress=False, plots=False)
+    where = result["where"]
+    assert where["commands_from_encoders"] is True
+    assert max(w["actuation_rms"] for w in where["wheels"].values()) < 1e-9  # round-off, what the flag means
+    report = (tmp_path / "rep" / "report.md").read_text()
+    assert "encoder − command RMS" not in report and "r·encoder − ground speed RMS" in report
+    assert "disagrees most with its command" not in " ".join(where["summary"])
+    # The synthetic encoders (wheel dynamics under a motor lag) are not flagged.
+    assert "commands_from_encoders" not in workflow.gap(lag_dataset, None, progress=False)["where"]
+
+
+def _record_figures(monkeypatch) -> dict:
+    """Capture every figure the report saves, by file name (and still save it)."""
+    from omni_gym.discrepancy import report
+
+    figures = {}
+    save = report._save
+
+    def recording(fig, out, name):
+        figures[name] = fig
+        return save(fig, out, name)
+
+    monkeypatch.setattr(report, "_save", recording)
+    return figures
+
+
+def _legend(fig) -> list[str]:
+    return [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]
+
+
+def test_plots_show_one_nominal_curve_when_no_effect_is_named(tmp_path, only_motor_lag, monkeypatch):
+    figures = _record_figures(monkeypatch)
+    write_synthetic(tmp_path / "null", nominal_model(), "none", 3, 0.001, 4, 1.5)
+    ds = load_dataset(tmp_path / "null")
+    for i, run in enumerate(ds.runs):  # names as long as real logs' segments: they take the figure's height
+        run.name = f"2024-05-01_optiodom_session_{i:02d}_run-{i:02d}@120s"
+    folder = tmp_path / "long_names"
+    write_dataset(folder, ds.model_json, ds.description, ds.runs)
+    assert workflow.gap(folder, tmp_path / "rep", progress=False)["effects"] == []
+    assert _legend(figures["paths.png"]) == ["measured", "nominal"]  # no "with nominal" on top of it
+    assert _legend(figures["residuals.png"]) == ["nominal"]
+    where = figures["where.png"]
+    for ax in where.axes:  # every label inside the saved figure (the third one was cut off)
+        box = ax.yaxis.label.get_window_extent()
+        assert box.y0 >= 0 and box.y1 <= where.bbox.height and box.x0 >= 0, ax.get_ylabel()
+    assert not any("elsewhere" in ax.get_ylabel() for ax in where.axes)
+
+
+def test_staircase_title_says_what_ended_the_search(lag_dataset, tmp_path, monkeypatch):
+    two = ("motor_lag", "wheel_radius")  # a second candidate: the search goes on after motor_lag and ends
+    monkeypatch.setattr(workflow, "candidates",
+                        lambda model: [c for c in candidates.candidates(model) if c.name in two])
+    figures = _record_figures(monkeypatch)
+    result = workflow.gap(lag_dataset, tmp_path / "rep", progress=False)
+    assert result["effects"] == ["motor_lag"] and result["steps"][-1]["effect"] == "none"
+    assert _legend(figures["paths.png"]) == ["measured", "nominal", "with motor_lag"]
+    title = figures["staircase.png"].axes[0].get_title()
+    assert "then: none" not in title and "found no further effect (none)" in title

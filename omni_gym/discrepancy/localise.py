@@ -16,7 +16,9 @@ Findings (all in the ``where`` object of ``result.json``):
   modulation means an effect tied to the roller period (rigid material between rollers);
 * ``wheels`` (when encoders are present): per wheel, encoder speed − command (actuation) and
   r·encoder speed − the wheel's ground speed from the tracker (rolling): which wheel breaks
-  consistency.
+  consistency. ``commands_from_encoders`` (true only): every wheel's actuation RMS is below
+  :data:`ACTUATION_EXACT`, i.e. the commands are the encoder speeds themselves (an imported log that
+  has no commanded speeds): the actuation figures are round-off and mean nothing.
 """
 
 from __future__ import annotations
@@ -32,6 +34,9 @@ from omni_gym.physics.model import SimModel
 
 WINDOW = 0.5  # s, shooting window: long enough to show an error growing above tracker noise
 PHASE_BINS = 8
+# rad/s: encoder − command RMS below this is round-off (commands derived from the encoders give ~1e-13);
+# any real motor, driver or encoder quantisation leaves orders of magnitude more.
+ACTUATION_EXACT = 1e-9
 GROWTH_ROWS = 5  # rows (0.1 s at 50 Hz) over which the local growth of the shooting residual is taken
 
 
@@ -166,6 +171,9 @@ def localise(ds: Dataset, model: SimModel, lever: float, open_loop: list[np.ndar
         out["note"] = "no densely observed rows: only open-loop end errors per run are available"
     if any(run.enc is not None for run in runs):
         out["wheels"] = _wheel_consistency(runs, model, rates)
+        act = [v["actuation_rms"] for v in out["wheels"].values() if v["actuation_rms"] is not None]
+        if act and max(act) < ACTUATION_EXACT:
+            out["commands_from_encoders"] = True
     out["summary"] = _summary(out)
     return out
 
@@ -247,7 +255,9 @@ def _summary(where: dict) -> list[str]:
             lines.append(f"{wheel}: local error modulated {ph['modulation']:.1f}x over the roller pitch")
     wheels = where.get("wheels")
     if wheels:
-        for key, label in (("actuation_rms", "its command"), ("rolling_rms", "its ground speed")):
+        keys = (("rolling_rms", "its ground speed"),) if where.get("commands_from_encoders") else \
+            (("actuation_rms", "its command"), ("rolling_rms", "its ground speed"))
+        for key, label in keys:
             vals = {w: v[key] for w, v in wheels.items() if v[key] is not None}
             if len(vals) > 1:
                 top = max(vals, key=vals.get)

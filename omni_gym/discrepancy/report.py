@@ -11,6 +11,7 @@ from omni_gym import outputs
 from omni_gym.checks import wrap_angle
 from omni_gym.discrepancy.dataset import Dataset
 from omni_gym.discrepancy.finite import dumps_strict
+from omni_gym.discrepancy.localise import WINDOW
 from omni_gym.discrepancy.plausible import UNITS
 from omni_gym.discrepancy.simulate import Job, simulate_jobs
 from omni_gym.physics.model import SimModel
@@ -44,9 +45,7 @@ def markdown(result: dict, figures: list[str]) -> str:
     lines = [f"# Model-discrepancy report: `{effect}`", "",
              f"Dataset `{result['dataset']['path']}`: {result['dataset']['runs']} runs. "
              f"{result['dataset']['description']}", ""]
-    fitted = result["dataset"].get("fitted", {})
-    if fitted.get("segmented"):
-        lines += [f"Fitted on {fitted['description']} (`--fit-budget`); every run below is such a segment.", ""]
+    lines += _fitted_lines(result)
     lines += [f"**Outcome: `{effect}`**: {result['why']}.", ""]
     if result.get("params"):
         lines += ["Fitted parameters:", ""] + _param_lines(effect, result["params"]) + [""]
@@ -57,7 +56,7 @@ def markdown(result: dict, figures: list[str]) -> str:
         lines += [f"* ⚠ {f['param']} = {f['value']:.4g}, plausible [{f['lo']:.4g}, {f['hi']:.4g}]: {f['why']}"
                   for f in flags] + [""]
     lines += _steps_lines(result)
-    lines += _model_json_lines(effect)
+    lines += _model_json_lines(effect, result.get("effects") or [])
     if effect in ("unexplained", "none"):
         lines += _next_steps(result)
     if result.get("non_finite"):
@@ -134,10 +133,32 @@ def _param_lines(effect: str, params: dict) -> list[str]:
     return out
 
 
-def _model_json_lines(effect: str) -> list[str]:
+def _fitted_lines(result: dict) -> list[str]:
+    """How much of the data the fit used: the fit budget's share of the robot time, and the segments."""
+    f = result["dataset"].get("fitted", {})
+    if not f:
+        return []
+    budget = result["settings"].get("fit_budget")
+    limit = "no limit (`--fit-budget inf`)" if budget is None else f"{budget:g} s"
+    if not f.get("segmented"):
+        return [f"**Data fitted**: all {f['source_runs']} runs, {f['seconds']:.1f} s of robot time (fit budget "
+                f"{limit}: the whole runs fit within it).", ""]
+    share = f["seconds"] / f["total_seconds"] if f["total_seconds"] > 0 else None
+    return [f"**Data fitted**: {f['seconds']:.0f} s of the {f['total_seconds']:.0f} s of robot time ({_pct(share)}), "
+            f"as {f['fitted_runs']} segments of at most {f['segment_seconds']:g} s from {f['source_runs']} runs, "
+            f"each replayed from the tracked state at its start (fit budget {limit}; a larger `--fit-budget` fits "
+            "more of the data, slower). Every run in the tables below is such a segment.", ""]
+
+
+def _model_json_lines(effect: str, effects: list[str]) -> list[str]:
     """What model.json is for."""
-    what = ("the nominal model with the named effect and its fitted parameters added (the extended model)"
-            if effect not in ("unexplained", "none") else "the nominal model unchanged (no effect was named)")
+    if effect not in ("unexplained", "none"):
+        what = "the nominal model with the named effect and its fitted parameters added (the extended model)"
+    elif effects:
+        what = (f"the nominal model with {' + '.join(effects)} added as fitted, although together they do not "
+                "explain the gap (see the outcome)")
+    else:
+        what = "the nominal model unchanged (no effect was named)"
     return ["## model.json", "",
             f"`model.json` in this folder is {what}, in the model JSON format (`docs/formats.md`). Use it:", "",
             "* replay wheel commands: `omni-gym simulate --model REPORT/model.json --commands cmds.csv "
@@ -164,7 +185,23 @@ def _how_to_read(result: dict) -> list[str]:
             "resamples) to count as better than nominal at all.",
             "* The two differ because one is squared and the other is not: removing 64 % of the gap leaves "
             "(1 − 0.64)² = 13 % of the squared gap, so with little noise the MSE reduction is about 87 %. "
-            "Compare gap removed with gap removed, and MSE reduction with MSE reduction.", ""]
+            "Compare gap removed with gap removed, and MSE reduction with MSE reduction.",
+            _score_relation(result), ""]
+
+
+def _score_relation(result: dict) -> str:
+    """How the report's gap relates to ``omni-gym score``'s whole-run position error."""
+    f = result["dataset"].get("fitted", {})
+    if f.get("segmented"):
+        return (f"* **This gap and `omni-gym score`**: the errors here are those of segments of at most "
+                f"{f['segment_seconds']:g} s, each replayed from the tracked state at its start; `score` replays "
+                "every whole run open loop from its first pose, so its position RMS also holds the drift that "
+                "builds up over a whole run, which short segments under-weight: expect it to be larger, and check "
+                "model.json on whole runs with `omni-gym score DATASET --model REPORT/model.json`.")
+    return ("* **This gap and `omni-gym score`**: both replay whole runs open loop; `score` gives each run's "
+            "position RMS (x, y, tracker noise included) and their plain mean, while the gap here also counts "
+            "heading × lever, takes the geometric mean over runs and removes the noise floor, so the two differ in "
+            "size. Use `omni-gym score DATASET --model REPORT/model.json` to check model.json on new runs.")
 
 
 def _next_steps(result: dict) -> list[str]:
@@ -185,6 +222,12 @@ def _next_steps(result: dict) -> list[str]:
                     "(wheel_radius, com_offset), long runs (wheel_liftoff); more and longer runs, or a less noisy "
                     "tracker, make a small effect visible."]
         return out + [""]
+    out += [f"* **Kinematic calibration**: `omni-gym calibrate {result['dataset']['path']} --out model.json` fits the "
+            "wheel geometry and radii of a slip-free model to the logs, in seconds. When the runs barely slip (a "
+            "grip floor, odometry logs) it can predict new runs much better than the nominal model; compare the two "
+            f"with `omni-gym score {result['dataset']['path']} --model model.json` (better: on runs neither has "
+            "seen)."] \
+        if result["effect"] == "unexplained" else []
     runs = sorted((r for r in w["runs"] if r["open_loop_rms"] is not None), key=lambda r: -r["open_loop_rms"])
     if runs:
         ol = float(np.median([r["open_loop_rms"] for r in runs]))
@@ -214,8 +257,9 @@ def _next_steps(result: dict) -> list[str]:
         out.append(f"* The error is modulated over the roller pitch ({k} {mod[k]:.1f}× its mean): check the "
                    "rollers of that wheel (worn, stuck or missing rollers, the gap between them).")
     wheels = w.get("wheels", {})
-    for key, what in (("actuation_rms", "its encoder does not follow the command (motor, driver, encoder)"),
-                      ("rolling_rms", "its rim speed does not match its ground speed (radius, slip, contact)")):
+    checks = [("actuation_rms", "its encoder does not follow the command (motor, driver, encoder)"),
+              ("rolling_rms", "its rim speed does not match its ground speed (radius, slip, contact)")]
+    for key, what in checks[w.get("commands_from_encoders", False):]:  # commands = encoders: no actuation check
         vals = {k: v[key] for k, v in wheels.items() if v.get(key) is not None}
         if len(vals) >= 2:
             k = max(vals, key=vals.get)
@@ -256,7 +300,12 @@ def _where_lines(w: dict) -> list[str]:
         lines += ["", "Modulation of the local error over the roller pitch (max bin / mean; 1 = none): "
                   + ", ".join(f"{k} {v['modulation']:.2f}" for k, v in w["wheel_phase"].items()
                               if v["modulation"] is not None)]
-    if w.get("wheels"):
+    if w.get("wheels") and w.get("commands_from_encoders"):
+        lines += ["", "The wheel commands are the encoder speeds themselves (a log without commanded speeds), so "
+                  "encoder − command is not shown (it is round-off).", "",
+                  "| wheel | r·encoder − ground speed RMS [m/s] |", "|---|---|"]
+        lines += [f"| {k} | {_num(v['rolling_rms'])} |" for k, v in w["wheels"].items()]
+    elif w.get("wheels"):
         lines += ["", "| wheel | encoder − command RMS [rad/s] | r·encoder − ground speed RMS [m/s] |", "|---|---|---|"]
         for k, v in w["wheels"].items():
             lines.append(f"| {k} | {_num(v['actuation_rms'])} | {_num(v['rolling_rms'])} |")
@@ -320,17 +369,20 @@ def _plots(out: Path, result: dict, ds: Dataset, nominal: SimModel, model: SimMo
     order = sorted(range(len(ds.runs)), key=lambda i: -(result["where"]["runs"][i]["open_loop_rms"] or 0.0))
     shown = order[:PLOTTED_RUNS]
     runs = [ds.runs[i] for i in shown]
-    sims = simulate_jobs([Job(m, r) for m in (nominal, model) for r in runs], dt=dt)
-    nom, fit = sims[:len(runs)], sims[len(runs):]
     named = result.get("effects") or []
-    label = " + ".join(named) if named else "nominal"
+    # The extended model's curve only when it differs from the nominal one (no effect added: one curve).
+    models = (nominal, model) if named else (nominal,)
+    sims = simulate_jobs([Job(m, r) for m in models for r in runs], dt=dt)
+    curves = [("nominal", "-", "tab:red", sims[:len(runs)])]
+    if named:
+        curves.append((f"with {' + '.join(named)}", "--", "tab:blue", sims[len(runs):]))
     files = []
     fig, axes = plt.subplots(1, len(runs), figsize=(4 * len(runs), 4), squeeze=False)
-    for ax, run, (pn, _), (pf, _) in zip(axes[0], runs, nom, fit, strict=True):
+    for j, (ax, run) in enumerate(zip(axes[0], runs, strict=True)):
         ok = run.observed
         ax.plot(run.pose[ok, 0], run.pose[ok, 1], ".", ms=2, color="k", label="measured")
-        ax.plot(pn[:, 0], pn[:, 1], "-", color="tab:red", label="nominal")
-        ax.plot(pf[:, 0], pf[:, 1], "--", color="tab:blue", label=f"with {label}")
+        for name, style, color, sim in curves:
+            ax.plot(sim[j][0][:, 0], sim[j][0][:, 1], style, color=color, label=name)
         ax.set_title(run.name)
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
@@ -339,40 +391,45 @@ def _plots(out: Path, result: dict, ds: Dataset, nominal: SimModel, model: SimMo
     fig.tight_layout()
     files.append(_save(fig, out, "paths.png"))
     fig, axes = plt.subplots(len(runs), 1, figsize=(8, 2.2 * len(runs)), squeeze=False, sharex=True)
-    for ax, run, (pn, _), (pf, _) in zip(axes[:, 0], runs, nom, fit, strict=True):
-        for p, style, name in ((pn, "-", "nominal"), (pf, "--", f"with {label}")):
-            r = run.pose - p
+    for j, (ax, run) in enumerate(zip(axes[:, 0], runs, strict=True)):
+        for name, style, color, sim in curves:
+            r = run.pose - sim[j][0]
             r[:, 2] = wrap_angle(r[:, 2]) * lever
             ok = np.all(np.isfinite(r), axis=1)
-            ax.plot(run.t[ok], 1e3 * np.linalg.norm(r[ok], axis=1), style, label=name)
+            ax.plot(run.t[ok], 1e3 * np.linalg.norm(r[ok], axis=1), style, color=color, label=name)
         ax.set_ylabel(f"{run.name}\n|residual| [mm]")
     axes[-1, 0].set_xlabel("t [s]")
     axes[0, 0].legend(fontsize=8)
     fig.tight_layout()
     files.append(_save(fig, out, "residuals.png"))
     w = result["where"]
-    fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
     names = [r["run"] for r in w["runs"]]
+    # The run names stand upright under the first panel (segments: "session_run-03@45s"); the figure grows
+    # with the longest, so the axes keep their height and the y-labels stay inside the figure.
+    fig, axes = plt.subplots(1, 3, figsize=(14, 3.2 + 0.075 * max((len(n) for n in names), default=0)))
     x = np.arange(len(names))
     ol = [1e3 * (r["open_loop_rms"] or 0) for r in w["runs"]]
     sh = [1e3 * (r["shooting_rms"] or 0) for r in w["runs"]]
     axes[0].bar(x - 0.2, ol, 0.4, label="open loop")
-    axes[0].bar(x + 0.2, sh, 0.4, label="multiple shooting")
+    axes[0].bar(x + 0.2, sh, 0.4, label=f"restarted every {WINDOW:g} s")
+    axes[0].set_ylim(0, 1.3 * max(ol + sh + [1e-3]))  # room for the legend above the bars
     axes[0].set_xticks(x, names, rotation=90, fontsize=7)
     axes[0].set_ylabel("RMS residual [mm]")
     axes[0].legend(fontsize=8)
     axes[0].set_title("per run")
+    # How fast the model's error grows after a restart from the measured state (over 5 rows), in the rows
+    # of each condition divided by the same in all other rows (tracker noise removed): 1 = no difference.
     conds = w.get("conditions", {})
-    axes[1].bar(list(conds), [c["ratio"] or 0 for c in conds.values()])
+    axes[1].bar([k.replace("_", " ") for k in conds], [c["ratio"] or 0 for c in conds.values()])
     axes[1].axhline(1.0, color="k", lw=0.8)
-    axes[1].set_ylabel("local error growth: in / elsewhere")
-    axes[1].set_title("per condition")
+    axes[1].set_ylabel("error growth in these rows\n÷ in the other rows")
+    axes[1].set_title("where the error grows faster (1 = no difference)", fontsize=10)
     for k, v in w.get("wheel_phase", {}).items():
         bins = [np.nan if b is None else 1e6 * b for b in v["bins"]]
         axes[2].plot((np.arange(len(bins)) + 0.5) / len(bins), bins, "o-", label=k)
     axes[2].set_xlabel("wheel angle / roller pitch")
-    axes[2].set_ylabel("mean squared growth over 5 rows [mm²]")
-    axes[2].set_title("per roller phase")
+    axes[2].set_ylabel("error growth over 5 rows\n(mean square) [mm²]")
+    axes[2].set_title("error growth by roller position", fontsize=10)
     if w.get("wheel_phase"):
         axes[2].legend(fontsize=8)
     fig.tight_layout()
@@ -395,7 +452,12 @@ def _staircase(plt, out: Path, result: dict) -> str:
     ax.set_xticks(x, labels)
     ax.set_ylabel("held-out gap beyond noise [mm]")
     ax.set_ylim(bottom=0)
-    ax.set_title(f"then: {steps[-1]['effect']}" if steps[-1].get("params") is None else "search stopped at the limit")
+    last = steps[-1]
+    ended = {"none": "then the search found no further effect (none)",
+             "unexplained": "then a gap remains that no candidate explains (unexplained)"}
+    how = (ended.get(last["effect"], f"then {last['effect']}") if last.get("params") is None
+           else "stopped at --max-effects, a random effect, or the last candidate")
+    ax.set_title(f"Held-out gap left after each effect added;\n{how}", fontsize=10)
     fig.tight_layout()
     return _save(fig, out, "staircase.png")
 

@@ -31,12 +31,16 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from omni_gym.discrepancy.budget import (  # noqa: F401 -- FIT_BUDGET, MIN_FIT_BUDGET, check_fit_budget: re-exported
+    FIT_BUDGET,
+    MIN_FIT_BUDGET,
+    SEGMENT,
+    check_fit_budget,
+    segment_seconds,
+)
 from omni_gym.discrepancy.dataset import Dataset, Run
 from omni_gym.discrepancy.localise import local_pose_fit, wheel_angles
 
-FIT_BUDGET = 120.0  # s of robot time fitted at most (``gap --fit-budget``)
-SEGMENT = 10.0  # s: longest segment (long enough for geometry and slip errors to grow well above tracker noise)
-MIN_SEGMENT = 3.0  # s: shortest segment, however many runs share the budget
 MIN_TAIL = 0.5  # shortest tail piece kept, as a share of the segment length
 GOLDEN = 0.6180339887498949  # spreads each run's first sampled piece over the run's time
 
@@ -85,7 +89,7 @@ def fit_data(ds: Dataset, budget: float = FIT_BUDGET, segment: float = SEGMENT) 
     R = len(ds.runs)
     if total <= budget:
         return FitData(ds, np.arange(R), False, total, total, R, None)
-    seg = float(min(segment, max(MIN_SEGMENT, budget / R)))
+    seg = segment_seconds(budget, R, segment)
     per_run = [_pieces(run, seg) for run in ds.runs]
     chosen: list[tuple[int, int]] = []  # (run, piece index)
     taken: list[set[int]] = [set() for _ in per_run]  # piece indices chosen, per run

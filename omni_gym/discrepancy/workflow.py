@@ -41,7 +41,7 @@ from omni_gym.discrepancy.fitting import Evaluator, FitResult, fit_candidate, ma
 from omni_gym.discrepancy.localise import localise
 from omni_gym.discrepancy.outliers import OUTLIER_RULE, drop_outliers, find_outliers
 from omni_gym.discrepancy.residuals import count_components, geo_mse
-from omni_gym.discrepancy.segments import FIT_BUDGET, fit_data
+from omni_gym.discrepancy.segments import FIT_BUDGET, check_fit_budget, fit_data
 from omni_gym.discrepancy.simulate import FIT_DT
 from omni_gym.discrepancy.synth import pose_lever
 from omni_gym.outputs import Output
@@ -72,8 +72,7 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     """
     if isinstance(max_effects, bool) or not isinstance(max_effects, int) or max_effects < 1:
         raise ValueError(f"max_effects must be an integer >= 1, got {max_effects!r}")
-    if isinstance(fit_budget, bool) or not isinstance(fit_budget, (int, float)) or not fit_budget > 0:
-        raise ValueError(f"fit_budget must be a positive number of seconds (inf: no limit), got {fit_budget!r}")
+    check_fit_budget(fit_budget)
     if out is None:
         return _gap(dataset, None, seed, folds, progress, dt, plots, max_effects, fit_budget, backend)
     with Output(Path(out), "dir", force=force, inputs=[dataset], marker="result.json", what="gap report") as tx:
@@ -327,6 +326,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     result["where"] = where
     result["settings"] = {"seed": seed, "folds": int(fold_of.max()) + 1, "dt": dt, "lever": lever,
                           "max_effects": max_effects,
+                          "fit_budget": None if math.isinf(fit_budget) else float(fit_budget),  # None: no limit
                           "liftoff": EVENT_METHOD, "rules": RULES, "robot_runs_simulated": ev.simulated}
     result["dataset"] = {"path": str(dataset), "runs": fitted.source_runs, "description": ds.description,
                          "fitted": fitted.to_json()}

@@ -1,0 +1,76 @@
+"""Ctrl-C in the ``omni-gym`` command line: one line ``omni-gym: interrupted`` and exit status 130.
+
+Two phases. While the command starts (the console script imports :mod:`omni_gym`, which loads
+Gymnasium and numpy: the first ~0.2 s), nothing has been written yet, so :func:`guard_startup` makes an
+interrupt print the line and exit at once. From :func:`main_handler` on, the first interrupt raises
+``KeyboardInterrupt`` where the work is (so the output transaction is rolled back and worker processes
+are stopped on the way out), and later ones are ignored: the cleanup the first one started must not be
+cut short by a second Ctrl-C (a traceback, workers left behind).
+
+Only the command line installs these handlers; ``import omni_gym`` in a program of the user changes no
+signal handling (:func:`is_command_line`).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+from collections.abc import Callable
+from typing import Any
+
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, what a shell reports for a process ended by Ctrl-C
+MESSAGE = "omni-gym: interrupted"
+
+
+def is_command_line() -> bool:
+    """True in the ``omni-gym`` console script and in ``python -m omni_gym.cli`` (read from the
+    interpreter's own arguments, since ``sys.argv[0]`` is only ``-m`` while the package is imported)."""
+    mp = sys.modules.get("multiprocessing")
+    if mp is not None and mp.parent_process() is not None:  # a worker process: its parent handles Ctrl-C
+        return False
+    if sys.argv and os.path.basename(sys.argv[0]) in ("omni-gym", "omni-gym.exe"):
+        return True
+    argv = getattr(sys, "orig_argv", [])
+    return any(a == "-m" and nxt == "omni_gym.cli" for a, nxt in zip(argv, argv[1:], strict=False))
+
+
+def _startup_interrupt(signum: int, frame: Any) -> None:
+    os.write(2, (MESSAGE + "\n").encode())
+    os._exit(EXIT_INTERRUPTED)
+
+
+def guard_startup() -> None:
+    """In the command line only: an interrupt before :func:`main_handler` exits at once with the line.
+    An inherited ``SIG_IGN`` (a background job of a script) is respected."""
+    if (is_command_line() and threading.current_thread() is threading.main_thread()
+            and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+        signal.signal(signal.SIGINT, _startup_interrupt)
+
+
+def main_handler() -> Callable[[], None]:
+    """Install the work phase's handler (first interrupt raises ``KeyboardInterrupt``, later ones are
+    ignored); returns the function that restores the previous handler when ``main()`` returns, so that
+    ``main()`` called from Python (the tests) leaves the caller's handling as it found it. In the command
+    line after an interrupt, SIGINT stays ignored: Python's finalisation resets a Python-level handler to
+    the default, and a further Ctrl-C would then kill the exiting process (status -2, not 130).
+    A no-op off the main thread or under an inherited ``SIG_IGN``."""
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is signal.SIG_IGN:
+        return lambda: None
+    interrupted = []
+
+    def first(signum: int, frame: Any) -> None:
+        interrupted.append(signum)
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # the way out has begun: later interrupts wait for it
+        raise KeyboardInterrupt
+
+    def restore() -> None:
+        if not (interrupted and is_command_line()):
+            signal.signal(signal.SIGINT, previous)
+
+    signal.signal(signal.SIGINT, first)
+    return restore

@@ -1,0 +1,162 @@
+"""The command line under Ctrl-C and kill: one line and status 130, no output, no worker left behind.
+
+``gap --jobs 2`` runs its candidate fits in two worker processes. Whatever ends the parent (SIGINT,
+repeated; SIGKILL, which it cannot handle), the workers and multiprocessing's resource tracker must end
+with it, and an interrupt must leave no report. Processes are read from ``/proc`` (Linux; psutil is not
+a dependency).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from omni_gym.cli import main
+
+pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads processes from /proc (Linux)")
+
+# How long the workers may outlive their parent: the parent watch polls every 0.5 s and PR_SET_PDEATHSIG
+# acts at once; 5 s leaves room for a loaded 2-core machine.
+GONE_WITHIN_S = 5.0
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory) -> Path:
+    """A small synthetic dataset (4 runs of 3 s): gap on it runs long enough (about a minute with 2
+    workers) to be interrupted while the workers fit."""
+    out = tmp_path_factory.mktemp("interrupts") / "ds"
+    assert main(["synth", "--model", "williams2002", "--hidden", "viscous_drag", "--runs", "4", "--duration", "3",
+                 "--out", str(out)]) == 0
+    return out
+
+
+def _children(pid: int) -> dict[int, str]:
+    """pid -> command line of the processes whose parent is ``pid``."""
+    out = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+            cmd = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:  # ended meanwhile
+            continue
+        ppid = int(stat.rpartition(")")[2].split()[1])
+        if ppid == pid:
+            out[int(entry.name)] = cmd
+    return out
+
+
+def _alive(pid: int) -> bool:
+    """True while ``pid`` runs (a zombie, ended but not yet reaped by init, counts as gone)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0]
+    except OSError:
+        return False
+    return state not in ("Z", "X")
+
+
+def _start_gap(dataset: Path, out: Path) -> tuple[subprocess.Popen, dict[int, str]]:
+    """``gap --jobs 2`` in a new session (a signal reaches only the pids we name), waited for until its
+    two workers run; returns the process and its helper processes (workers and resource tracker)."""
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    proc = subprocess.Popen([sys.executable, "-m", "omni_gym.cli", "gap", str(dataset), "--out", str(out),
+                             "--jobs", "2", "--no-plots"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=env, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        kids = _children(proc.pid)
+        if sum("spawn_main" in c for c in kids.values()) == 2:
+            return proc, kids
+        if proc.poll() is not None:
+            break
+        time.sleep(0.1)
+    proc.kill()
+    out_, err = proc.communicate()
+    pytest.fail(f"gap --jobs 2 never had 2 workers running; stderr: {err[-2000:]}")
+
+
+def _wait_gone(pids, seconds: float) -> list[int]:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        left = [p for p in pids if _alive(p)]
+        if not left:
+            return []
+        time.sleep(0.1)
+    return [p for p in pids if _alive(p)]
+
+
+def _cleanup(pids) -> None:
+    for p in pids:
+        if _alive(p):
+            os.kill(p, signal.SIGKILL)
+
+
+def test_workers_die_with_a_killed_parent(dataset, tmp_path):
+    proc, helpers = _start_gap(dataset, tmp_path / "report")
+    time.sleep(1.0)  # the workers are inside their first fit
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.communicate(timeout=30)
+    try:
+        left = _wait_gone(helpers, GONE_WITHIN_S)
+        assert not left, f"still running {GONE_WITHIN_S} s after the parent was killed: " + "; ".join(
+            helpers[p][:120] for p in left)
+    finally:
+        _cleanup(helpers)
+    assert not (tmp_path / "report").exists()
+
+
+@pytest.mark.parametrize(("delay", "target"), [(0.5, "main"), (1.0, "group")])
+def test_interrupting_gap_with_workers_stops_them_and_writes_nothing(dataset, tmp_path, delay, target):
+    """SIGINT three times (the second and third while it stops the workers), to the main process only
+    (``timeout -s INT``) or to the whole process group (Ctrl-C in a terminal): it exits 130 within
+    seconds, says one line (no worker prints a KeyboardInterrupt), and leaves no report and no worker."""
+    out = tmp_path / "report"
+    proc, helpers = _start_gap(dataset, out)
+    time.sleep(delay)
+    try:
+        for _ in range(3):
+            if target == "main":
+                os.kill(proc.pid, signal.SIGINT)
+            else:
+                os.killpg(proc.pid, signal.SIGINT)  # its own session: the group is gap and its workers
+            time.sleep(0.15)
+        _, err = proc.communicate(timeout=30)  # it used to hang in multiprocessing's exit join
+        assert proc.returncode == 130, err[-2000:]
+        assert "Traceback" not in err and "KeyboardInterrupt" not in err, err[-2000:]
+        assert err.strip().splitlines()[-1] == "omni-gym: interrupted"
+        assert not _wait_gone(helpers, GONE_WITHIN_S)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        _cleanup(helpers)
+    assert not out.exists()
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".report")]  # no temporary, no lock
+
+
+@pytest.mark.parametrize("marker", ["numpy", "gymnasium.spaces"])
+def test_ctrl_c_while_the_command_starts_is_one_line(marker):
+    """An interrupt during the imports (Gymnasium, numpy: the first ~0.2 s) is one line and status 130.
+
+    The interrupt is sent when the process reports (``PYTHONPROFILEIMPORTTIME``, one stderr line per
+    finished import) that it imported ``marker``, which the package import loads after its Ctrl-C guard:
+    earlier, the interpreter itself is still starting (its own site import), which no program controls."""
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1]), "PYTHONPROFILEIMPORTTIME": "1"}
+    proc = subprocess.Popen([sys.executable, "-m", "omni_gym.cli", "model", "show", "williams2002"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    for line in proc.stderr:  # "import time: self | cumulative | [indent]module"
+        if line.startswith("import time:") and line.rpartition("|")[2].strip() == marker:
+            break
+    proc.send_signal(signal.SIGINT)
+    _, rest = proc.communicate(timeout=30)
+    err = [ln for ln in rest.splitlines() if not ln.startswith("import time:")]
+    if proc.returncode == 0:
+        pytest.skip(f"the command finished before the interrupt after {marker}")
+    assert proc.returncode == 130, "\n".join(err)
+    assert err == ["omni-gym: interrupted"], "\n".join(err)
