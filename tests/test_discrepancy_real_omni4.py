@@ -15,6 +15,7 @@ from omni_gym.discrepancy.candidates import candidates, not_applicable
 from omni_gym.discrepancy.dataset import load_dataset, write_dataset
 from omni_gym.discrepancy.importers.optiodom import import_optiodom
 from omni_gym.discrepancy.kinematic_calibration import nominal_geometry
+from omni_gym.discrepancy.report import markdown
 from omni_gym.discrepancy.workflow import gap
 from omni_gym.physics.effects import REGISTRY
 from omni_gym.physics.model import SimModel
@@ -50,6 +51,7 @@ def test_gap_on_four_real_mecanum_runs_skips_roller_gap_and_shrinks_the_heldout_
     assert list(result["not_applicable"]) == ["roller_gap"]
     assert "mecanum" in result["not_applicable"]["roller_gap"]
     assert "roller_gap" not in [e["effect"] for e in result["ranking"]]
+    assert "Not tried, does not apply to this robot: `roller_gap` (" in markdown(result, [])
     # An effect of the library is added to the model, which stays a mecanum robot...
     assert len(result["effects"]) == 1 and result["effects"][0] in REGISTRY, result["effects"]
     assert result["steps"][0]["status"] in ("named", "partial")
