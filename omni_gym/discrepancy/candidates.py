@@ -19,7 +19,7 @@ import numpy as np
 from omni_gym.physics.effects import REGISTRY, Dim, Effect
 from omni_gym.physics.model import SimModel
 
-__all__ = ["Candidate", "Dim", "candidates", "null_point", "prior_point", "to_cube"]
+__all__ = ["Candidate", "Dim", "candidates", "not_applicable", "null_point", "prior_point", "to_cube"]
 
 
 @dataclass(frozen=True)
@@ -71,8 +71,21 @@ def _candidate(effect: Effect, model: SimModel) -> Candidate:
 
 
 def candidates(model: SimModel) -> list[Candidate]:
-    """The effect library as fit candidates for ``model`` (bounds wide enough for real robots)."""
-    return [_candidate(effect, model) for effect in REGISTRY.values()]
+    """The effect library as fit candidates for ``model`` (bounds wide enough for real robots): every
+    effect that applies to its robot (:meth:`Effect.applies_to`; e.g. ``roller_gap`` not on mecanum
+    wheels), in the library's order."""
+    return [_candidate(effect, model) for effect in REGISTRY.values() if effect.applies_to(model.robot)]
+
+
+def not_applicable(model: SimModel) -> dict[str, str]:
+    """The library effects :func:`candidates` leaves out for ``model``: name → the effect's one-line reason."""
+    out = {}
+    for effect in REGISTRY.values():
+        try:
+            effect.check_robot(model.robot)
+        except ValueError as exc:
+            out[effect.name] = str(exc)
+    return out
 
 
 def null_point(cand: Candidate) -> np.ndarray | None:

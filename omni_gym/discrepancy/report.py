@@ -91,7 +91,9 @@ def markdown(result: dict, figures: list[str]) -> str:
               "runs. Stability: share of bootstrap resamples of the runs in which the candidate has the best held-out "
               "likelihood. ⚠: a fitted value outside its plausible range:"]
     lines += [f"* {r['effect']}: " + "; ".join(r["implausible"]) for r in result["ranking"] if r.get("implausible")]
-    lines += [""]
+    lines += [""] + [f"Not tried, does not apply to this robot: `{k}` ({why})." for k, why in
+                     result.get("not_applicable", {}).items()]
+    lines += [""] if result.get("not_applicable") else []
     lines += _where_lines(result["where"])
     lines += _outlier_lines(result.get("outliers"))
     if result.get("uncertainty"):

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from omni_gym.discrepancy import plausible
-from omni_gym.discrepancy.candidates import Candidate, candidates
+from omni_gym.discrepancy.candidates import Candidate, candidates, not_applicable
 from omni_gym.discrepancy.dataset import load_dataset
 from omni_gym.discrepancy.decision import RULES, decide
 from omni_gym.discrepancy.events import EVENT_METHOD
@@ -221,6 +221,9 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     n_comp = count_components(ds)
     fold_of = make_folds(R, rng, folds, groups=fitted.groups)  # whole runs: groups 0..R-1, the plain folds
     cands = candidates(nominal)
+    skipped = not_applicable(nominal)  # e.g. roller_gap on mecanum wheels: never fitted, said in result.json
+    if skipped:
+        say(f"not tried (does not apply to this robot): {', '.join(skipped)}")
     total = 2 + sum(max_ticks(c) + 1 for c in cands)
     steps: list[Step] = []
     uncertainties: list[dict] = []
@@ -289,6 +292,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     else:
         result["params"] = {}
     result["effects"] = [s.effect for s in steps]
+    result["not_applicable"] = skipped
     result["steps"] = _steps_json(steps, uncertainties, final, sse0, n_comp, noise_var)
     if sigma is None:
         result.setdefault("uncertainty", {})["noise"] = (
