@@ -16,8 +16,8 @@ one held-out run, and the position error against time). Usage::
     python benchmarks/demo_calibration.py [--out out/demo] [--quick]
 
 ``--quick`` fits on every third training run and replays only the first 20 s of one held-out run (a smoke
-test of the pipeline; its numbers are not a result). ``benchmarks/real_optiodom.py`` is the full study, every held-out session of both robots (hand-driven
-runs included, where the calibration helps less).
+test of the pipeline; its numbers are not a result). ``benchmarks/real_optiodom.py`` is the full study:
+every held-out session of both robots, hand-driven runs included, where the calibration helps less.
 """
 
 from __future__ import annotations
