@@ -266,7 +266,10 @@ def merge_sections(text: str, sections: dict[str, list[str]], command: str, epis
                 *head[1:]]
     out = list(head)
     for env_id in order:
-        out += old[env_id]
+        sec = list(old[env_id])
+        while sec and not sec[-1].strip():  # one blank line between sections, whatever the old file had
+            sec.pop()
+        out += [*sec, ""]
     return "\n".join(out).rstrip("\n") + "\n"
 
 
