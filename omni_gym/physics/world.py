@@ -45,6 +45,7 @@ from omni_gym.physics.liftoff import ContactProcess
 from omni_gym.physics.loads import wheel_loads
 from omni_gym.physics.model import Actuation, SimModel
 from omni_gym.physics.pymunk_batch import BodyBatch
+from omni_gym.physics.stepper import run_substeps, run_substeps_parallel
 
 DEFAULT_DT = 0.0005  # s, physics substep
 # Arena j's origin is at x = ARENA_BASE + j·spacing, with spacing a power of two. All arenas then lie
@@ -165,6 +166,7 @@ class World:
         # Threaded force kernel for large batches (bit-identical results); None chooses by size.
         self.parallel = B >= PARALLEL_MIN_ROBOTS if parallel is None else bool(parallel)
         self._kernel = substep_parallel if self.parallel else substep
+        self._loop = run_substeps_parallel if self.parallel else run_substeps
         warm_up(self._kernel)
 
     # --- pickling: rebuild the space, then restore every state variable exactly ------------------
@@ -405,20 +407,21 @@ class World:
         self.substeps(steps)
 
     def substeps(self, count: int) -> None:
-        """Run ``count`` physics substeps of ``dt``."""
-        dt = self.dt
-        space = self.space
-        space.step(0.0)  # lets pymunk check newly added bodies; later substeps call the C step directly
-        batch = self._batch
-        read, write, space_step = batch.read, batch.write, batch.step
-        state = self._state_view
-        wheels, sp, wp, ext, force, slip = self.wheels, self.sp, self.wp, self.ext_force, self._force_view, self.slip
-        kernel = self._kernel
-        for _ in range(count):
+        """Run ``count`` physics substeps of ``dt``.
+
+        The substeps between two contact switches run in one compiled call
+        (:mod:`omni_gym.physics.stepper`): read, kernel, write and pymunk step, each substep the same
+        calls as a Python loop would make, so results do not depend on where switches split the run.
+        """
+        self._batch.check_new_bodies()
+        loop, table, dt = self._loop, self._batch.c_table, self.dt
+        args = (self._state_view, self.wheels, self.sp, self.wp, self.ext_force, self._force_view, self.slip)
+        left = int(count)
+        while left > 0:
             if self.tick >= self._next_switch_tick:
                 self._advance_contacts(self.tick)
-            read()
-            kernel(dt, state, wheels, sp, wp, ext, force, slip)
-            write()
-            space_step(dt)
-            self.tick += 1
+            # Up to the next switch (at least one substep: a switch is handled once per tick).
+            chunk = min(left, max(1, self._next_switch_tick - self.tick))
+            loop(chunk, table, dt, *args)
+            self.tick += chunk
+            left -= chunk
