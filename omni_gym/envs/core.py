@@ -142,6 +142,18 @@ def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action
 
 
 @numba.njit(cache=True)
+def all_finite(obs, reward):
+    """True if every observation (B, D) and reward (B,) is a real number (one pass, no temporaries)."""
+    for v in obs.ravel():
+        if not math.isfinite(v):
+            return False
+    for v in reward:
+        if not math.isfinite(v):
+            return False
+    return True
+
+
+@numba.njit(cache=True)
 def body_acceleration(robots, true, prev_true, step, dt, out):
     """Body-frame acceleration [m/s²] of the geometric centres of ``robots`` (indices) over the last
     control period, into out (B, 2).
@@ -292,8 +304,10 @@ class TaskCore:
             self._sensor_offsets = sensor_offsets(self.layout)
             self._sensor_scales = np.array([self.wheel_scale, cfg.max_yaw_rate, cfg.max_speed, cfg.arena_half_size,
                                             ACC_SCALE])
-        self.obs = np.zeros((n_robots, self.obs_dim))
         self._state_obs = np.zeros((n_robots, self.state_dim))
+        # In state mode the observation is the state rows themselves (no copy per step).
+        self.obs = self._state_obs if cfg.obs_mode == "state" else np.zeros((n_robots, self.obs_dim))
+        self._sensors_mode = cfg.obs_mode == "sensors"
         self.models = [self.base_model] * n_robots
         self._contact_cases = contact_cases(self.n_wheels)  # shared by every robot's contact process: read-only
         self._contact_cases.setflags(write=False)
@@ -342,7 +356,8 @@ class TaskCore:
         if not apply_actions(raw.reshape(self._clipped.shape), self._twist_mode, self._action_scale, self.W,
                              self.world.wheels, self._clipped):
             raise ValueError(f"action contains NaN or infinity: {_brief(raw.tolist())}")
-        self.prev_true[:] = self.true
+        if self._sensors_mode:
+            self.prev_true[:] = self.true  # for the accelerometer (body_acceleration)
         self.world.substeps(self.cfg.substeps)
         self.step_count += 1
         self.prev_action[:] = self._clipped
@@ -360,11 +375,9 @@ class TaskCore:
         observe_state(world._state_view, world.origins, world.sp, self.ref_pose, self.ref_vel, self.step_count,
                       self.look, self.prev_action, self.scales, self._state_offsets, self._state_obs, self.err,
                       self.true, self.reward)
-        if self.cfg.obs_mode == "state":
-            self.obs[:] = self._state_obs
-        else:
+        if self._sensors_mode:
             self._observe_sensors(self._all if robots is None else np.asarray(robots, dtype=np.int64))
-        if not (np.isfinite(self.obs).all() and np.isfinite(self.reward).all()):
+        if not all_finite(self.obs, self.reward):
             # Never hand NaN to a learner: within the keyword and model bounds this should not happen.
             bad = np.flatnonzero(~(np.isfinite(self.obs).all(axis=1) & np.isfinite(self.reward)))
             raise FloatingPointError(f"the simulation diverged (non-finite observation or reward) for robot(s) "
@@ -411,8 +424,29 @@ class TaskCore:
         }
 
     def info(self, j: int) -> dict:
-        """:meth:`infos` of robot j, with plain Python scalars."""
-        return {key: v.item() if np.ndim(v) == 0 else v for key, v in self.infos(j).items()}
+        """:meth:`infos` of robot j, with plain Python scalars (built directly: a single environment
+        returns one per step, and the generic path cost a third of its step)."""
+        e = float(self.err[j, 0])
+        e_theta = float(self.err[j, 1])
+        true = self.true[j].copy()
+        world = self.world
+        return {
+            "pose": true[0:3],
+            "velocity": true[3:6],
+            "reference_pose": self.ref_pose[j, self.step_count[j]].copy(),
+            "tracking_error": e,
+            "heading_error": e_theta,
+            "slip": world.slip[j].copy(),
+            "contact": world.contact[j].copy(),
+            "collided": bool(world.collided[j]),
+            "is_success": e <= self.cfg.success_distance and abs(e_theta) <= self.cfg.success_heading,
+        }
+
+    def outcome(self, j: int) -> tuple[float, bool, bool]:
+        """(reward, terminated, truncated) of robot j as Python scalars, as :meth:`rewards`,
+        :meth:`terminated` and :meth:`truncated` give them for all robots."""
+        terminated = bool(self.err[j, 0] > self.cfg.lost_distance or self.world.collided[j])
+        return float(self.reward[j]), terminated, bool(self.step_count[j] >= self.cfg.episode_steps)
 
 
 class RobotEnvAttributes:
