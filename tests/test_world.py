@@ -289,3 +289,36 @@ def test_compiled_substep_loop_matches_python_calls_bit_for_bit(parallel):
     np.testing.assert_array_equal(compiled.collided, by_hand.collided)
     for name in ("pose", "velocity", "wheels", "slip"):
         np.testing.assert_array_equal(getattr(compiled, name), getattr(by_hand, name), err_msg=name)
+
+
+def test_robots_split_among_spaces_match_one_space_bit_for_bit():
+    """A threaded world without obstacles gives each thread its own pymunk space (physics/stepper.py:
+    run_substeps_spaces); with lift-off switches splitting the runs, every robot matches the same robot
+    in a one-space world (built with one numba thread), bit for bit."""
+    import numba
+
+    model = load_model("phunopas2018", "carpet", "roller_gap")
+    rng = np.random.default_rng(7)
+    cmds = rng.uniform(-15.0, 15.0, size=(96, 4))
+
+    def run() -> World:
+        w = World(model, n_robots=96, parallel=True)
+        for j in (3, 50, 95):
+            w.set_contact_process(j, ContactProcess(4, 20.0, 40.0, np.random.default_rng(j)))
+        w.set_commands(cmds)
+        w.substeps(300)
+        return w
+
+    threads = numba.get_num_threads()
+    split = run()
+    numba.set_num_threads(1)
+    try:
+        single = run()
+    finally:
+        numba.set_num_threads(threads)
+    assert len(single.spaces) == 1
+    if threads > 1:
+        assert len(split.spaces) == min(threads, 3)  # 96 robots, at least 32 per space
+    for name in ("pose", "velocity", "wheels", "slip", "contact"):
+        np.testing.assert_array_equal(getattr(split, name), getattr(single, name), err_msg=name)
+    assert not split.contact[[3, 50, 95]].all()  # the switches happened

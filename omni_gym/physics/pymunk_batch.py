@@ -39,10 +39,11 @@ from pymunk import batch as _pmbatch  # noqa: E402  (only once the version is kn
 
 # Columns of :attr:`BodyBatch.c_table` (int64): the space, the C functions cpSpaceEachBody and
 # cpSpaceStep, pymunk's batched get/set iterators and their requests, the addresses of the three
-# int32 element counts to reset before each batched call, and the float count of a full write.
+# int32 element counts to reset before each batched call, the float count of a full write, and the
+# addresses of the float64 arrays behind :attr:`BodyBatch.states` and :attr:`BodyBatch.forces`.
 (C_SPACE, C_EACH_BODY, C_STEP, C_GET_ITER, C_GET_REQ, C_SET_ITER, C_SET_REQ, C_GET_NUM, C_GET_INT_NUM,
- C_SET_NUM, C_N_SET) = range(11)
-N_C = 11
+ C_SET_NUM, C_N_SET, C_STATES, C_FORCES) = range(13)
+N_C = 13
 
 
 class BodyBatch:
@@ -106,6 +107,8 @@ class BodyBatch:
         table[C_GET_INT_NUM] = address(ffi.addressof(self._get_int[0], "num"))
         table[C_SET_NUM] = address(ffi.addressof(self._set_arr[0], "num"))
         table[C_N_SET] = self._n_set
+        table[C_STATES] = self.states.ctypes.data
+        table[C_FORCES] = self.forces.ctypes.data
         table.setflags(write=False)
         self.c_table = table
 

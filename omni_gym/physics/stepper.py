@@ -22,6 +22,7 @@ from numba.extending import intrinsic
 from omni_gym.physics.kernel import substep, substep_parallel
 from omni_gym.physics.pymunk_batch import (
     C_EACH_BODY,
+    C_FORCES,
     C_GET_INT_NUM,
     C_GET_ITER,
     C_GET_NUM,
@@ -31,6 +32,7 @@ from omni_gym.physics.pymunk_batch import (
     C_SET_NUM,
     C_SET_REQ,
     C_SPACE,
+    C_STATES,
     C_STEP,
 )
 
@@ -79,6 +81,17 @@ def _store_int(typingctx, address, value):
     return sig, codegen
 
 
+@intrinsic
+def _float_pointer(typingctx, address):
+    """The float64 pointer at integer ``address`` (for ``numba.carray`` over a pymunk buffer)."""
+    sig = types.CPointer(types.float64)(types.int64)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], ir.DoubleType().as_pointer())
+
+    return sig, codegen
+
+
 @numba.njit(cache=True, inline="always")
 def _read(c):
     _store_int(c[C_GET_NUM], 0)
@@ -111,3 +124,25 @@ def run_substeps_parallel(count, c, dt, state, wheels, sp, wp, ext, force, slip)
         _read(c)
         substep_parallel(dt, state, wheels, sp, wp, ext, force, slip)
         _write_and_step(c, dt)
+
+
+@numba.njit(cache=True, parallel=True)
+def run_substeps_spaces(count, tables, dt, bounds, state, wheels, sp, wp, ext, slip):
+    """:func:`run_substeps` for robots split among pymunk spaces: space k (``tables[k]``, one
+    ``BodyBatch.c_table`` each) holds robots ``bounds[k]`` to ``bounds[k + 1]``; each thread runs
+    every substep of its spaces (read, serial kernel, write, step) with no join between substeps,
+    then gathers its robots' final states into ``state`` (B, 6). Each robot's arithmetic is that of
+    :func:`run_substeps`, so results are bit-identical whatever the split and the thread count."""
+    for k in numba.prange(tables.shape[0]):
+        c = tables[k]
+        lo = bounds[k]
+        hi = bounds[k + 1]
+        own = numba.carray(_float_pointer(c[C_STATES]), (hi - lo, 6))
+        force = numba.carray(_float_pointer(c[C_FORCES]), (hi - lo, 3))
+        w, p, q, e, s = wheels[lo:hi], sp[lo:hi], wp[lo:hi], ext[lo:hi], slip[lo:hi]
+        for _ in range(count):
+            _read(c)
+            substep(dt, own, w, p, q, e, force, s)
+            _write_and_step(c, dt)
+        _read(c)
+        state[lo:hi] = own

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 import pymunk
 
@@ -45,7 +46,7 @@ from omni_gym.physics.liftoff import ContactProcess
 from omni_gym.physics.loads import wheel_loads
 from omni_gym.physics.model import Actuation, SimModel
 from omni_gym.physics.pymunk_batch import BodyBatch
-from omni_gym.physics.stepper import run_substeps, run_substeps_parallel
+from omni_gym.physics.stepper import run_substeps, run_substeps_parallel, run_substeps_spaces
 
 DEFAULT_DT = 0.0005  # s, physics substep
 # Arena j's origin is at x = ARENA_BASE + j·spacing, with spacing a power of two. All arenas then lie
@@ -60,6 +61,8 @@ _NEVER = np.iinfo(np.int64).max  # the switch tick of a robot with no switch sch
 # default 0.5 ms it is 71,000 years away) and is not scheduled. Below it, tick counts are exact
 # floats, so switch_tick finds the switch substep among five candidates.
 SWITCH_HORIZON_TICKS = 2**52
+# Fewest robots per pymunk space when a threaded world splits its robots among spaces.
+MIN_ROBOTS_PER_SPACE = 32
 ROBOT_COLLISION = 1
 OBSTACLE_COLLISION = 2
 
@@ -160,11 +163,11 @@ class World:
         # process switches among a few masks, and recomputing the static balance at every switch and reset
         # cost more than the switch itself.
         self._load_cache: list[dict[bytes, np.ndarray]] = [{} for _ in range(B)]
+        # Threaded force kernel for large batches (bit-identical results); None chooses by size.
+        self.parallel = B >= PARALLEL_MIN_ROBOTS if parallel is None else bool(parallel)
         self._build_space(model_list)
         for j, m in enumerate(model_list):
             self.set_model(j, m)
-        # Threaded force kernel for large batches (bit-identical results); None chooses by size.
-        self.parallel = B >= PARALLEL_MIN_ROBOTS if parallel is None else bool(parallel)
         self._kernel = substep_parallel if self.parallel else substep
         self._loop = run_substeps_parallel if self.parallel else run_substeps
         warm_up(self._kernel)
@@ -195,7 +198,7 @@ class World:
             body.position = (row[0], row[1])
             body.velocity = (row[3], row[4])
             body.angular_velocity = row[5]
-            self.space.reindex_shapes_for_body(body)
+            body.space.reindex_shapes_for_body(body)
         self.tick = state["tick"]
         self.contact_processes = state["contact_processes"]
         self._next_switch_tick = state["next_switch_tick"]
@@ -203,24 +206,35 @@ class World:
     # --- construction ---------------------------------------------------------------------------
 
     def _build_space(self, models: list[SimModel]) -> None:
-        self.space = space = pymunk.Space()
-        space.iterations = 10
-        self.bodies: list[pymunk.Body] = []
         # Robots only get collision shapes when there is something to hit: each robot is alone in its
         # arena, and shapes without partners would only cost broad-phase time (2.5x the step at B = 1024).
         self._has_obstacles = self.arena.walls or bool(self.arena.obstacles)
-        for j, m in enumerate(models):
-            body = pymunk.Body(m.robot.mass, m.robot.inertia)
-            body.position = tuple(self.origins[j])
-            space.add(body)
-            if self._has_obstacles:
-                shape = pymunk.Circle(body, m.robot.body_radius)
-                shape.collision_type = ROBOT_COLLISION
-                shape.friction = 0.3
-                shape.elasticity = 0.0
-                space.add(shape)
-            self.bodies.append(body)
-            self._add_arena(j)
+        # A threaded world without obstacles splits its robots among several spaces, one per thread,
+        # each stepped by its thread (pymunk's step is then parallel too). Robots never interact and
+        # pymunk integrates each body on its own, so the split changes no bit (tests/test_world.py).
+        # With obstacles, collision callbacks run Python, which needs the one thread holding the GIL.
+        n_spaces = 1
+        if self.parallel and not self._has_obstacles:
+            n_spaces = max(1, min(numba.get_num_threads(), self.n_robots // MIN_ROBOTS_PER_SPACE))
+        self._bounds = np.linspace(0, self.n_robots, n_spaces + 1).round().astype(np.int64)
+        self.spaces = [pymunk.Space() for _ in range(n_spaces)]
+        self.space = space = self.spaces[0]
+        self.bodies: list[pymunk.Body] = []
+        for k, sp in enumerate(self.spaces):
+            sp.iterations = 10
+            for j in range(int(self._bounds[k]), int(self._bounds[k + 1])):
+                m = models[j]
+                body = pymunk.Body(m.robot.mass, m.robot.inertia)
+                body.position = tuple(self.origins[j])
+                sp.add(body)
+                if self._has_obstacles:
+                    shape = pymunk.Circle(body, m.robot.body_radius)
+                    shape.collision_type = ROBOT_COLLISION
+                    shape.friction = 0.3
+                    shape.elasticity = 0.0
+                    sp.add(shape)
+                self.bodies.append(body)
+                self._add_arena(j)
         if self._has_obstacles:
             index = {b: j for j, b in enumerate(self.bodies)}
 
@@ -231,15 +245,21 @@ class World:
 
             space.on_collision(ROBOT_COLLISION, OBSTACLE_COLLISION, begin=begin)
         # One batched read of (position, angle, velocity, angular velocity) per body and one batched
-        # write of (force, torque), through the module that owns pymunk's internals.
-        self._batch = BodyBatch(space, self.n_robots)
-        self._state_view = self._batch.states
-        self._force_view = self._batch.forces
+        # write of (force, torque) per space, through the module that owns pymunk's internals.
+        self._batches = [BodyBatch(sp, int(self._bounds[k + 1] - self._bounds[k])) for k, sp in enumerate(self.spaces)]
+        self._batch = self._batches[0]
+        self._c_tables = np.stack([b.c_table for b in self._batches])
+        if n_spaces == 1:
+            self._state_view = self._batch.states
+            self._force_view = self._batch.forces
+        else:  # the spaces' states gathered after each run (World.pose, the environments read this)
+            self._state_view = np.zeros((self.n_robots, 6))
+            self._force_view = None
 
     def _add_arena(self, j: int) -> None:
         ox, oy = self.origins[j]
         h = self.arena.half_size
-        static = self.space.static_body
+        static = self.space.static_body  # one space whenever there are walls or obstacles
         shapes = []
         if self.arena.walls:
             corners = [(-h, -h), (h, -h), (h, h), (-h, h)]
@@ -289,7 +309,7 @@ class World:
             body.position = (self.origins[j, 0] + poses[row, 0], self.origins[j, 1] + poses[row, 1])
             body.velocity = (0.0, 0.0)
             body.angular_velocity = 0.0
-            self.space.reindex_shapes_for_body(body)
+            body.space.reindex_shapes_for_body(body)
         for arr in (self.wheel_angle, self.wheel_speed, self.wheel_cmd, self.servo_int, self.slip):
             arr[idx] = 0.0
         self.collided[idx] = False
@@ -375,7 +395,12 @@ class World:
         self._next_switch_tick = int(self._switch_tick.min())
 
     def _read_state(self) -> None:
-        self._batch.read()
+        if len(self._batches) == 1:
+            self._batch.read()
+            return
+        for k, batch in enumerate(self._batches):
+            batch.read()
+            self._state_view[self._bounds[k]:self._bounds[k + 1]] = batch.states
 
     @property
     def pose(self) -> np.ndarray:
@@ -413,9 +438,15 @@ class World:
         (:mod:`omni_gym.physics.stepper`): read, kernel, write and pymunk step, each substep the same
         calls as a Python loop would make, so results do not depend on where switches split the run.
         """
-        self._batch.check_new_bodies()
-        loop, table, dt = self._loop, self._batch.c_table, self.dt
-        args = (self._state_view, self.wheels, self.sp, self.wp, self.ext_force, self._force_view, self.slip)
+        for batch in self._batches:
+            batch.check_new_bodies()
+        dt = self.dt
+        if len(self._batches) == 1:
+            loop, table = self._loop, self._batch.c_table
+            args = (self._state_view, self.wheels, self.sp, self.wp, self.ext_force, self._force_view, self.slip)
+        else:
+            loop, table = run_substeps_spaces, self._c_tables
+            args = (self._bounds, self._state_view, self.wheels, self.sp, self.wp, self.ext_force, self.slip)
         left = int(count)
         while left > 0:
             if self.tick >= self._next_switch_tick:
