@@ -10,9 +10,11 @@ actuation and 0.5 ms substeps, it reports nanoseconds per robot-substep of
 
 * the force kernel alone (``physics.kernel.substep`` called from a compiled loop, so no Python
   dispatch is counted; one thread), and the threaded kernel (``substep_parallel``, all cores);
-* pymunk's part: the batched state read, the batched force write and the space step, each called
-  once per substep from Python as the world did before its substep loop was compiled;
-* the whole ``World.substeps`` (default threading: threads from 256 robots on).
+* pymunk's part: the batched state read, the batched force write and the space step, called from
+  a compiled loop as ``World.substeps`` calls them (:mod:`omni_gym.physics.stepper`; where that module
+  is missing, as on older versions, from Python, as the world then did);
+* the whole ``World.substeps`` on one thread and with the default threading (threads from 256
+  robots on; without obstacles each thread then steps its own pymunk space).
 
 The limit: the kernel's floating-point operations and transcendental calls per robot-substep are
 counted by hand from ``physics/kernel.py`` (table :data:`MIXES`, each line of the count commented),
@@ -160,21 +162,58 @@ def reps_for(n: int) -> int:
     return max(4, 200_000 // n)
 
 
-def moving_world(robot: str, friction: str, n: int) -> World:
-    """n robots driving (commands of a few rad/s, varied per robot and wheel) so the laws see slip."""
-    world = World(load_model(robot, friction=friction), n_robots=n)
+def moving_world(robot: str, friction: str, n: int, threads: int | None = None) -> World:
+    """n robots driving (commands of a few rad/s, varied per robot and wheel) so the laws see slip,
+    in a world built with ``threads`` numba threads (default: all)."""
+    all_threads = numba.config.NUMBA_NUM_THREADS
+    numba.set_num_threads(threads or all_threads)
+    try:
+        world = World(load_model(robot, friction=friction), n_robots=n)
+    finally:
+        numba.set_num_threads(all_threads)
     rng = np.random.default_rng(0)
     world.set_commands(rng.uniform(-20.0, 20.0, (n, world.n_wheels)))
     world.substeps(40)
     return world
 
 
+def pymunk_runner(world: World):
+    """fn(reps): reps substeps of pymunk's part alone (read, write, step of every space)."""
+    try:
+        from omni_gym.physics import stepper
+    except ImportError:  # before the compiled substep loop: the Python calls the world made
+        batch = world._batch
+
+        def python_calls(reps):
+            for _ in range(reps):
+                batch.read()
+                batch.write()
+                batch.step(world.dt)
+
+        return python_calls
+
+    @numba.njit
+    def compiled(reps, c, dt):
+        for _ in range(reps):
+            stepper._read(c)
+            stepper._write_and_step(c, dt)
+
+    tables = [b.c_table for b in getattr(world, "_batches", [world._batch])]
+
+    def run(reps):
+        for c in tables:
+            compiled(reps, c, world.dt)
+
+    return run
+
+
 def measure(robot: str, friction: str, n: int, seconds: float) -> dict:
-    world = moving_world(robot, friction, n)
-    batch = world._batch
-    dt = world.dt
-    args = (dt, batch.states, world.wheels, world.sp, world.wp, world.ext_force, batch.forces, world.slip)
+    one = moving_world(robot, friction, n, threads=1)
+    batch = one._batch
+    dt = one.dt
+    args = (dt, batch.states, one.wheels, one.sp, one.wp, one.ext_force, batch.forces, one.slip)
     reps = reps_for(n)
+    few = max(4, reps // 20)
     row = {}
     row["kernel"] = timed(lambda r: repeat_kernel(r, *args), seconds, reps) / n
 
@@ -182,17 +221,11 @@ def measure(robot: str, friction: str, n: int, seconds: float) -> dict:
         for _ in range(r):
             _parallel_once(*args)
 
-    row["kernel_threads"] = timed(parallel, seconds, max(4, reps // 20)) / n if n >= 64 else math.nan
-
-    def pymunk_part(r):
-        read, write, step = batch.read, batch.write, batch.step
-        for _ in range(r):
-            read()
-            write()
-            step(dt)
-
-    row["pymunk"] = timed(pymunk_part, seconds, max(4, reps // 20)) / n
-    row["world"] = timed(world.substeps, seconds, max(4, reps // 20)) / n
+    row["kernel_threads"] = timed(parallel, seconds, few) / n if n >= 64 else math.nan
+    row["pymunk"] = timed(pymunk_runner(one), seconds, few) / n
+    row["world_one"] = timed(one.substeps, seconds, few) / n
+    world = moving_world(robot, friction, n)
+    row["world"] = timed(world.substeps, seconds, few) / n
     row["threads"] = world.parallel
     return row
 
@@ -221,9 +254,9 @@ def main() -> None:
         "`python benchmarks/substep_micro.py --out benchmarks/results`",
         "",
     ]
-    table = ["| wheel law | N | kernel, 1 thread | kernel, threads | pymunk (read, write, step) | whole "
-             "world substep | limit loop, 1 thread | kernel ÷ limit |",
-             "|---|---|---|---|---|---|---|---|"]
+    table = ["| wheel law | N | kernel, 1 thread | kernel, threads | pymunk (read, write, step) | world "
+             "substep, 1 thread | world substep, threads | limit loop, 1 thread | kernel ÷ limit |",
+             "|---|---|---|---|---|---|---|---|---|"]
     mixes = []
     for label, robot, friction in LAWS:
         mix = MIXES[robot]
@@ -236,9 +269,9 @@ def main() -> None:
             lim = limit_ns(robot, n, args.seconds)
             kernel_ns = row["kernel"] * 1e9
             threads = "" if math.isnan(row["kernel_threads"]) else f"{row['kernel_threads'] * 1e9:.0f}"
-            world_note = " (threads)" if row["threads"] else ""
+            world = f"{row['world'] * 1e9:.0f}" if row["threads"] else "(1 thread below 256)"
             table.append(f"| {label} | {n} | {kernel_ns:.0f} | {threads} | {row['pymunk'] * 1e9:.0f} | "
-                         f"{row['world'] * 1e9:.0f}{world_note} | {lim:.0f} | {kernel_ns / lim:.2f} |")
+                         f"{row['world_one'] * 1e9:.0f} | {world} | {lim:.0f} | {kernel_ns / lim:.2f} |")
             print(table[-1], flush=True)
     lines += [
         f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
@@ -253,8 +286,9 @@ def main() -> None:
         *mixes,
         "",
         "Nanoseconds per robot-substep. *kernel*: the force kernel alone, called from a compiled loop; "
-        "*threads*: the threaded kernel on all cores; *pymunk*: batched read, write and space step called "
-        "from Python; *whole world substep*: `World.substeps`; *limit loop*: a plain numba loop of the "
+        "*threads*: the threaded kernel on all cores; *pymunk*: batched read, write and space step (from "
+        "compiled code, as `World.substeps` calls them); *world substep*: `World.substeps`, built on one numba "
+        "thread or on all; *limit loop*: a plain numba loop of the "
         "kernel's operation mix on one core (same reads and writes per robot); *kernel ÷ limit*: one thread.",
         "",
         *table,
