@@ -69,6 +69,70 @@ def apply_actions(raw, twist_mode, scale, W, wheels, out_clipped):
     return True
 
 
+@numba.njit(cache=True, inline="always")
+def _observe_robot(b, state, origins, sp, ref_pose, ref_vel, step, look, prev_action, scales, offsets, out_obs,
+                   out_err, out_true, out_reward):
+    """Robot b's part of :func:`observe_state` (shared by the serial and the threaded loop)."""
+    n_act = prev_action.shape[1]
+    vmax = scales[0]
+    wmax = scales[1]
+    err, vel, rvel, look0, stride, act = offsets[0], offsets[1], offsets[2], offsets[3], offsets[4], offsets[5]
+    x = state[b, 0] - origins[b, 0]
+    y = state[b, 1] - origins[b, 1]
+    th = state[b, 2]
+    c = math.cos(th)
+    s = math.sin(th)
+    om = state[b, 5]
+    # Geometric-centre velocity: v_com − ω z × (R com).
+    rcx = c * sp[b, SP_CX] - s * sp[b, SP_CY]
+    rcy = s * sp[b, SP_CX] + c * sp[b, SP_CY]
+    vx = state[b, 3] + om * rcy
+    vy = state[b, 4] - om * rcx
+    out_true[b, 0] = x
+    out_true[b, 1] = y
+    out_true[b, 2] = th
+    out_true[b, 3] = vx
+    out_true[b, 4] = vy
+    out_true[b, 5] = om
+    k = step[b]
+    dx = ref_pose[b, k, 0] - x
+    dy = ref_pose[b, k, 1] - y
+    dth = _wrap(ref_pose[b, k, 2] - th)
+    out_err[b, 0] = math.sqrt(dx * dx + dy * dy)
+    out_err[b, 1] = dth
+    o = out_obs[b]
+    o[err] = (c * dx + s * dy) / POS_SCALE  # tracking_error_body, then heading_error
+    o[err + 1] = (-s * dx + c * dy) / POS_SCALE
+    o[err + 2] = dth / math.pi
+    o[vel] = (c * vx + s * vy) / vmax
+    o[vel + 1] = (-s * vx + c * vy) / vmax
+    o[vel + 2] = om / wmax
+    rvx = ref_vel[b, k, 0]
+    rvy = ref_vel[b, k, 1]
+    o[rvel] = (c * rvx + s * rvy) / vmax
+    o[rvel + 1] = (-s * rvx + c * rvy) / vmax
+    o[rvel + 2] = ref_vel[b, k, 2] / wmax
+    for j in range(look.shape[0]):
+        kk = k + look[j]
+        lx = ref_pose[b, kk, 0] - x
+        ly = ref_pose[b, kk, 1] - y
+        q = look0 + stride * j
+        o[q] = (c * lx + s * ly) / LOOK_SCALE
+        o[q + 1] = (-s * lx + c * ly) / LOOK_SCALE
+        o[q + 2] = _wrap(ref_pose[b, kk, 2] - th) / math.pi
+    effort = 0.0
+    for j in range(n_act):
+        o[act + j] = prev_action[b, j]
+        effort += prev_action[b, j] * prev_action[b, j]
+    out_reward[b] = (W_POS * math.exp(-out_err[b, 0] / E_POS) + W_HEAD * math.exp(-abs(dth) / E_HEAD)
+                     - W_EFFORT * effort / n_act)
+    for j in range(o.shape[0]):
+        if o[j] > OBS_CLIP:
+            o[j] = OBS_CLIP
+        elif o[j] < -OBS_CLIP:
+            o[j] = -OBS_CLIP
+
+
 @numba.njit(cache=True)
 def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action, scales, offsets, out_obs,
                   out_err, out_true, out_reward):
@@ -79,66 +143,19 @@ def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action
     out_err (B, 2): position error [m], heading error [rad]. out_true (B, 6): local pose and the
     geometric centre's world velocity. out_reward (B,): reward of the last action (``prev_action``).
     """
-    n_robots = state.shape[0]
-    n_act = prev_action.shape[1]
-    vmax = scales[0]
-    wmax = scales[1]
-    err, vel, rvel, look0, stride, act = offsets[0], offsets[1], offsets[2], offsets[3], offsets[4], offsets[5]
-    for b in range(n_robots):
-        x = state[b, 0] - origins[b, 0]
-        y = state[b, 1] - origins[b, 1]
-        th = state[b, 2]
-        c = math.cos(th)
-        s = math.sin(th)
-        om = state[b, 5]
-        # Geometric-centre velocity: v_com − ω z × (R com).
-        rcx = c * sp[b, SP_CX] - s * sp[b, SP_CY]
-        rcy = s * sp[b, SP_CX] + c * sp[b, SP_CY]
-        vx = state[b, 3] + om * rcy
-        vy = state[b, 4] - om * rcx
-        out_true[b, 0] = x
-        out_true[b, 1] = y
-        out_true[b, 2] = th
-        out_true[b, 3] = vx
-        out_true[b, 4] = vy
-        out_true[b, 5] = om
-        k = step[b]
-        dx = ref_pose[b, k, 0] - x
-        dy = ref_pose[b, k, 1] - y
-        dth = _wrap(ref_pose[b, k, 2] - th)
-        out_err[b, 0] = math.sqrt(dx * dx + dy * dy)
-        out_err[b, 1] = dth
-        o = out_obs[b]
-        o[err] = (c * dx + s * dy) / POS_SCALE  # tracking_error_body, then heading_error
-        o[err + 1] = (-s * dx + c * dy) / POS_SCALE
-        o[err + 2] = dth / math.pi
-        o[vel] = (c * vx + s * vy) / vmax
-        o[vel + 1] = (-s * vx + c * vy) / vmax
-        o[vel + 2] = om / wmax
-        rvx = ref_vel[b, k, 0]
-        rvy = ref_vel[b, k, 1]
-        o[rvel] = (c * rvx + s * rvy) / vmax
-        o[rvel + 1] = (-s * rvx + c * rvy) / vmax
-        o[rvel + 2] = ref_vel[b, k, 2] / wmax
-        for j in range(look.shape[0]):
-            kk = k + look[j]
-            lx = ref_pose[b, kk, 0] - x
-            ly = ref_pose[b, kk, 1] - y
-            q = look0 + stride * j
-            o[q] = (c * lx + s * ly) / LOOK_SCALE
-            o[q + 1] = (-s * lx + c * ly) / LOOK_SCALE
-            o[q + 2] = _wrap(ref_pose[b, kk, 2] - th) / math.pi
-        effort = 0.0
-        for j in range(n_act):
-            o[act + j] = prev_action[b, j]
-            effort += prev_action[b, j] * prev_action[b, j]
-        out_reward[b] = (W_POS * math.exp(-out_err[b, 0] / E_POS) + W_HEAD * math.exp(-abs(dth) / E_HEAD)
-                         - W_EFFORT * effort / n_act)
-        for j in range(o.shape[0]):
-            if o[j] > OBS_CLIP:
-                o[j] = OBS_CLIP
-            elif o[j] < -OBS_CLIP:
-                o[j] = -OBS_CLIP
+    for b in range(state.shape[0]):
+        _observe_robot(b, state, origins, sp, ref_pose, ref_vel, step, look, prev_action, scales, offsets,
+                       out_obs, out_err, out_true, out_reward)
+
+
+@numba.njit(cache=True, parallel=True)
+def observe_state_parallel(state, origins, sp, ref_pose, ref_vel, step, look, prev_action, scales, offsets,
+                           out_obs, out_err, out_true, out_reward):
+    """:func:`observe_state` with the robots shared among threads (each writes only its own rows, so
+    results are bit-identical); used where the world's kernel is threaded."""
+    for b in numba.prange(state.shape[0]):
+        _observe_robot(b, state, origins, sp, ref_pose, ref_vel, step, look, prev_action, scales, offsets,
+                       out_obs, out_err, out_true, out_reward)
 
 
 @numba.njit(cache=True)
@@ -308,6 +325,7 @@ class TaskCore:
         # In state mode the observation is the state rows themselves (no copy per step).
         self.obs = self._state_obs if cfg.obs_mode == "state" else np.zeros((n_robots, self.obs_dim))
         self._sensors_mode = cfg.obs_mode == "sensors"
+        self._observe_state = observe_state_parallel if self.world.parallel else observe_state
         self.models = [self.base_model] * n_robots
         self._contact_cases = contact_cases(self.n_wheels)  # shared by every robot's contact process: read-only
         self._contact_cases.setflags(write=False)
@@ -372,7 +390,7 @@ class TaskCore:
         """
         world = self.world
         world._read_state()
-        observe_state(world._state_view, world.origins, world.sp, self.ref_pose, self.ref_vel, self.step_count,
+        self._observe_state(world._state_view, world.origins, world.sp, self.ref_pose, self.ref_vel, self.step_count,
                       self.look, self.prev_action, self.scales, self._state_offsets, self._state_obs, self.err,
                       self.true, self.reward)
         if self._sensors_mode:
