@@ -11,8 +11,8 @@ actuation and 0.5 ms substeps, it reports nanoseconds per robot-substep of
 * the force kernel alone (``physics.kernel.substep`` called from a compiled loop, so no Python
   dispatch is counted; one thread), and the threaded kernel (``substep_parallel``, all cores);
 * pymunk's part: the batched state read, the batched force write and the space step, called from
-  a compiled loop as ``World.substeps`` calls them (:mod:`omni_gym.physics.stepper`; where that module
-  is missing, as on older versions, from Python, as the world then did);
+  a compiled loop as ``World.substeps`` calls them (``run_substeps`` in :mod:`omni_gym.physics.kernel`;
+  on older versions without it, from Python, as the world then did);
 * the whole ``World.substeps`` on one thread and with the default threading (threads from 256
   robots on; without obstacles each thread then steps its own pymunk space).
 
@@ -49,25 +49,27 @@ LAWS = (("omni: phunopas2018, roller_gap", "phunopas2018", "roller_gap"),
 # (flops: additions, subtractions and multiplications; comparisons and moves not counted).
 # Per wheel, omni law with the roller gap (gap > 0):
 #   geometry (lever arm, drive direction, contact velocity) 18; ideal actuation (dθ, θ1) 2;
-#   gap_fraction: θ+phase ×2, d, two gap_measure (div, floor, 5 flops each), n·gap+within ×2,
-#   (m1 − m0)/d → 17 flops, 3 div, 2 floor; coefficient blend (1−f)a + fb ×2: 8;
+#   gap_fraction: θ+phase ×2, d, one gap_measure (div, floor, 7 flops; the start's measure is the
+#   last substep's end, remembered), (m1 − m0)/d → 11 flops, 2 div, 1 floor; coefficient blend
+#   (1−f)a + fb ×2: 8;
 #   slips v_W, v_T: 8; two friction laws μ = (2/π)atan(kv)·μs, μ' = (2/π)k/(1+(kv)²)·μs: 7 flops,
 #   1 atan, 1 div each → 14, 2 atan, 2 div; forces and torque 14; K = N(μ'_W eeᵀ + μ'_T ffᵀ) 17;
-#   A accumulation (a00..a22) 25.  → 123 flops, 2 atan, 5 div, 2 floor per wheel.
+#   A accumulation (a00..a22) 25.  → 117 flops, 2 atan, 4 div, 1 floor per wheel.
 # Mecanum law (initial: no gap, gap_fraction returns 0 at once): no gap flops, no floor; the roller
 #   axis e = cos γ d + sin γ z×d (6), r cos γ, r sin γ (2), v_T += r sin γ w (2) → 106 + 10 = 116
 #   flops, 2 atan, 2 div per wheel.
+# (Before the memo of the rigid-material measure the omni law had 123 flops, 5 div, 2 floor per wheel.)
 # Per robot: cos θ, sin θ; the 3×3 solve (M + dt A), adjugate, determinant, right-hand side and
 #   the three outputs: 56 flops, 2 div (1/det, 1/dt).
 MIXES = {
-    "phunopas2018": {"wheels": 4, "flops_wheel": 123, "atan_wheel": 2, "div_wheel": 5, "floor_wheel": 2,
+    "phunopas2018": {"wheels": 4, "flops_wheel": 117, "atan_wheel": 2, "div_wheel": 4, "floor_wheel": 1,
                      "flops_robot": 56, "div_robot": 2},
     "optiodom_omni4": {"wheels": 4, "flops_wheel": 116, "atan_wheel": 2, "div_wheel": 2, "floor_wheel": 0,
                        "flops_robot": 56, "div_robot": 2},
 }
-# float64 the kernel reads / writes per robot: state 6, sp 15, per wheel wp 12 + wheels 5 read,
-# wheels 2 (speed, angle) + slip 2 written; ext 3 read, force 3 written.
-READ_ROBOT, READ_WHEEL, WRITE_ROBOT, WRITE_WHEEL = 24, 17, 3, 4
+# float64 the kernel reads / writes per robot: state 6, sp 15, per wheel wp 12 + wheels 7 read,
+# wheels 4 (speed, angle, memo) + slip 2 written; ext 3 read, force 3 written.
+READ_ROBOT, READ_WHEEL, WRITE_ROBOT, WRITE_WHEEL = 24, 19, 3, 6
 
 
 def limit_source(mix: dict) -> str:
@@ -111,6 +113,8 @@ def limit_source(mix: dict) -> str:
     lines.append("                wout[b, i, 1] = x1")
     lines.append("                wout[b, i, 2] = x2")
     lines.append("                wout[b, i, 3] = x3")
+    for k in range(4, WRITE_WHEEL):
+        lines.append(f"                wout[b, i, {k}] = x{k % 4} - u")
     lines.append("                acc += x0 + x1 - x2")
     lines.append("            y0 = acc + t")
     lines.append("            y1 = acc - t")
@@ -179,9 +183,7 @@ def moving_world(robot: str, friction: str, n: int, threads: int | None = None) 
 
 def pymunk_runner(world: World):
     """fn(reps): reps substeps of pymunk's part alone (read, write, step of every space)."""
-    try:
-        from omni_gym.physics import stepper
-    except ImportError:  # before the compiled substep loop: the Python calls the world made
+    if not hasattr(K, "run_substeps"):  # before the compiled substep loop: the Python calls the world made
         batch = world._batch
 
         def python_calls(reps):
@@ -195,8 +197,8 @@ def pymunk_runner(world: World):
     @numba.njit
     def compiled(reps, c, dt):
         for _ in range(reps):
-            stepper._read(c)
-            stepper._write_and_step(c, dt)
+            K._read(c)
+            K._write_and_step(c, dt)
 
     tables = [b.c_table for b in getattr(world, "_batches", [world._batch])]
 

@@ -264,7 +264,7 @@ def test_mixed_omni_and_mecanum_batch_matches_lone_robots_bit_for_bit(actuation)
 
 @pytest.mark.parametrize("parallel", [False, True])
 def test_compiled_substep_loop_matches_python_calls_bit_for_bit(parallel):
-    """World.substeps runs read, kernel, write and pymunk step in one compiled call (physics/stepper.py);
+    """World.substeps runs read, kernel, write and pymunk step in one compiled call (run_substeps in physics/kernel.py);
     the same calls made one by one from Python, robots driven into the walls (so pymunk's collision
     callback fires inside the compiled loop), give the same bits and the same collision flags."""
     from omni_gym.physics.kernel import substep, substep_parallel
@@ -292,7 +292,7 @@ def test_compiled_substep_loop_matches_python_calls_bit_for_bit(parallel):
 
 
 def test_robots_split_among_spaces_match_one_space_bit_for_bit():
-    """A threaded world without obstacles gives each thread its own pymunk space (physics/stepper.py:
+    """A threaded world without obstacles gives each thread its own pymunk space (physics/kernel.py:
     run_substeps_spaces); with lift-off switches splitting the runs, every robot matches the same robot
     in a one-space world (built with one numba thread), bit for bit."""
     import numba
@@ -337,3 +337,31 @@ def test_split_world_pickles_and_resumes_bit_for_bit():
     copy.substeps(100)
     for name in ("pose", "velocity", "wheels"):
         np.testing.assert_array_equal(getattr(copy, name), getattr(w, name), err_msg=name)
+
+
+@pytest.mark.parametrize("actuation", ["ideal", "servo"])
+def test_kernel_gap_memo_changes_no_bit_and_set_model_forgets_it(actuation):
+    """The kernel reuses the rigid-material measure of the last substep's end angle (layout WH_GAP_*).
+    A world that forgets it before every substep gives the same bits, also across a set_model that
+    changes the gap width but not the phase (the memo's angle would still match: set_model must clear it)."""
+    from omni_gym.physics.layout import WH_GAP_AT
+
+    base = load_model("phunopas2018", "carpet", "roller_gap")
+    wider = base.with_effect("roller_gap", {"mu_gap": 0.6, "roller_fraction": 0.8, "phase": [0.0, 0.1, 0.2, 0.3]})
+    narrow = wider.with_effect("roller_gap", {"mu_gap": 0.6, "roller_fraction": 0.95, "phase": [0.0, 0.1, 0.2, 0.3]})
+    cmds = np.array([twist_commands(base, (0.2, 0.1, 0.8)), twist_commands(base, (-0.1, 0.3, -0.5))])
+    memo, fresh = (World(wider, n_robots=2, actuation=Actuation(actuation)) for _ in range(2))
+    for w in (memo, fresh):
+        w.set_commands(cmds)
+    for k in range(600):
+        if k == 300:
+            for w in (memo, fresh):
+                w.set_model(1, narrow)
+        memo.substeps(1)
+        fresh.wheels[:, :, WH_GAP_AT] = np.nan
+        fresh.substeps(1)
+    for name in ("pose", "velocity", "wheels", "slip"):
+        a, b = getattr(memo, name), getattr(fresh, name)
+        if name == "wheels":
+            a, b = a[:, :, :WH_GAP_AT], b[:, :, :WH_GAP_AT]
+        np.testing.assert_array_equal(a, b, err_msg=name)

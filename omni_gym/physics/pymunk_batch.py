@@ -15,6 +15,23 @@ import re
 import numpy as np
 import pymunk
 
+from omni_gym.physics.layout import (
+    C_EACH_BODY,
+    C_FORCES,
+    C_GET_INT_NUM,
+    C_GET_ITER,
+    C_GET_NUM,
+    C_GET_REQ,
+    C_N_SET,
+    C_SET_ITER,
+    C_SET_NUM,
+    C_SET_REQ,
+    C_SPACE,
+    C_STATES,
+    C_STEP,
+    N_C,
+)
+
 # [lower, upper) of the supported pymunk versions; keep equal to the pin in pyproject.toml.
 SUPPORTED = ((7, 0), (8, 0))
 SUPPORTED_TEXT = "pymunk>=7.0,<8"
@@ -36,14 +53,6 @@ def check_version(version: str = pymunk.version) -> None:
 check_version()
 
 from pymunk import batch as _pmbatch  # noqa: E402  (only once the version is known to fit)
-
-# Columns of :attr:`BodyBatch.c_table` (int64): the space, the C functions cpSpaceEachBody and
-# cpSpaceStep, pymunk's batched get/set iterators and their requests, the addresses of the three
-# int32 element counts to reset before each batched call, the float count of a full write, and the
-# addresses of the float64 arrays behind :attr:`BodyBatch.states` and :attr:`BodyBatch.forces`.
-(C_SPACE, C_EACH_BODY, C_STEP, C_GET_ITER, C_GET_REQ, C_SET_ITER, C_SET_REQ, C_GET_NUM, C_GET_INT_NUM,
- C_SET_NUM, C_N_SET, C_STATES, C_FORCES) = range(13)
-N_C = 13
 
 
 class BodyBatch:

@@ -25,7 +25,15 @@ import numba
 import numpy as np
 import pymunk
 
-from omni_gym.physics.kernel import PARALLEL_MIN_ROBOTS, substep, substep_parallel, warm_up
+from omni_gym.physics.kernel import (
+    PARALLEL_MIN_ROBOTS,
+    run_substeps,
+    run_substeps_parallel,
+    run_substeps_spaces,
+    substep,
+    substep_parallel,
+    warm_up,
+)
 from omni_gym.physics.layout import (
     N_SP,
     N_WH,
@@ -36,6 +44,7 @@ from omni_gym.physics.layout import (
     SP_MASS,
     WH_ANGLE,
     WH_CMD,
+    WH_GAP_AT,
     WH_INT,
     WH_LOAD,
     WH_SPEED,
@@ -46,7 +55,6 @@ from omni_gym.physics.liftoff import ContactProcess
 from omni_gym.physics.loads import wheel_loads
 from omni_gym.physics.model import Actuation, SimModel
 from omni_gym.physics.pymunk_batch import BodyBatch
-from omni_gym.physics.stepper import run_substeps, run_substeps_parallel, run_substeps_spaces
 
 DEFAULT_DT = 0.0005  # s, physics substep
 # Arena j's origin is at x = ARENA_BASE + j·spacing, with spacing a power of two. All arenas then lie
@@ -150,6 +158,7 @@ class World:
         self.wheel_cmd = self.wheels[:, :, WH_CMD]  # rad/s
         self.servo_int = self.wheels[:, :, WH_INT]  # rad
         self.loads = self.wheels[:, :, WH_LOAD]  # N
+        self.wheels[:, :, WH_GAP_AT] = math.nan  # the kernel's rigid-material memo starts empty
         self.contact = np.ones((B, n), dtype=bool)
         self.ext_force = np.zeros((B, 3))
         self.force = np.zeros((B, 3))
@@ -282,6 +291,7 @@ class World:
         sp, wp = model.kernel_params(self.actuation)
         self.sp[j] = sp
         self.wp[j] = wp
+        self.wheels[j, :, WH_GAP_AT] = math.nan  # a new pitch, gap or phase: forget the kernel's memo
         body = self.bodies[j]
         body.mass = sp[SP_MASS]
         body.moment = sp[SP_INERTIA]
@@ -434,9 +444,9 @@ class World:
     def substeps(self, count: int) -> None:
         """Run ``count`` physics substeps of ``dt``.
 
-        The substeps between two contact switches run in one compiled call
-        (:mod:`omni_gym.physics.stepper`): read, kernel, write and pymunk step, each substep the same
-        calls as a Python loop would make, so results do not depend on where switches split the run.
+        The substeps between two contact switches run in one compiled call (``run_substeps*`` in
+        :mod:`omni_gym.physics.kernel`): read, kernel, write and pymunk step, each substep the same calls
+        as a Python loop would make, so results do not depend on where switches split the run.
         """
         for batch in self._batches:
             batch.check_new_bodies()
