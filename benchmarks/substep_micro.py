@@ -149,19 +149,6 @@ def _parallel_once(dt, state, wheels, sp, wp, ext, force, slip):
         K._robot_substep(b, dt, state, wheels, sp, wp, ext, force, slip)
 
 
-def timed(fn, min_seconds: float, reps: int) -> float:
-    """Best seconds per call of ``fn(reps)`` / reps over repeated tries lasting ``min_seconds``."""
-    fn(1)
-    best = math.inf
-    start = time.perf_counter()
-    while True:
-        t0 = time.perf_counter()
-        fn(reps)
-        best = min(best, (time.perf_counter() - t0) / reps)
-        if time.perf_counter() - start > min_seconds:
-            return best
-
-
 def reps_for(n: int) -> int:
     return max(4, 200_000 // n)
 
@@ -209,30 +196,24 @@ def pymunk_runner(world: World):
     return run
 
 
-def measure(robot: str, friction: str, n: int, seconds: float) -> dict:
-    one = moving_world(robot, friction, n, threads=1)
-    batch = one._batch
-    dt = one.dt
-    args = (dt, batch.states, one.wheels, one.sp, one.wp, one.ext_force, batch.forces, one.slip)
-    reps = reps_for(n)
-    few = max(4, reps // 20)
-    row = {}
-    row["kernel"] = timed(lambda r: repeat_kernel(r, *args), seconds, reps) / n
-
-    def parallel(r):
-        for _ in range(r):
-            _parallel_once(*args)
-
-    row["kernel_threads"] = timed(parallel, seconds, few) / n if n >= 64 else math.nan
-    row["pymunk"] = timed(pymunk_runner(one), seconds, few) / n
-    row["world_one"] = timed(one.substeps, seconds, few) / n
-    world = moving_world(robot, friction, n)
-    row["world"] = timed(world.substeps, seconds, few) / n
-    row["threads"] = world.parallel
-    return row
+def interleaved(fns: dict, seconds: float) -> dict:
+    """Best seconds per call of each ``fn(reps)`` / reps, ``fns``: name → (fn, reps). The candidates
+    take turns, one try each per round, for ``seconds`` per candidate in all: on a shared machine
+    they then see the same load, so their ratios hold even when the absolute figures do not."""
+    best = {name: math.inf for name in fns}
+    for fn, _ in fns.values():
+        fn(1)
+    start = time.perf_counter()
+    while time.perf_counter() - start < seconds * len(fns):
+        for name, (fn, reps) in fns.items():
+            t0 = time.perf_counter()
+            fn(reps)
+            best[name] = min(best[name], (time.perf_counter() - t0) / reps)
+    return best
 
 
-def limit_ns(robot: str, n: int, seconds: float) -> float:
+def limit_runner(robot: str, n: int):
+    """fn(reps): the limit loop of ``robot``'s operation mix over n robots."""
     mix = MIXES[robot]
     loop = build_limit(mix)
     rng = np.random.default_rng(0)
@@ -240,7 +221,31 @@ def limit_ns(robot: str, n: int, seconds: float) -> float:
     win = rng.uniform(-1.0, 1.0, (n, mix["wheels"], READ_WHEEL))
     out = np.zeros((n, WRITE_ROBOT))
     wout = np.zeros((n, mix["wheels"], WRITE_WHEEL))
-    return timed(lambda r: loop(inp, win, out, wout, r), seconds, reps_for(n)) / n * 1e9
+    return lambda r: loop(inp, win, out, wout, r)
+
+
+def measure(robot: str, friction: str, n: int, seconds: float) -> dict:
+    """ns per robot-substep of every column, measured interleaved (see :func:`interleaved`)."""
+    one = moving_world(robot, friction, n, threads=1)
+    world = moving_world(robot, friction, n)
+    batch = one._batch
+    dt = one.dt
+    args = (dt, batch.states, one.wheels, one.sp, one.wp, one.ext_force, batch.forces, one.slip)
+    reps = max(2, reps_for(n) // 10)
+    few = max(2, reps // 10)
+
+    def parallel(r):
+        for _ in range(r):
+            _parallel_once(*args)
+
+    fns = {"kernel": (lambda r: repeat_kernel(r, *args), reps), "limit": (limit_runner(robot, n), reps),
+           "pymunk": (pymunk_runner(one), few), "world_one": (one.substeps, few), "world": (world.substeps, few)}
+    if n >= 64:
+        fns["kernel_threads"] = (parallel, few)
+    row = {name: t / n * 1e9 for name, t in interleaved(fns, seconds).items()}
+    row.setdefault("kernel_threads", math.nan)
+    row["threads"] = world.parallel
+    return row
 
 
 def main() -> None:
@@ -268,18 +273,19 @@ def main() -> None:
                      "| 1 + 1 |")
         for n in args.sizes:
             row = measure(robot, friction, n, args.seconds)
-            lim = limit_ns(robot, n, args.seconds)
-            kernel_ns = row["kernel"] * 1e9
-            threads = "" if math.isnan(row["kernel_threads"]) else f"{row['kernel_threads'] * 1e9:.0f}"
-            world = f"{row['world'] * 1e9:.0f}" if row["threads"] else "(1 thread below 256)"
-            table.append(f"| {label} | {n} | {kernel_ns:.0f} | {threads} | {row['pymunk'] * 1e9:.0f} | "
-                         f"{row['world_one'] * 1e9:.0f} | {world} | {lim:.0f} | {kernel_ns / lim:.2f} |")
+            lim = row["limit"]
+            kernel_ns = row["kernel"]
+            threads = "" if math.isnan(row["kernel_threads"]) else f"{row['kernel_threads']:.0f}"
+            world = f"{row['world']:.0f}" if row["threads"] else "(1 thread below 256)"
+            table.append(f"| {label} | {n} | {kernel_ns:.0f} | {threads} | {row['pymunk']:.0f} | "
+                         f"{row['world_one']:.0f} | {world} | {lim:.0f} | {kernel_ns / lim:.2f} |")
             print(table[-1], flush=True)
     lines += [
         f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
         f"{platform.python_version()}, numba {numba.__version__}. Shared machine: load average (1 min) "
         f"{load0:.1f} at the start, {os.getloadavg()[0]:.1f} at the end (other jobs included). Best of repeated "
-        f"timings of about {args.seconds:g} s each; ideal actuation, 0.5 ms substeps, robots driving with slip.",
+        f"timings, about {args.seconds:g} s per column, the columns of a row taking turns (same load for "
+        "all); ideal actuation, 0.5 ms substeps, robots driving with slip.",
         "",
         "Operation mix per robot-substep (counted from `omni_gym/physics/kernel.py`, see `MIXES` in the script):",
         "",
