@@ -264,7 +264,8 @@ def fmt_params(params: dict) -> str:
     return ", ".join(f"{k} {one(v)}" for k, v in params.items())
 
 
-def plot(out: Path, stem: str, robot: Robot, sessions: list[Session], pred: dict, n_train: int) -> Path:
+def plot(out: Path, stem: str, robot: Robot, sessions: list[Session], pred: dict, n_train: int,
+         start: str = "nominal") -> Path:
     """xy paths of the first run of every held-out session: motion capture and three models."""
     fig, axes = plt.subplots(1, len(sessions), figsize=(4 * len(sessions), 4.2))
     styles = {"nominal": ("tab:gray", "nominal (sim)"), "kinematic": ("tab:blue", "kinematic calibration"),
@@ -275,7 +276,9 @@ def plot(out: Path, stem: str, robot: Robot, sessions: list[Session], pred: dict
         ax.plot(run.pose[ok, 0], run.pose[ok, 1], "k-", lw=2.0, label="motion capture")
         for m, (color, label) in styles.items():
             p = pred[(s.name, run.name)][m]
-            ax.plot(p[:, 0], p[:, 1], color=color, lw=1.0, label=label)
+            # extended dashed: where gap added nothing it lies on its start model's curve, which shows through
+            ax.plot(p[:, 0], p[:, 1], color=color, lw=1.2 if m == "extended" else 1.0,
+                    ls="--" if m == "extended" else "-", label=label)
         ax.plot(*run.start_pose[:2], "ko", ms=4)
         ax.set_title(f"{s.name}\n{run.name.split('_')[-1]} ({run.t[-1]:.0f} s)", fontsize=9)
         ax.set_aspect("equal", adjustable="datalim")
@@ -283,8 +286,8 @@ def plot(out: Path, stem: str, robot: Robot, sessions: list[Session], pred: dict
     np.atleast_1d(axes)[0].set_ylabel("y [m]")
     np.atleast_1d(axes)[0].legend(fontsize=7, loc="best")
     fig.suptitle(f"{robot.title}: held-out OptiOdom runs replayed open loop from the start pose\n(kinematic "
-                 f"calibration on {n_train} training runs; extended model: gap's; the nominal curve lies under it "
-                 "where gap added nothing)", fontsize=10)
+                 f"calibration on {n_train} training runs; extended model: gap's, started from the {start} model, "
+                 "dashed: it covers that model's curve where gap added nothing)", fontsize=10)
     fig.tight_layout()
     path = out / f"{stem}.png"
     fig.savefig(path, dpi=110)
@@ -367,7 +370,7 @@ def main(argv: list[str] | None = None) -> int:
         subset += f"; gap fitted {result['dataset']['fitted']['description']}"
         start_txt = ", start=the kinematic calibration's model" if args.gap_start == "kinematic" else ""
         gap_info = {"source": f"omni_gym.discrepancy.workflow.gap(seed={args.seed}, "
-                              f"fit_budget={args.fit_budget:g}{start_txt}){subset}", "wall": wall,
+                              f"fit_budget={args.fit_budget:g}{start_txt}){subset}", "wall": wall, "command": command,
                     "start": args.gap_start,
                     "effect": result["effect"], "why": result["why"], "gap": result["gap"],
                     "effects": result.get("effects")}
@@ -397,7 +400,7 @@ def main(argv: list[str] | None = None) -> int:
     say("residual analysis (per-session kinematic calibrations)")
     left = residual_analysis(sessions, pred, nominal, cal)
     say("writing the table and the plot")
-    png = plot(out, stem, robot, sessions, pred, len(train))
+    png = plot(out, stem, robot, sessions, pred, len(train), gap_info.get("start", "nominal"))
     md = table(robot, stem, command, args.quick, nominal, cal, extended, named, gap_info, sessions, rms, mass_session,
                mass_rms, train, dt, left)
     (out / f"{stem}.md").write_text(md)
@@ -516,10 +519,12 @@ def write_summary(out: Path) -> Path:
              "start pose with the measured wheel speeds, Euclidean x, y error against motion capture: what "
              "`omni-gym score` computes). Every model is fitted on that robot's training sessions only: nominal "
              "(metadata geometry, simulated), kinematic calibration (dead reckoning), gap's extended model "
-             "(simulated; gap starts from the nominal model). Details, per-run values and plots: one file per robot, "
+             "(simulated; gap starts from the model the column says: the nominal one, or the kinematic calibration's "
+             "with its wheel diameters and size kept). Details, per-run values and plots: one file per robot, "
              "linked below.", "",
              "| robot | held-out session | runs | nominal | kinematic | extended | extended / kinematic | "
-             "gap starts from | gap wall time | command |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "gap starts from | gap wall time |", "|---|---|---|---|---|---|---|---|---|"]
+    commands = []
     found = []
     for name, variant in [(r, v) for r in sorted(ROBOTS) for v in ("", "_from_kinematic")]:
         path = out / f"real_optiodom_{name}{variant}.json"
@@ -535,10 +540,12 @@ def write_summary(out: Path) -> Path:
         for sname, d in rec["heldout"].items():
             m = {k: float(np.mean(v)) for k, v in d.items()}
             lines.append(f"| {name} | {sname} | {len(d['nominal'])} | {mm(m['nominal'])} | {mm(m['kinematic'])} | "
-                         f"{mm(m['extended'])} | {m['extended'] / m['kinematic']:.2f} | "
-                         f"{rec['gap'].get('start') or 'nominal'} | {wall_txt} | "
-                         f"`{rec['command']}`{quick} |")
-    lines += [""]
+                         f"{mm(m['extended'])} | {m['extended'] / m['kinematic']:.3f} | "
+                         f"{rec['gap'].get('start') or 'nominal'} | {wall_txt}{quick} |")
+        commands.append(f"- {name}, gap from the {rec['gap'].get('start') or 'nominal'} model: `{rec['command']}`; "
+                        + (f"gap run by `{rec['gap']['command']}`; " if rec["gap"].get("command") else "")
+                        + f"extended model: {rec['gap'].get('source', '–')}")
+    lines += ["", "Commands (what made each robot's files):", ""] + commands + [""]
     for name, variant in found:
         stem = f"real_optiodom_{name}{variant}"
         lines += [f"- {ROBOTS[name].title}" + (", gap from the kinematic calibration" if variant else "")
