@@ -57,7 +57,8 @@ METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2
 
 def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds: int = 3,
         progress: bool | None = None, dt: float = FIT_DT, plots: bool = True, force: bool = False,
-        max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET, backend: Backend = SERIAL) -> dict:
+        max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET, backend: Backend = SERIAL,
+        start: SimModel | None = None) -> dict:
     """Run the workflow on ``dataset``; write the report folder ``out`` (if given); return the result.
 
     ``progress``: tqdm bar on stderr (None: only when stderr is a terminal). Same seed, same result.
@@ -69,14 +70,18 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     is, contains or lies inside the dataset is refused.
     ``backend``: where the candidate fits run (:class:`omni_gym.parallel.Backend`; default this process,
     nothing to start); the result does not depend on it.
+    ``start``: the model the search starts from instead of the dataset's (e.g. a kinematic calibration of
+    the same robot, :func:`omni_gym.discrepancy.kinematic_calibration.calibrate`'s ``model``); the effects
+    it already carries are kept as they are and not searched again (refitting one would replace its
+    values, not add to them); in the result and the report "nominal" then means this start model.
     """
     if isinstance(max_effects, bool) or not isinstance(max_effects, int) or max_effects < 1:
         raise ValueError(f"max_effects must be an integer >= 1, got {max_effects!r}")
     check_fit_budget(fit_budget)
     if out is None:
-        return _gap(dataset, None, seed, folds, progress, dt, plots, max_effects, fit_budget, backend)
+        return _gap(dataset, None, seed, folds, progress, dt, plots, max_effects, fit_budget, backend, start)
     with Output(Path(out), "dir", force=force, inputs=[dataset], marker="result.json", what="gap report") as tx:
-        return _gap(dataset, tx.path, seed, folds, progress, dt, plots, max_effects, fit_budget, backend)
+        return _gap(dataset, tx.path, seed, folds, progress, dt, plots, max_effects, fit_budget, backend, start)
 
 
 @dataclass
@@ -186,7 +191,7 @@ def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: l
 
 def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress: bool | None, dt: float,
          plots: bool, max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET,
-         backend: Backend = SERIAL) -> dict:
+         backend: Backend = SERIAL, start: SimModel | None = None) -> dict:
     """The workflow of :func:`gap`; the report is written into ``out`` as it is (no transaction)."""
     from tqdm import tqdm
 
@@ -203,8 +208,11 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         say(f"fitting {fitted.describe()}")
     ds = fitted.dataset
     R = len(ds.runs)
-    nominal = ds.model
-    lever = pose_lever(nominal)
+    lever = pose_lever(ds.model)  # the dataset's: the same residual metric whatever the start
+    nominal = ds.model if start is None else start
+    kept = list(start.effects) if start is not None else []  # the start's effects: kept, not searched
+    if start is not None:
+        say("starting from the given model" + (f" (keeping its {', '.join(kept)})" if kept else ""))
     say(f"checking {R} runs for tracker outliers")
     flagged = find_outliers(ds, lever)
     ds = drop_outliers(ds, flagged)  # flagged rows count as not observed (outliers.py)
@@ -220,7 +228,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     sigma, noise_parts = ev.noise_floor(nominal)
     n_comp = count_components(ds)
     fold_of = make_folds(R, rng, folds, groups=fitted.groups)  # whole runs: groups 0..R-1, the plain folds
-    cands = candidates(nominal)
+    cands = [c for c in candidates(nominal) if c.name not in kept]
     skipped = not_applicable(nominal)  # e.g. roller_gap on mecanum wheels: never fitted, said in result.json
     if skipped:
         say(f"not tried (does not apply to this robot): {', '.join(skipped)}")
@@ -237,7 +245,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         model, base_sse = nominal, sse0
         excess0 = _excess(sse0, n_comp, sigma**2 if sigma is not None else 0.0)
         while True:
-            step = _search_step(ev, model, base_sse, [s.effect for s in steps], fold_of, n_comp, sigma, rng, bar,
+            step = _search_step(ev, model, base_sse, kept + [s.effect for s in steps], fold_of, n_comp, sigma, rng, bar,
                                 say, len(steps) + 1, reference_excess=excess0 if steps else None, seed=seed, ex=ex,
                                 shared=shared)
             fit = step.fit
@@ -293,6 +301,10 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         result["params"] = {}
     result["effects"] = [s.effect for s in steps]
     result["not_applicable"] = skipped
+    if start is not None:
+        result["start"] = {"model": start.to_json(), "kept_effects": kept,
+                           "note": "the search started from this model, not the dataset's; 'nominal' in this result "
+                                   "means it"}
     result["steps"] = _steps_json(steps, uncertainties, final, sse0, n_comp, noise_var)
     if sigma is None:
         result.setdefault("uncertainty", {})["noise"] = (
