@@ -54,7 +54,14 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorWrapper
 from gymnasium.vector.utils import batch_space
 
-from agents.rewards import TrackingReward, VectorTrackingReward, check_reward, step_errors, tracking_reward
+from agents.rewards import (
+    TrackingReward,
+    VectorTrackingReward,
+    check_reward,
+    step_errors,
+    step_headings,
+    tracking_reward,
+)
 from omni_gym.checks import wrap_angle
 
 WRAPPERS = ("none", "residual-ekf-pid", "ekf-features")
@@ -135,7 +142,7 @@ class EKFFeatures(gym.Wrapper):
             total = a
         obs, reward, terminated, truncated, info = self.env.step(total.astype(np.float32))
         reward = float(tracking_reward(self.reward_mode, [reward], [info["tracking_error"]], a[None], [terminated],
-                                       self.lost_distance)[0])
+                                       self.lost_distance, [info["heading_error"]])[0])
         return self._observe(obs), reward, terminated, truncated, info
 
     def _observe(self, obs: np.ndarray) -> np.ndarray:
@@ -245,7 +252,8 @@ class VectorEKFFeatures(VectorWrapper):
         e, done, restart, self._autoreset = step_errors(info, terminated, truncated, self.same_step, self._autoreset)
         live = ~restart
         self.prev_action[live] = a[live]
-        reward = tracking_reward(self.reward_mode, reward, e, a, terminated, self.lost_distance)
+        reward = tracking_reward(self.reward_mode, reward, e, a, terminated, self.lost_distance,
+                                 step_headings(info, done))
         if restart.any():  # NEXT_STEP: obs[restart] are first observations, the actions were ignored
             self.prev_action[restart] = 0.0
             reward[restart] = 0.0
