@@ -94,7 +94,8 @@ def wrapper_spec(hp: dict, where: str) -> WrapperSpec:
             spec = replace(spec, reward=str(kw.get("reward", "squared")))
         else:
             raise ValueError(f"{where}: env_wrapper: {path!r}: this trainer builds {NOISE_WRAPPER} then {EKF_WRAPPER} "
-                             f"(each at most once, in this order), or [{FF_WRAPPER} then] {REWARD_WRAPPER}")
+                             f"(each at most once, in this order), or {REWARD_WRAPPER} alone (privileged; optionally "
+                             f"after {FF_WRAPPER})")
         seen.append(path)
     return spec
 

@@ -55,3 +55,13 @@ def test_feedforward_is_built_by_name_and_refuses_sensor_observations():
     assert isinstance(venv, VectorFeedForwardTwist) and venv.scale == 0.25
     with pytest.raises(ValueError, match="needs obs_mode='state'"):
         FeedForwardTwist(gym.make(ENV, obs_mode="sensors"))
+
+
+def test_hyperparameter_entry_names_the_feedforward_agent():
+    from agents.zoo_config import wrapper_spec
+
+    spec = wrapper_spec({"env_wrapper": [{"agents.wrappers.FeedForwardTwist": {"scale": 0.4}},
+                                         {"agents.rewards.TrackingReward": {"reward": "pose"}}]}, "hp.yml")
+    assert (spec.name, spec.residual_scale, spec.reward) == ("feedforward", 0.4, "pose")
+    with pytest.raises(ValueError, match="hp.yml: env_wrapper: 'agents.wrappers.FeedForwardTwist'"):
+        wrapper_spec({"env_wrapper": ["agents.wrappers.EKFFeatures", "agents.wrappers.FeedForwardTwist"]}, "hp.yml")
