@@ -39,6 +39,7 @@ def test_score_of_episodes_uses_means_and_a_paired_interval():
     assert noisy.ci95[0] < noisy.score < noisy.ci95[1] and noisy.ci95[1] - noisy.ci95[0] > 1.0
     assert score_episodes([0.05], [0.1], [0.02]).ci95 is None  # one episode: no interval
     assert score_episodes([0.05, 0.05], [0.1, 0.1], [0.099, 0.099]).degenerate  # anchors 1 % apart
+    assert score_episodes([0.05, 0.05], [0.012, 0.012], [0.014, 0.014]).degenerate  # ekf-pid worse: inverted
     with pytest.raises(ValueError, match="equal, non-empty"):
         score_episodes([0.1, 0.2], [0.1], [0.1])
 
