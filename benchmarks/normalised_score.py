@@ -163,7 +163,7 @@ def write_markdown(path: Path, command: str, env_ids: list[str], policies: dict,
              "ended early (their RMSE is over the steps they ran, so a lost episode's score is flattering). "
              "Privileged policies read the true state (not robot controllers). Any policy: `omni-gym evaluate "
              "--policy P --env ID --episodes 50 --env-kwargs COND --score` (single environments, same episodes). "
-             f"Wall time {elapsed / 60:.1f} min (cached episodes not counted).", "",
+             f"Wall time of this run {elapsed / 60:.1f} min (episodes reused from `--cache` not counted).", "",
              "Conditions: " + "; ".join(f"{c}: `{json.dumps(CONDITIONS[c])}`" for c in conds) + ".", ""]
     for env_id in env_ids:
         lines += [f"## {env_id}", "", "| policy | " + " | ".join(conds) + " |", "|---|" + "---|" * len(conds)]

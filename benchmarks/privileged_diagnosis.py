@@ -13,8 +13,8 @@ tabulate them::
     python benchmarks/privileged_diagnosis.py --runs RUNS/* --out benchmarks/results
 
 Writes ``privileged_diagnosis.md`` and ``privileged_diagnosis.png`` (validation tracking RMSE [m] against
-training steps, one colour per variant; lost episodes count with their RMSE over the steps they ran) and
-copies each run's ``curve.csv`` and ``meta.json`` to ``OUT/diagnosis_runs/RUN/``.
+training steps, one colour per variant, ids other than Williams-v1 dashed; lost episodes count with their
+RMSE over the steps they ran) and copies each run's ``curve.csv`` and ``meta.json`` to ``OUT/diagnosis_runs/RUN/``.
 """
 
 from __future__ import annotations
@@ -68,7 +68,8 @@ def main(argv: list[str] | None = None) -> int:
              "| run | env | steps | wall [min] | validation RMSE [m] per 100k steps | best | final success |",
              "|---|---|---|---|---|---|---|"]
     for path, variant, meta, data in runs:
-        ax.plot(data[:, 0], data[:, 2], "-o", ms=3, color=colours[variant], label=f"{path.name}")
+        style = "-o" if meta["env_id"].endswith("Williams-v1") else "--s"  # other ids dashed
+        ax.plot(data[:, 0], data[:, 2], style, ms=3, color=colours[variant], label=f"{path.name}")
         curve = ", ".join(f"{v:.3f}" for v in data[:, 2])
         best = np.nanmin(data[1:, 2]) if len(data) > 1 else data[0, 2]
         lines.append(f"| {path.name} | {meta['env_id'].split('-', 1)[1]} | {int(data[-1, 0]):,} | "
