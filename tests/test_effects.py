@@ -17,6 +17,7 @@ from omni_gym.discrepancy import plausible, recovery, synth
 from omni_gym.discrepancy.candidates import candidates, null_point
 from omni_gym.discrepancy.dataset import Dataset
 from omni_gym.discrepancy.fitting import Evaluator, fit_candidate, make_folds
+from omni_gym.discrepancy.measurement import measured
 from omni_gym.physics.effects import REGISTRY, Effect, get
 from omni_gym.physics.model import MODEL_BOUNDS, SimModel, load_model
 from omni_gym.physics.replay import simulate_commands
@@ -82,11 +83,18 @@ def test_effect_changes_the_simulation(name, nominal):
     sp, wp = model.kernel_params()
     changes_kernel = not (np.array_equal(sp, sp0) and np.array_equal(wp, wp0))
     process = model.contact_process(np.random.default_rng(0))
-    assert changes_kernel or process is not None
     assert nominal.contact_process(np.random.default_rng(0)) is None
     t, cmd = _maneuver(nominal, duration=4.0)
     p0 = simulate_commands(nominal, t, cmd, seed=2)
     p1 = simulate_commands(model, t, cmd, seed=2)
+    if effect.kind == "tracker":
+        # A measurement effect leaves the physics alone (simulators and environments ignore it) and
+        # changes what the tracker reports of the same motion.
+        assert not changes_kernel and process is None
+        np.testing.assert_array_equal(p1, p0)
+        p1 = measured(model, t, p0[:, :3])
+    else:
+        assert changes_kernel or process is not None
     # 1 mm: the tracker noise of the study; the defaults are sized to move the robot by more.
     assert np.max(np.hypot(*(p1[:, :2] - p0[:, :2]).T)) > 1e-3
 
