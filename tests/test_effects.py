@@ -137,3 +137,17 @@ def test_synth_hides_the_effect_and_a_fit_finds_parameters_that_explain_it(name,
     assert float(fit.sse_all.sum()) < 0.5 * nominal_sse, (name, fit.params_all, truth["params"])
     errors = recovery.param_error(name, truth["params"], fit.params_all, nominal)
     assert set(errors) == set(effect.tolerances)
+
+
+def test_tracker_effects_have_their_own_key_in_model_files(nominal):
+    """Measurement effects are written under "tracker" (a simulator user wants the physics under
+    "effects"), read back from there, and refused one line under the wrong key."""
+    model = nominal.with_effect("com_offset", {"com": [0.01, 0.0]}).with_effect(
+        "tracker_offset", {"offset": [0.02, 0.0], "yaw": 0.0})
+    data = model.to_json()
+    assert set(data["effects"]) == {"com_offset"} and set(data["tracker"]) == {"tracker_offset"}
+    assert SimModel.from_json(data).effects == model.effects
+    assert "tracker" not in nominal.to_json()  # files without tracker effects are unchanged
+    wrong = {**data, "effects": {**data["effects"], **data.pop("tracker")}}
+    with pytest.raises(ValueError, match="tracker_offset.*put it under 'tracker'"):
+        SimModel.from_json(wrong)
