@@ -5,13 +5,18 @@ observed pose component of every run, metres) is linearised in the fitted dimens
 effects together (effects fitted one after another can trade against each other: per-wheel radius and
 per-wheel distance enter the kinematics together). The Jacobian J = ∂r/∂u is taken by forward
 differences in each dimension's unit coordinate u (its fit range mapped to [0, 1]), so the columns
-are comparable. With J = U S Vᵀ (SVD) and tracker noise σ per component, the Gauss–Newton covariance
-of u is σ² V S⁻² Vᵀ: the combination vₖ (a column of V) is known to ±σ/sₖ. A combination is
+are comparable. With J = U S Vᵀ (SVD) and σ_eff per component, the Gauss–Newton covariance of u is
+σ_eff² V S⁻² Vᵀ: the combination vₖ (a column of V) is known to ±σ_eff/sₖ. σ_eff is the noise floor
+when the fit leaves white noise; on real data the fit leaves model error, larger and correlated over
+many rows, so σ_eff = max(floor, RMS left)·sqrt(τ), τ the residual's integrated autocorrelation time
+in rows (:func:`autocorrelation_time`). A combination is
 **identified** when its 95 % half-width 2σ/sₖ is at most :data:`IDENTIFIED` of the fit range; a
 parameter is identified when its own standard error (the diagonal of the covariance) passes the same
 test. Parameters whose correlation magnitude exceeds :data:`CONFOUNDED` are reported as confounded
-pairs. A named value that is not identified is not a measurement: the report says so (its value is
-only one point of a valley the data leave open), and gives the identified combinations instead.
+pairs. A value at its fit bound is never a measurement (the fit wants a value beyond the range: it
+compensates another error). A named value that is not identified is not a measurement either: the
+report says so (its value is only one point of a valley the data leave open), and gives the identified
+combinations instead.
 
 Wheel lift-off (event-inferred, no Jacobian) is left out; its rates carry bootstrap intervals.
 Periodic dimensions (roller phases) are differenced like the others (their wrap does not matter
@@ -74,12 +79,20 @@ def analyse(ev, nominal: SimModel, named: list[Named], sigma: float | None) -> d
             models.append(_model(nominal, named, us))
     res = ev.residuals(models)
     r0 = _stack(res[0])
+    # What the fit leaves is white tracker noise only if the model is right. On real data it is mostly
+    # model error: larger than σ and correlated over many rows, so the data hold fewer independent
+    # samples than rows. The covariance is inflated by (RMS left / σ)² · τ, τ the residual's integrated
+    # autocorrelation time in rows (1 for white noise): a Gauss-Newton interval with the tracker's σ
+    # would call every parameter of a real-robot fit "pinned down" (omni3: ±0.3 % of the range).
+    rms = float(np.sqrt(np.mean(r0**2))) if r0.size else sigma
+    tau = autocorrelation_time(res[0])
+    sigma_eff = max(sigma, rms) * math.sqrt(tau)
     signs = np.array([1.0 if u[j] + STEP <= 1.0 else -1.0 for u in base for j in range(len(u))])
     J = np.column_stack([(_stack(r) - r0) / (STEP * s) for r, s in zip(res[1:], signs, strict=True)])
     _, s, vt = np.linalg.svd(J, full_matrices=False)
     s_safe = np.maximum(s, 1e-300)
-    half = 2.0 * sigma / s_safe  # 95 % half-width of each combination, unit-cube coordinates
-    cov = (vt.T / s_safe**2) @ vt * sigma**2
+    half = 2.0 * sigma_eff / s_safe  # 95 % half-width of each combination, unit-cube coordinates
+    cov = (vt.T / s_safe**2) @ vt * sigma_eff**2
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     corr = cov / np.maximum(np.outer(sd, sd), 1e-300)
     dims = [d for n in named for d in n.candidate.dims]
@@ -107,10 +120,37 @@ def analyse(ev, nominal: SimModel, named: list[Named], sigma: float | None) -> d
         per_effect[n.candidate.name] = _effect_line(n.candidate.name, own, combos, len(named) == 1)
     return {"params": params, "combinations": combos, "confounded": pairs, "per_effect": per_effect,
             "n_identified": int(sum(c["identified"] for c in combos)), "n_params": len(labels),
+            "sigma_eff": sigma_eff, "rms_left": rms, "autocorrelation_rows": tau,
             "note": (f"Gauss-Newton at the final fit: J = d(residual)/d(unit coordinate of each fitted dimension), "
-                     f"SVD; a combination or parameter is identified when its 95 % half-width (2 sigma/s) is at "
-                     f"most {IDENTIFIED:g} of its fit range (sigma = the noise floor {1e3 * sigma:.3g} mm); "
-                     f"|correlation| > {CONFOUNDED:g}: confounded")}
+                     f"SVD; a combination or parameter is identified when its 95 % half-width (2 sigma_eff/s) is "
+                     f"at most {IDENTIFIED:g} of its fit range; sigma_eff = max(noise floor {1e3 * sigma:.3g} mm, "
+                     f"RMS left {1e3 * rms:.3g} mm) x sqrt(autocorrelation time {tau:.3g} rows) = "
+                     f"{1e3 * sigma_eff:.3g} mm; |correlation| > {CONFOUNDED:g}: confounded; a value at its fit "
+                     "bound is never a measurement")}
+
+
+def autocorrelation_time(res: list[np.ndarray], max_lag: int = 500, cut: float = 0.05) -> float:
+    """Integrated autocorrelation time [rows] of per-run residuals (K, 3): 1 + 2·Σ ρ_k over lags until
+    ρ_k first falls below ``cut`` (pooled over runs and channels, rows after each run's first; at least 1)."""
+    series = []
+    for r in res:
+        x = r[1:]
+        x = x[np.all(np.isfinite(x), axis=1)]
+        if len(x) > 3:
+            series.append(x - x.mean(axis=0))
+    if not series:
+        return 1.0
+    var = sum(float(np.sum(x * x)) for x in series)
+    if var <= 0:
+        return 1.0
+    tau = 1.0
+    for k in range(1, max_lag + 1):
+        num = sum(float(np.sum(x[:-k] * x[k:])) for x in series if len(x) > k)
+        rho = num / var
+        if rho < cut:
+            break
+        tau += 2.0 * rho
+    return tau
 
 
 def _combo_text(terms: list[tuple[str, float]]) -> str:
@@ -124,10 +164,14 @@ def _combo_text(terms: list[tuple[str, float]]) -> str:
 
 def _effect_line(effect: str, own: list[dict], combos: list[dict], alone: bool) -> str:
     """One line: what the data pinned down of this effect and what they did not."""
-    pinned = [p["param"] for p in own if p["identified"]]
-    loose = [p["param"] + (" (at its fit bound)" if p["at_bound"] else "") for p in own if not p["identified"]]
+    pinned = [p["param"] for p in own if p["identified"] and not p["at_bound"]]
+    loose = [p["param"] for p in own if not p["identified"] and not p["at_bound"]]
+    bound = [p["param"] for p in own if p["at_bound"]]
+    tail = (f"; at its fit bound (the fit wants a value beyond the range: it compensates another error, not a "
+            f"measurement): {', '.join(bound)}" if bound else "")
     if not loose:
-        return f"{effect}: every parameter pinned down ({', '.join(pinned)})"
+        return f"{effect}: " + (f"every parameter pinned down ({', '.join(pinned)})" if not bound
+                                else f"pinned down {', '.join(pinned) or 'nothing else'}") + tail
     prefix = "" if alone else f"{effect}."
     # identified combinations that involve a loose parameter: what the data do determine instead
     names = {prefix + p["param"] for p in own if not p["identified"]}
@@ -136,4 +180,4 @@ def _effect_line(effect: str, own: list[dict], combos: list[dict], alone: bool) 
            + ", ".join(loose)
     if ident:
         text += "; determined instead: " + "; ".join(ident[:3])
-    return text
+    return text + tail

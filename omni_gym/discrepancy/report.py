@@ -51,7 +51,8 @@ def markdown(result: dict, figures: list[str]) -> str:
     if result.get("params"):
         lines += ["Fitted parameters:", ""] + _param_lines(effect, result["params"]) + [""]
         loose = [f"{p['effect']}.{p['param']}" + (" (at its fit bound)" if p["at_bound"] else "")
-                 for p in (result.get("identifiability") or {}).get("params", []) if not p["identified"]]
+                 for p in (result.get("identifiability") or {}).get("params", [])
+                 if not p["identified"] or p["at_bound"]]
         if loose:
             lines += ["⚠ **Not identified by the data** (one point of a valley the data leave open, not a measured "
                       "value; see \"What the data determine\"): " + ", ".join(loose) + ".", ""]
