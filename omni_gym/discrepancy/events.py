@@ -611,8 +611,8 @@ class EventInference:
         :data:`MIN_EVENT_PEAK` noise-floor standard deviations (then re-replay those runs and redo the
         keep test). A lift-off is a large local disturbance (a lifted wheel for 0.05-0.2 s moves the
         Williams robot 7-200 mm off its path); an "event" whose whole effect stays within a few σ̂ is not
-        told apart from the model mismatch the noise floor allows: with nothing hidden, such events
-        absorbed the world's sub-millimetre disagreement with an independent integrator."""
+        told apart from the model mismatch the noise floor allows (with nothing hidden, inferred events
+        once absorbed the world's smooth sub-millimetre disagreement with an independent integrator)."""
         sigma = self.sigma
         if sigma is None or sigma <= 0 or not any(self.fits.events):
             return
