@@ -30,9 +30,9 @@ Search (all runs batched; :class:`EventInference`, one method per step, :func:`i
    :data:`OPEN_LOOP_ROUNDS`), and a run keeps its events only if their open-loop likelihood gain
    beats their total cost.
 4. **Size and adequacy** (:meth:`~EventInference.check_event_size`,
-   :meth:`~EventInference.check_adequacy`). An event must move the replayed pose by more than
-   :data:`MIN_EVENT_PEAK` noise-floor standard deviations somewhere, or it is dropped (a lift-off is
-   a large disturbance; smaller "events" absorb model mismatch within the noise floor). Lift-off says
+   :meth:`~EventInference.check_adequacy`). Optionally (:data:`MIN_EVENT_PEAK` > 0; off by default)
+   an event must move the replayed pose by more than that many noise-floor standard deviations
+   somewhere, or it is dropped. Lift-off says
    the nominal model is exact between events,
    so the MAP events must leave a noise-level residual; otherwise they are absorbing
    a continuous model error (e.g. a viscous drag) and are rejected (``adequacy``). Lift-off is also
@@ -75,8 +75,10 @@ ADD_TOP = 3  # ...trying each run's 3 best additions, each refined before the co
 CASE_ALPHA = 0.01  # reject events whose lifted cases are this unlikely under the uniform draw (step 4)
 MAX_LIFTED_SHARE = 0.5  # most of the moving time that inferred events may keep a wheel lifted (step 4)
 # An inferred event must move the replayed pose by more than this many noise-floor standard deviations
-# somewhere (step 4a).
-MIN_EVENT_PEAK = 4.0
+# somewhere (step 4a; 0 disables the check). Off: at 4 it dropped real lifts at 3 mm tracker noise
+# (recovery study, 6 runs x 3 s, seed 100: large size named `unexplained`, small size lift_rate 0.063
+# for 0.4 /s), so it is kept as an option, not a rule (docs/discrepancy.md).
+MIN_EVENT_PEAK = 0.0
 SKIP_FACTOR = 3.0  # skip the sequential/global moves when the window proposal is above 3 x the adequacy limit
 SEQ_MAX_EVENTS = 12  # most events per run of the sequential open-loop decoding
 SEQ_AHEAD = 0.1  # s: new events start up to this long after the deviation point...
@@ -614,7 +616,7 @@ class EventInference:
         told apart from the model mismatch the noise floor allows (with nothing hidden, inferred events
         once absorbed the world's smooth sub-millimetre disagreement with an independent integrator)."""
         sigma = self.sigma
-        if sigma is None or sigma <= 0 or not any(self.fits.events):
+        if MIN_EVENT_PEAK <= 0 or sigma is None or sigma <= 0 or not any(self.fits.events):
             return
         fits = self.fits
         trials = [(ri, tuple(x for x in evs if x != e)) for ri, evs in enumerate(fits.events) for e in evs]
