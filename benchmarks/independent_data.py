@@ -135,14 +135,15 @@ def table(done: list[dict]) -> str:
             answers[r["effect"]] = answers.get(r["effect"], 0) + 1
         lines.append(f"| {k} | {sum(r['correct'] for r in rs)} | {len(rs)} | "
                      + ", ".join(f"{a} ×{n}" for a, n in sorted(answers.items())) + " |")
-    lines += ["", "| category | seed | runs × s | hidden | answer (effects) | parameter error | nominal / floor "
-              "[mm] | right | wall [s] |", "|---|---|---|---|---|---|---|---|---|"]
+    lines += ["", "| category | run | seed | runs × s | hidden | answer (effects) | parameter error | nominal / floor "
+              "[mm] | right | wall [s] |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in done:
         err = ", ".join(f"{k} {v:.3g}" for k, v in (r.get("param_error") or {}).items())
         hid = json.dumps(r["hidden"], separators=(",", ":")) if r["hidden"] else "-"
         hid = hid.replace("|", "/")
         floor = "-" if r["floor_mm"] is None else f"{r['floor_mm']:.2f}"
-        lines.append(f"| {r['kind']} | {r['seed']} | {r['runs']} × {r['duration']:g} | `{_round(hid)}` | "
+        lines.append(f"| {r['kind']} | {r.get('run', '-')} | {r['seed']} | {r['runs']} × {r['duration']:g} | "
+                     f"`{_round(hid)}` | "
                      f"{r['effect']} ({' + '.join(r['effects']) or '-'}) | {err or '-'} | "
                      f"{r['nominal_rms_mm']:.2f} / {floor} | {'yes' if r['correct'] else '**no**'} | "
                      f"{r['wall_s']:.0f} |")
