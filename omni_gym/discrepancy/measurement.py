@@ -47,3 +47,16 @@ def centre_start(model: SimModel, pose: np.ndarray, velocity: np.ndarray) -> tup
     for effect, params in effects:
         pose, velocity = effect.unmeasure(params, pose, velocity)
     return pose, velocity
+
+
+def align_start(pose: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """``pose`` (K, 3) moved rigidly (rotated about its first row, then translated) so that its first row
+    is ``target`` (3,) [m, m, rad]. On a uniform floor the motion is equivariant under such moves."""
+    d = float(target[2] - pose[0, 2])
+    c, s = np.cos(d), np.sin(d)
+    rel = pose[:, :2] - pose[0, :2]
+    out = np.empty_like(pose)
+    out[:, 0] = target[0] + c * rel[:, 0] - s * rel[:, 1]
+    out[:, 1] = target[1] + s * rel[:, 0] + c * rel[:, 1]
+    out[:, 2] = pose[:, 2] + d
+    return out

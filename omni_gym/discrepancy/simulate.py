@@ -13,7 +13,7 @@ import numpy as np
 
 from omni_gym.checks import wrap_angle
 from omni_gym.discrepancy.dataset import Run
-from omni_gym.discrepancy.measurement import centre_start, has_tracker_effects, measured
+from omni_gym.discrepancy.measurement import align_start, centre_start, has_tracker_effects, measured
 from omni_gym.physics.liftoff import ScheduledContactProcess
 from omni_gym.physics.model import SimModel
 from omni_gym.physics.world import World
@@ -109,6 +109,13 @@ def simulate_jobs(jobs: list[Job], dt: float = FIT_DT) -> list[tuple[np.ndarray,
     for b, job in enumerate(jobs):
         if tracked[b]:  # what the tracker would report (omni_gym.discrepancy.measurement)
             poses[b] = measured(job.model, job.run.t[job.k0:ends[b] + 1], poses[b])
+            # The first row is the tracked start, as in a replay without tracker effects. centre_start
+            # is first order in a time offset: a negative delay (the tracker's first row shows the robot
+            # |delay| later) would leave the replay shifted by the motion over |delay|. The floor is the
+            # same everywhere, so the motion is equivariant under a rigid move of the start: move the
+            # whole replay so that its first row is the tracked start.
+            target = job.run.start_pose if job.state0 is None else job.state0[0]
+            poses[b] = align_start(poses[b], np.asarray(target, dtype=float))
     angles = [ang_ev[pos, b] for b, pos in enumerate(rows_at)]
     return list(zip(poses, angles, strict=True))
 
