@@ -17,6 +17,7 @@ from omni_gym.discrepancy import plausible, recovery, synth
 from omni_gym.discrepancy.candidates import candidates, null_point
 from omni_gym.discrepancy.dataset import Dataset
 from omni_gym.discrepancy.fitting import Evaluator, fit_candidate, make_folds
+from omni_gym.discrepancy.measurement import measured
 from omni_gym.physics.effects import REGISTRY, Effect, get
 from omni_gym.physics.model import MODEL_BOUNDS, SimModel, load_model
 from omni_gym.physics.replay import simulate_commands
@@ -82,11 +83,18 @@ def test_effect_changes_the_simulation(name, nominal):
     sp, wp = model.kernel_params()
     changes_kernel = not (np.array_equal(sp, sp0) and np.array_equal(wp, wp0))
     process = model.contact_process(np.random.default_rng(0))
-    assert changes_kernel or process is not None
     assert nominal.contact_process(np.random.default_rng(0)) is None
     t, cmd = _maneuver(nominal, duration=4.0)
     p0 = simulate_commands(nominal, t, cmd, seed=2)
     p1 = simulate_commands(model, t, cmd, seed=2)
+    if effect.kind == "tracker":
+        # A measurement effect leaves the physics alone (simulators and environments ignore it) and
+        # changes what the tracker reports of the same motion.
+        assert not changes_kernel and process is None
+        np.testing.assert_array_equal(p1, p0)
+        p1 = measured(model, t, p0[:, :3])
+    else:
+        assert changes_kernel or process is not None
     # 1 mm: the tracker noise of the study; the defaults are sized to move the robot by more.
     assert np.max(np.hypot(*(p1[:, :2] - p0[:, :2]).T)) > 1e-3
 
@@ -129,3 +137,17 @@ def test_synth_hides_the_effect_and_a_fit_finds_parameters_that_explain_it(name,
     assert float(fit.sse_all.sum()) < 0.5 * nominal_sse, (name, fit.params_all, truth["params"])
     errors = recovery.param_error(name, truth["params"], fit.params_all, nominal)
     assert set(errors) == set(effect.tolerances)
+
+
+def test_tracker_effects_have_their_own_key_in_model_files(nominal):
+    """Measurement effects are written under "tracker" (a simulator user wants the physics under
+    "effects"), read back from there, and refused one line under the wrong key."""
+    model = nominal.with_effect("com_offset", {"com": [0.01, 0.0]}).with_effect(
+        "tracker_offset", {"offset": [0.02, 0.0], "yaw": 0.0})
+    data = model.to_json()
+    assert set(data["effects"]) == {"com_offset"} and set(data["tracker"]) == {"tracker_offset"}
+    assert SimModel.from_json(data).effects == model.effects
+    assert "tracker" not in nominal.to_json()  # files without tracker effects are unchanged
+    wrong = {**data, "effects": {**data["effects"], **data.pop("tracker")}}
+    with pytest.raises(ValueError, match="tracker_offset.*put it under 'tracker'"):
+        SimModel.from_json(wrong)

@@ -44,7 +44,9 @@ from scipy.integrate import solve_ivp
 from omni_gym.physics.loads import wheel_loads
 from omni_gym.physics.model import SimModel
 
-SUPPORTED_EFFECTS = ("com_offset",)
+# Effects this integrator implements itself (written from the effects' documented equations, not their
+# kernel code): the centre of mass, per-wheel rolling radius and per-wheel placement and mounting yaw.
+SUPPORTED_EFFECTS = ("com_offset", "wheel_radius", "wheel_geometry")
 _TWO_OVER_PI = 2.0 / math.pi
 
 
@@ -88,14 +90,16 @@ def _switch_times(times: np.ndarray, commands: np.ndarray, t_end: float, pitch: 
 
 def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarray, t_eval: np.ndarray,
                          contact: np.ndarray | None = None, rtol: float = 1e-10, atol: float = 1e-12,
-                         initial_velocity: np.ndarray | None = None, method: str = "LSODA") -> dict:
+                         initial_velocity: np.ndarray | None = None, method: str = "LSODA",
+                         drag: float = 0.0) -> dict:
     """Integrate the slip model for one robot starting at the origin (pose (0, 0, 0)).
 
     This is the validation reference (slow; switching times handled exactly), not a simulator.
 
     Args:
-        model: the model; only the ``com_offset`` effect is supported (others raise
-            NotImplementedError).
+        model: the model; only the effects of :data:`SUPPORTED_EFFECTS` are supported (others raise
+            NotImplementedError): ``com_offset`` moves c, ``wheel_radius`` scales r per wheel,
+            ``wheel_geometry`` moves wheel i to distance_i·p_i and yaws d_i by mount_i.
         times: (K,) command switch times [s], ``times[0] == 0``, increasing. Row j of ``commands``
             holds on [times[j], times[j+1]); the last row holds until ``t_eval[-1]``.
         commands: (K, n) commanded wheel speeds [rad/s].
@@ -107,6 +111,8 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
             (default at rest).
         method: scipy stiff method, ``"LSODA"`` (default: automatic stiff/non-stiff switching, several
             times faster here) or ``"Radau"``; the two agree to ~1e-10 m on 2 s manoeuvres.
+        drag: a viscous force −drag·V [N·s/m] on the centre of mass (not a library effect: independent
+            data the library cannot explain).
 
     Returns:
         dict with
@@ -131,18 +137,27 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
         raise ValueError("t_eval must be non-negative and non-decreasing")
 
     c = np.asarray(model.com, dtype=float)
-    p_rel = robot.positions() - c  # wheel centres relative to the centre of mass, body frame
-    gamma = np.array([w.roller_angle for w in robot.wheels], dtype=float)
+    positions = robot.positions()
     drive = robot.drives()
+    r = np.full(n, robot.wheel_radius)
+    if "wheel_radius" in model.effects:
+        r = r * np.asarray(model.effects["wheel_radius"]["scale"], dtype=float)
+    if "wheel_geometry" in model.effects:
+        geo = model.effects["wheel_geometry"]
+        positions = positions * np.asarray(geo["distance"], dtype=float)[:, None]
+        yaw = np.asarray(geo["mount"], dtype=float)
+        drive = np.column_stack([np.cos(yaw) * drive[:, 0] - np.sin(yaw) * drive[:, 1],
+                                 np.sin(yaw) * drive[:, 0] + np.cos(yaw) * drive[:, 1]])
+    p_rel = positions - c  # wheel centres relative to the centre of mass, body frame
+    gamma = np.array([w.roller_angle for w in robot.wheels], dtype=float)
     axle = np.column_stack([-drive[:, 1], drive[:, 0]])
     d_b = np.cos(gamma)[:, None] * drive + np.sin(gamma)[:, None] * axle  # roller axis e_i (body frame)
     a_b = np.column_stack([-d_b[:, 1], d_b[:, 0]])  # free direction f_i = z × e_i
-    r = robot.wheel_radius
     r_cos = r * np.cos(gamma)  # v_W = u·e − r w cos γ
     r_sin = r * np.sin(gamma)  # v_T = u·f + r w sin γ
     m, inertia = robot.mass, robot.inertia
     k = surf.k
-    loads = wheel_loads(robot.positions(), c, m, model.gravity, contact)
+    loads = wheel_loads(positions, c, m, model.gravity, contact)
     pitch = 2.0 * math.pi / robot.rollers
     gap = (1.0 - robot.roller_fraction) * pitch
     use_gap = model.friction == "roller_gap"
@@ -177,7 +192,8 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
             fx = -(fw * dw[:, 0] + ft * aw[:, 0])
             fy = -(fw * dw[:, 1] + ft * aw[:, 1])
             tau = np.sum(rho[:, 0] * fy - rho[:, 1] * fx)
-            return np.array([s[3] + s[5] * q[1], s[4] - s[5] * q[0], s[5], fx.sum() / m, fy.sum() / m, tau / inertia])
+            return np.array([s[3] + s[5] * q[1], s[4] - s[5] * q[0], s[5], (fx.sum() - drag * s[3]) / m,
+                             (fy.sum() - drag * s[4]) / m, tau / inertia])
 
         def jac(_t, s):
             rho, dw, aw, q, ux, uy, v_w, v_t = slips(s, w_cmd)
@@ -213,6 +229,8 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
             cols = [2, 3, 4, 5]
             J[3, cols] = dfx.sum(axis=0) / m
             J[4, cols] = dfy.sum(axis=0) / m
+            J[3, 3] -= drag / m
+            J[4, 4] -= drag / m
             J[5, cols] = dtau.sum(axis=0) / inertia
             return J
 

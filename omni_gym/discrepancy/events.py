@@ -29,8 +29,12 @@ Search (all runs batched; :class:`EventInference`, one method per step, :func:`i
    step 4, :data:`SKIP_FACTOR`.) Then fine coordinate sweeps (:data:`REFINE`, up to
    :data:`OPEN_LOOP_ROUNDS`), and a run keeps its events only if their open-loop likelihood gain
    beats their total cost.
-4. **Adequacy** (:meth:`~EventInference.check_adequacy`). Lift-off says the nominal model is exact
-   between events, so the MAP events must leave a noise-level residual; otherwise they are absorbing
+4. **Size and adequacy** (:meth:`~EventInference.check_event_size`,
+   :meth:`~EventInference.check_adequacy`). Optionally (:data:`MIN_EVENT_PEAK` > 0; off by default)
+   an event must move the replayed pose by more than that many noise-floor standard deviations
+   somewhere, or it is dropped. Lift-off says
+   the nominal model is exact between events,
+   so the MAP events must leave a noise-level residual; otherwise they are absorbing
    a continuous model error (e.g. a viscous drag) and are rejected (``adequacy``). Lift-off is also
    transient: events that keep a wheel lifted more than :data:`MAX_LIFTED_SHARE` of the moving time
    describe a persistent load change (a centre-of-mass offset unloads one wheel) and are rejected as
@@ -70,6 +74,11 @@ ADD_LEVEL = 1.2  # ...for runs whose open-loop MSE is above this multiple of sig
 ADD_TOP = 3  # ...trying each run's 3 best additions, each refined before the comparison
 CASE_ALPHA = 0.01  # reject events whose lifted cases are this unlikely under the uniform draw (step 4)
 MAX_LIFTED_SHARE = 0.5  # most of the moving time that inferred events may keep a wheel lifted (step 4)
+# An inferred event must move the replayed pose by more than this many noise-floor standard deviations
+# somewhere (step 4a; 0 disables the check). Off: at 4 it dropped real lifts at 3 mm tracker noise
+# (recovery study, 6 runs x 3 s, seed 100: large size named `unexplained`, small size lift_rate 0.063
+# for 0.4 /s), so it is kept as an option, not a rule (docs/discrepancy.md).
+MIN_EVENT_PEAK = 0.0
 SKIP_FACTOR = 3.0  # skip the sequential/global moves when the window proposal is above 3 x the adequacy limit
 SEQ_MAX_EVENTS = 12  # most events per run of the sequential open-loop decoding
 SEQ_AHEAD = 0.1  # s: new events start up to this long after the deviation point...
@@ -250,6 +259,7 @@ class EventInference:
         self.search_windows()
         self.join_and_refine()
         self.decode_and_keep()
+        self.check_event_size()
         self.check_adequacy()
         return self.result()
 
@@ -597,6 +607,36 @@ class EventInference:
                 fits.events[ri], fits.sse[ri] = [], float(self.sse0[ri])
 
     # ---- step 4: adequacy ------------------------------------------------------------------------------
+
+    def check_event_size(self) -> None:
+        """Step 4a: drop every event whose own effect on the replayed pose stays within
+        :data:`MIN_EVENT_PEAK` noise-floor standard deviations (then re-replay those runs and redo the
+        keep test). A lift-off is a large local disturbance (a lifted wheel for 0.05-0.2 s moves the
+        Williams robot 7-200 mm off its path); an "event" whose whole effect stays within a few σ̂ is not
+        told apart from the model mismatch the noise floor allows (with nothing hidden, inferred events
+        once absorbed the world's smooth sub-millimetre disagreement with an independent integrator)."""
+        sigma = self.sigma
+        if MIN_EVENT_PEAK <= 0 or sigma is None or sigma <= 0 or not any(self.fits.events):
+            return
+        fits = self.fits
+        trials = [(ri, tuple(x for x in evs if x != e)) for ri, evs in enumerate(fits.events) for e in evs]
+        without = self._open_loop(trials)
+        keep: list[list[Event]] = [[] for _ in range(self.R)]
+        for (ri, _rest), r_wo, e in zip(trials, without, [e for evs in fits.events for e in evs], strict=True):
+            if fits.res[ri] is None:  # never replayed with its events (not expected): kept as it is
+                keep[ri].append(e)
+                continue
+            d = r_wo - fits.res[ri]  # residual without the event minus with it = the event's effect [m]
+            d = d[np.all(np.isfinite(d), axis=1)]
+            if d.size and float(np.max(np.linalg.norm(d, axis=1))) > MIN_EVENT_PEAK * sigma:
+                keep[ri].append(e)
+        changed = [ri for ri in range(self.R) if len(keep[ri]) != len(fits.events[ri])]
+        if not changed:
+            return
+        res = self._open_loop([(ri, tuple(keep[ri])) for ri in changed])
+        for ri, r in zip(changed, res, strict=True):
+            fits.set(ri, keep[ri], run_sse(r), r)
+        self._keep_test()
 
     def check_adequacy(self) -> None:
         """Step 4: reject all events if they leave more than noise, keep wheels lifted too long, or lift

@@ -44,6 +44,9 @@ from omni_gym.physics.model import SimModel
 # Search rounds of fit_candidate (also the progress bound max_ticks): LM iterations of the all-run and
 # fold fits, roller phase sweeps, valley line-search rounds.
 ITERATIONS, FOLD_ITERATIONS, PHASE_SWEEPS, VALLEY_ROUNDS = 6, 4, 2, 3
+# Candidates with at most LOW_DIM fitted dimensions start their local search from LOW_DIM_STARTS
+# design points (that lie apart) instead of ``starts``.
+LOW_DIM, LOW_DIM_STARTS = 3, 4
 
 
 class Evaluator:
@@ -252,7 +255,10 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
     periodic = [j for j, d in enumerate(cand.dims) if d.periodic]
     # With phases the search starts away from the null point (where phases do nothing).
     rows = np.arange(len(design)) if not periodic or null is None else np.flatnonzero(np.any(design != null, axis=1))
-    n_starts = phase_starts if periodic else starts
+    # Low-dimensional candidates are cheap per start and can have several basins in directions (a 16 mm
+    # centre-of-mass offset at -55 deg was fitted at (31.9, 1.3) mm from the two best design points):
+    # they start LM from LOW_DIM_STARTS design points that lie apart.
+    n_starts = phase_starts if periodic else (max(starts, LOW_DIM_STARTS) if p <= LOW_DIM else starts)
     free = [j for j in range(p) if j not in periodic]
     chosen: list[int] = []
     for i in rows[np.argsort(design_sse[rows].sum(axis=1))]:

@@ -7,9 +7,12 @@ friction law) is invisible to the recovery tests. These runs come from
 handled exactly, written independently of the world and its kernel), as a user's data would come from
 a real robot: random twist steps, white tracker noise per channel, quantised encoders.
 
-Issue 15 item 6's data: 8 runs of about 5 s of random twist steps, white noise of 1 mm in x and y and
-2 mrad in heading, the Williams robot on carpet with the initial friction, nothing or a centre-of-mass
-offset hidden. Only ``com_offset`` can be hidden (the effects the reference integrator supports).
+Default data: 8 runs of about 5 s of random twist steps, white noise of 1 mm in x and y and 2 mrad in
+heading, the Williams robot on carpet with the initial friction. Hidden effects: the physics effects
+the reference integrator implements (:data:`~omni_gym.analysis.reference.SUPPORTED_EFFECTS`), the
+tracker effects (``tracker_offset``, ``time_offset``: applied here, from their documented equations,
+by evaluating the reference at the shifted times; not through the workflow's measurement model), and
+a viscous drag outside the library (``drag`` [N·s/m]).
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from omni_gym.physics.model import SimModel
 
 NOISE_XY = 0.001  # m: tracker noise in x and y (issue 15 item 6)
 NOISE_HEADING = 0.002  # rad: tracker noise in heading
+TRACKER = ("tracker_offset", "time_offset")  # measurement effects this module applies itself
 
 
 def twist_steps(model: SimModel, rng: np.random.Generator, duration: float, rate: float = RATE,
@@ -60,21 +64,39 @@ def reference_runs(model: SimModel, hidden: dict | None, runs: int, duration: fl
     ``omni-gym synth``; the workflow takes a run's first pose as its start). Seeded by ``seed``;
     ``twist``: keywords of :func:`twist_steps` (``max_speed``, ``max_yaw_rate``)."""
     true_model = model
+    tracker: dict[str, dict] = {}
+    drag = 0.0
     for name, params in (hidden or {}).items():
-        if name not in SUPPORTED_EFFECTS:
+        if name == "drag":
+            drag = float(params)
+        elif name in TRACKER:
+            tracker[name] = params
+        elif name not in SUPPORTED_EFFECTS:
             raise ValueError(f"reference_runs: effect {name!r} is not supported by the reference integrator "
-                             f"(supported: {list(SUPPORTED_EFFECTS)})")
-        true_model = true_model.with_effect(name, params)
+                             f"(supported: {[*SUPPORTED_EFFECTS, *TRACKER, 'drag']})")
+        else:
+            true_model = true_model.with_effect(name, params)
     r_man, r_noise = np.random.default_rng(seed).spawn(2)
     quantum = 2 * math.pi / COUNTS_PER_REV
+    delay = float(tracker.get("time_offset", {"delay": 0.0})["delay"])
     out = []
     for i in range(runs):
         t, cmd = twist_steps(model, r_man, duration, **twist)
-        ref = reference_trajectory(true_model, t, cmd, t)  # the last row holds no time: the run ends there
-        pose = ref["pose"] + r_noise.normal(0.0, 1.0, (len(t), 3)) * np.array([noise_xy, noise_xy, noise_heading])
+        # The tracker's row stamped t shows the robot at t - delay (at rest where it started before 0).
+        t_seen = np.clip(t - delay, 0.0, t[-1])
+        ref = reference_trajectory(true_model, t, cmd, t_seen, drag=drag)  # the last row holds no time
+        truth = ref["pose"]
+        if "tracker_offset" in tracker:
+            o, yaw = np.asarray(tracker["tracker_offset"]["offset"], dtype=float), tracker["tracker_offset"]["yaw"]
+            c, sn = np.cos(truth[:, 2]), np.sin(truth[:, 2])
+            truth = np.column_stack([truth[:, 0] + c * o[0] - sn * o[1], truth[:, 1] + sn * o[0] + c * o[1],
+                                     truth[:, 2] + yaw])
+        pose = truth + r_noise.normal(0.0, 1.0, (len(t), 3)) * np.array([noise_xy, noise_xy, noise_heading])
         if not noisy_start:
-            pose[0] = 0.0  # every run starts at rest at the origin, known exactly
-        enc = np.floor(ref["wheel_angle"] / quantum) * quantum
+            pose[0] = truth[0]  # every run starts at rest, its first pose known exactly
+        # Encoders on the robot's clock: the integral of the piecewise-constant commands.
+        angle = np.vstack([np.zeros(cmd.shape[1]), np.cumsum(cmd[:-1] * np.diff(t)[:, None], axis=0)])
+        enc = np.floor(angle / quantum) * quantum
         out.append(Run(name=f"run{i:03d}", t=t, cmd=cmd, pose=pose, enc=enc))
     return out
 

@@ -14,6 +14,7 @@ from omni_gym.discrepancy.finite import dumps_strict
 from omni_gym.discrepancy.localise import WINDOW
 from omni_gym.discrepancy.plausible import UNITS
 from omni_gym.discrepancy.simulate import Job, simulate_jobs
+from omni_gym.physics.effects import REGISTRY
 from omni_gym.physics.model import SimModel
 
 PLOTTED_RUNS = 4
@@ -49,6 +50,12 @@ def markdown(result: dict, figures: list[str]) -> str:
     lines += [f"**Outcome: `{effect}`**: {result['why']}.", ""]
     if result.get("params"):
         lines += ["Fitted parameters:", ""] + _param_lines(effect, result["params"]) + [""]
+        loose = [f"{p['effect']}.{p['param']}" + (" (at its fit bound)" if p["at_bound"] else "")
+                 for p in (result.get("identifiability") or {}).get("params", [])
+                 if not p["identified"] or p["at_bound"]]
+        if loose:
+            lines += ["⚠ **Not identified by the data** (one point of a valley the data leave open, not a measured "
+                      "value; see \"What the data determine\"): " + ", ".join(loose) + ".", ""]
     flags = result.get("plausibility", {}).get("flags", [])
     if flags:
         lines += ["**Implausible fitted values** (flagged, not changed; such a value usually means the effect "
@@ -56,6 +63,7 @@ def markdown(result: dict, figures: list[str]) -> str:
         lines += [f"* ⚠ {f['param']} = {f['value']:.4g}, plausible [{f['lo']:.4g}, {f['hi']:.4g}]: {f['why']}"
                   for f in flags] + [""]
     lines += _steps_lines(result)
+    lines += _identifiability_lines(result.get("identifiability"))
     lines += _model_json_lines(effect, result.get("effects") or [])
     if effect in ("unexplained", "none"):
         lines += _next_steps(result)
@@ -125,6 +133,22 @@ def _steps_lines(result: dict) -> list[str]:
     return lines
 
 
+def _identifiability_lines(ident: dict | None) -> list[str]:
+    """What the data determine of the named effects: one line per effect, then confounded pairs."""
+    if not ident:
+        return []
+    lines = ["## What the data determine (identifiability)", "",
+             f"{ident['n_identified']} of {ident['n_params']} parameter combinations are identified. "
+             "A parameter that is not is one point of a valley the data leave open: do not read it as a measured "
+             "physical value.", ""]
+    lines += [f"* {line}" for line in ident["per_effect"].values()]
+    if ident["confounded"]:
+        lines += ["", "Confounded (|correlation| > 0.9): " + "; ".join(
+            f"{c['a']} ~ {c['b']} ({c['correlation']:+.2f})" for c in ident["confounded"][:8]) + "."]
+    lines += ["", f"Method: {ident['note']}.", ""]
+    return lines
+
+
 def _param_lines(effect: str, params: dict) -> list[str]:
     """One bullet per fitted parameter, with its unit."""
     units = UNITS.get(effect, {})
@@ -161,13 +185,18 @@ def _model_json_lines(effect: str, effects: list[str]) -> list[str]:
                 "explain the gap (see the outcome)")
     else:
         what = "the nominal model unchanged (no effect was named)"
+    tracker = [e for e in effects if REGISTRY[e].kind == "tracker"]
+    note = ([f"Tracker (measurement) effects ({', '.join(tracker)}) explain how the data were measured, not how "
+             "the robot moves: model.json keeps them under its `tracker` key, which simulators and environments "
+             "ignore.", ""] if tracker else [])
     return ["## model.json", "",
             f"`model.json` in this folder is {what}, in the model JSON format (`docs/formats.md`). Use it:", "",
             "* replay wheel commands: `omni-gym simulate --model REPORT/model.json --commands cmds.csv "
             "--out traj.csv`;",
             "* train or evaluate a controller on it: `gym.make(ENV_ID, model=\"REPORT/model.json\")`, or "
             "`omni-gym train`/`omni-gym evaluate` with `--env-kwargs '{\"model\": \"REPORT/model.json\"}'`;",
-            "* inspect it: `omni-gym model show REPORT/model.json` (every effect with its parameters and units).", ""]
+            "* inspect it: `omni-gym model show REPORT/model.json` (every effect with its parameters and units).", "",
+            *note]
 
 
 def _how_to_read(result: dict) -> list[str]:

@@ -13,6 +13,7 @@ import numpy as np
 
 from omni_gym.checks import wrap_angle
 from omni_gym.discrepancy.dataset import Run
+from omni_gym.discrepancy.measurement import align_start, centre_start, has_tracker_effects, measured
 from omni_gym.physics.liftoff import ScheduledContactProcess
 from omni_gym.physics.model import SimModel
 from omni_gym.physics.world import World
@@ -62,11 +63,15 @@ def simulate_jobs(jobs: list[Job], dt: float = FIT_DT) -> list[tuple[np.ndarray,
             if process is not None:
                 world.set_contact_process(b, process)
     ends = [j.k1 % len(j.run.t) for j in jobs]
-    starts = np.array([j.run.start_pose if j.state0 is None else j.state0[0] for j in jobs])
+    # Start states are measured by the tracker: the centre's comes from the model's measurement effects.
+    tracked = [has_tracker_effects(j.model) for j in jobs]
+    states0 = [_centre_state0(j) if tr else j.state0 for j, tr in zip(jobs, tracked, strict=True)]
+    starts = np.array([(j.run.start_pose if st is None else st[0]) if not tr else st[0]
+                       for j, st, tr in zip(jobs, states0, tracked, strict=True)])
     world.reset(starts)
-    for b, job in enumerate(jobs):
-        if job.state0 is not None:
-            _set_state(world, b, job)
+    for b, (job, st) in enumerate(zip(jobs, states0, strict=True)):
+        if st is not None:
+            _set_state(world, b, job.model, st)
     # Each job's row ticks relative to its own start; the union is the loop's event list.
     ticks = [np.rint((j.run.t[j.k0:e + 1] - j.run.t[j.k0]) / dt).astype(np.int64)
              for j, e in zip(jobs, ends, strict=True)]
@@ -101,6 +106,16 @@ def simulate_jobs(jobs: list[Job], dt: float = FIT_DT) -> list[tuple[np.ndarray,
         else:
             world.substeps(steps)
     poses = [pose_ev[pos, b] for b, pos in enumerate(rows_at)]
+    for b, job in enumerate(jobs):
+        if tracked[b]:  # what the tracker would report (omni_gym.discrepancy.measurement)
+            poses[b] = measured(job.model, job.run.t[job.k0:ends[b] + 1], poses[b])
+            # The first row is the tracked start, as in a replay without tracker effects. centre_start
+            # is first order in a time offset: a negative delay (the tracker's first row shows the robot
+            # |delay| later) would leave the replay shifted by the motion over |delay|. The floor is the
+            # same everywhere, so the motion is equivariant under a rigid move of the start: move the
+            # whole replay so that its first row is the tracked start.
+            target = job.run.start_pose if job.state0 is None else job.state0[0]
+            poses[b] = align_start(poses[b], np.asarray(target, dtype=float))
     angles = [ang_ev[pos, b] for b, pos in enumerate(rows_at)]
     return list(zip(poses, angles, strict=True))
 
@@ -113,11 +128,20 @@ def simulate_poses(jobs: list[Job], dt: float = FIT_DT, max_batch: int = 1500) -
     return out
 
 
-def _set_state(world: World, b: int, job: Job) -> None:
-    """Put robot b into ``job.state0`` (after reset has placed it at the pose)."""
-    _pose, vel, wang, wspd = job.state0
+def _centre_state0(job: Job) -> tuple:
+    """``job``'s start state (pose, velocity, wheel angles, wheel speeds) with the tracked pose and
+    velocity turned into the geometric centre's (:func:`~omni_gym.discrepancy.measurement.centre_start`)."""
+    n = job.model.n_wheels
+    st = job.state0 if job.state0 is not None else (job.run.start_pose, np.zeros(3), np.zeros(n), np.zeros(n))
+    pose, vel = centre_start(job.model, st[0], st[1])
+    return pose, vel, st[2], st[3]
+
+
+def _set_state(world: World, b: int, model: SimModel, state0: tuple) -> None:
+    """Put robot b into ``state0`` (after reset has placed it at the pose)."""
+    _pose, vel, wang, wspd = state0
     theta = _pose[2]
-    com = job.model.com
+    com = model.com
     c, s = np.cos(theta), np.sin(theta)
     rx, ry = c * com[0] - s * com[1], s * com[0] + c * com[1]
     body = world.bodies[b]

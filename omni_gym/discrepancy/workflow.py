@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.discrepancy import plausible
+from omni_gym.discrepancy import identifiability, plausible
 from omni_gym.discrepancy.candidates import Candidate, candidates, not_applicable
 from omni_gym.discrepancy.dataset import load_dataset
 from omni_gym.discrepancy.decision import RULES, decide
@@ -306,6 +306,9 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
                            "note": "the search started from this model, not the dataset's; 'nominal' in this result "
                                    "means it"}
     result["steps"] = _steps_json(steps, uncertainties, final, sse0, n_comp, noise_var)
+    # What the data determine of the named effects' parameters (identifiability.py): one more batch.
+    result["identifiability"] = identifiability.analyse(
+        ev, nominal, [identifiability.Named(s.fit.candidate, s.fit.u_all) for s in steps], sigma)
     if sigma is None:
         result.setdefault("uncertainty", {})["noise"] = (
             "tracker noise cannot be estimated (too few consecutive observed rows): gap values include noise, "

@@ -6,13 +6,16 @@ The JSON form is a contract read by the CLI and the discrepancy workflow (``docs
      "wheels": [{"position": [x, y], "drive": [dx, dy]}, ...],   body frame, metres
      "com": [x, y], "rollers", "roller_fraction", "friction": "initial" | "roller_gap",
      "surface": {"name", "mu_drive", "mu_transverse", "mu_gap", "k"},
-     "effects": {EFFECT: {params}, ...}}
+     "effects": {EFFECT: {params}, ...},
+     "tracker": {EFFECT: {params}, ...}}      optional: measurement effects (kind "tracker")
 
 Effects are extensions of the nominal model, each defined in one module of
 :mod:`omni_gym.physics.effects` (its parameters, their bounds and validation, and what it changes).
 An effect changes the numbers the force kernel reads (:meth:`SimModel.kernel_params`), or supplies a
 wheel contact process that the world's user installs (:meth:`SimModel.contact_process`: ``replay``,
-the environments, ``omni_gym.discrepancy.simulate``), or both.
+the environments, ``omni_gym.discrepancy.simulate``), or both. Tracker effects (``tracker_offset``,
+``time_offset``) change neither: they say how the data's pose tracker measures the robot, live in
+:attr:`SimModel.effects` like the others and are written under their own ``tracker`` key.
 """
 
 from __future__ import annotations
@@ -73,7 +76,7 @@ MODEL_BOUNDS = {**bounds.MODEL, **effect_library.bounds()}
 # optional key would otherwise fall back to its default without a word). ``roller_angle`` [rad] is
 # the optional roller axis angle of a mecanum wheel.
 MODEL_KEYS = ("name", "mass", "inertia", "gravity", "wheel_radius", "wheels", "com", "rollers", "roller_fraction",
-              "body_radius", "friction", "surface", "effects")
+              "body_radius", "friction", "surface", "effects", "tracker")
 WHEEL_KEYS = ("position", "drive", "roller_angle")
 SURFACE_KEYS = ("name", "mu_drive", "mu_transverse", "mu_gap", "k")
 
@@ -202,7 +205,11 @@ class SimModel:
             "body_radius": r.body_radius,
             "friction": self.friction,
             "surface": self.surface.to_json(),
-            "effects": {k: dict(v) for k, v in self.effects.items()},
+            "effects": {k: dict(v) for k, v in self.effects.items() if effect_library.get(k).kind != "tracker"},
+            # The tracker's measurement effects explain the data, not the robot: a key of their own,
+            # written only when there are some (simulators and environments ignore them).
+            **({"tracker": tracker} if (tracker := {k: dict(v) for k, v in self.effects.items()
+                                                   if effect_library.get(k).kind == "tracker"}) else {}),
         }
 
     @classmethod
@@ -258,25 +265,34 @@ class SimModel:
                 body_radius=_bounded(data.get("body_radius", _default_body_radius(parsed)), "body_radius"),
             )
             effects = _effects(data.get("effects", {}))
+            tracker = _effects(data.get("tracker", {}), "tracker")
+            for name in effects:
+                if effect_library.get(name).kind == "tracker":
+                    raise ValueError(f"'effects.{name}' is a tracker (measurement) effect: put it under 'tracker'")
+            for name in tracker:
+                if effect_library.get(name).kind != "tracker":
+                    raise ValueError(f"'tracker.{name}' is a physics effect: put it under 'effects'")
+            effects = {**effects, **tracker}
             return cls(robot=robot, surface=surface, friction=str(data["friction"]),
                        gravity=_bounded(data.get("gravity", GRAVITY), "gravity"), effects=effects)
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
 
 
-def _effects(value) -> dict[str, dict]:
-    """The ``effects`` object ``{EFFECT: {params}}``; names and parameter keys checked against the library.
+def _effects(value, key: str = "effects") -> dict[str, dict]:
+    """The ``effects`` (or ``tracker``) object ``{EFFECT: {params}}``; names and parameter keys checked
+    against the library.
 
     A list (``[]`` or ``["motor_lag"]``) is refused alike: an effect needs its parameters.
     """
     if not isinstance(value, dict):
         kind = "a list" if isinstance(value, list) else repr(value)
-        raise ValueError("'effects' must be an object {EFFECT: {parameters}}, e.g. {} for none or "
+        raise ValueError(f"'{key}' must be an object {{EFFECT: {{parameters}}}}, e.g. {{}} for none or "
                          f'{{"motor_lag": {{"tau": 0.05}}}}; got {kind}')
-    known_keys(value, effect_library.REGISTRY, "effects")
+    known_keys(value, effect_library.REGISTRY, key)
     for name, params in value.items():
         if isinstance(params, dict):
-            known_keys(params, effect_library.REGISTRY[name].keys, f"effects.{name}")
+            known_keys(params, effect_library.REGISTRY[name].keys, f"{key}.{name}")
     return value
 
 

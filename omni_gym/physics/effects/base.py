@@ -135,6 +135,10 @@ class Effect:
     params: ClassVar[tuple[Param, ...]]
     # True when the effect is a random process (fitted by event inference, not by a parameter search).
     stochastic: ClassVar[bool] = False
+    # "physics": the effect changes how the robot moves (the simulator's business); "tracker": it changes
+    # only what the pose tracker reports (a measurement model: the simulation ignores it, the
+    # discrepancy workflow applies it to simulated poses, model files keep it under "tracker").
+    kind: ClassVar[str] = "physics"
     # Two sizes for the recovery study ("small", "large"): parameters given on top of synth_default.
     recovery_sizes: ClassVar[dict[str, dict]] = {}
     # Largest parameter error that counts as recovered, per key of param_error (units there).
@@ -200,6 +204,18 @@ class Effect:
     def contact_process(self, params: dict, n_wheels: int, rng: np.random.Generator) -> ContactProcess | None:
         """A wheel contact process for the world to install, drawing from ``rng`` (default: none)."""
         return None
+
+    def measure(self, params: dict, t: np.ndarray, pose: np.ndarray,
+                velocity: np.ndarray | None = None) -> np.ndarray:
+        """Tracker effects: the pose (K, 3) the tracker reports at times ``t`` (K,) [s] for the
+        geometric-centre poses ``pose`` (K, 3) [m, m, rad] at the same times (world frame). Physics
+        effects: ``pose`` unchanged."""
+        return pose
+
+    def unmeasure(self, params: dict, pose: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Tracker effects: the geometric centre's pose (3,) and velocity (3,) from a tracked start state
+        (the inverse of :meth:`measure` to first order). Physics effects: unchanged."""
+        return pose, velocity
 
     def scale_friction(self, params: dict, factor: float) -> dict:
         """Parameters after every friction coefficient of the model is multiplied by ``factor``
