@@ -155,4 +155,4 @@ def _piece(run: Run, k0: int, k1: int, smooth: np.ndarray, rate: np.ndarray, ang
         state0 = (smooth[k0].copy(), rate[k0].copy(), ang[k0].copy(), run.cmd[k0 - 1].copy())
     return Run(name=f"{run.name}@{run.t[k0]:.0f}s", t=run.t[sl] - run.t[k0], cmd=run.cmd[sl].copy(),
                pose=run.pose[sl].copy(), enc=None if run.enc is None else run.enc[sl].copy(),
-               gyro=None if run.gyro is None else run.gyro[sl].copy(), state0=state0)
+               gyro=None if run.gyro is None else run.gyro[sl].copy(), state0=state0, session=run.session)
