@@ -67,7 +67,7 @@ class FitData:
             return f"all {self.source_runs} runs ({self.seconds:.0f} s of robot time)"
         return (f"{len(self.groups)} segments of at most {self.segment:g} s from {len(set(self.groups.tolist()))} of "
                 f"{self.source_runs} runs ({self.seconds:.0f} s of {self.total_seconds:.0f} s of robot time), each "
-                "replayed from the tracked state at its start; folds split by source run")
+                "replayed from the tracked state at its start; folds keep each source run whole")
 
     def to_json(self) -> dict:
         """For ``result.json``: what was fitted."""

@@ -496,8 +496,9 @@ def _drift_check(whole: Dataset, fold_src: np.ndarray, first: StartModel, steps:
     kinematic calibration (with odometry) and the start model with the named effects one after another
     (each fold's own fits: fold params on top of the fold's start model).
 
-    ``gate`` (the fit saw segments, not whole runs): a named effect is kept only while it does not make the
-    mean whole-run held-out position RMS worse than the chain before it; the first that does is dropped
+    ``gate`` (the fit saw segments, not whole runs): a named effect is kept only while it makes the mean
+    whole-run held-out position RMS of no session (of all runs, without sessions) worse than the chain
+    before it; the first that does is dropped
     with every later one. A stochastic effect is replayed without its random process (its deterministic
     part: nothing), so it is never judged here. Returns the per-run rows (models ``nominal``,
     ``kinematic``, ``extended``) and the check's record.
@@ -518,10 +519,14 @@ def _drift_check(whole: Dataset, fold_src: np.ndarray, first: StartModel, steps:
         fold_models[f"chain{j}"], all_models[f"chain{j}"] = mf, ma
     rows = heldout_whole_runs(whole, fold_src, fold_models, all_models, dt=dt)
     means = [float(np.mean([r.position_rms[f"chain{j}"] for r in rows])) for j in range(len(chain_folds))]
+    groups = list(dict.fromkeys(r.session for r in rows))  # sessions (one group of None without them)
+    per_group = [[float(np.mean([r.position_rms[f"chain{j}"] for r in rows if r.session == g])) for g in groups]
+                 for j in range(len(chain_folds))]
     keep = len(det)
     if gate:
         for j in range(1, len(means)):
-            if means[j] > means[j - 1]:
+            # Worse on any held-out session is worse: the model is used on sessions it never saw.
+            if any(a > b for a, b in zip(per_group[j], per_group[j - 1], strict=True)):
                 keep = j - 1
                 break
     dropped = [s.effect for s in det[keep:]]
@@ -532,9 +537,10 @@ def _drift_check(whole: Dataset, fold_src: np.ndarray, first: StartModel, steps:
                 d.pop(f"chain{j}")
     why = ", ".join(f"{1e3 * m:.1f} mm" for m in means)
     return rows, {"rule": "segments fitted: a named effect is kept only while the mean whole-run held-out position "
-                          "RMS does not grow (checked in the order named)" if gate else
+                          "RMS of no session grows (checked in the order named)" if gate else
                           "whole runs fitted: the fit's held-out score already includes whole-run drift",
                   "chain": [first.kind] + [s.effect for s in det], "mean_position_rms": means,
+                  "sessions": groups, "session_mean_position_rms": per_group,
                   "dropped": dropped, "why": f"mean whole-run held-out position RMS along the chain: {why}"}
 
 
