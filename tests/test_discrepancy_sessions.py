@@ -124,8 +124,8 @@ def test_gap_starts_from_the_kinematic_calibration(tmp_path, omni3):
     runs = [replace(r, session="day1" if i < 2 else "day2") for i, r in enumerate(runs)]
     write_dataset(tmp_path / "d", omni3.to_json(), "synthetic, two sessions", runs)
     result = gap(tmp_path / "d", tmp_path / "out", progress=False, start="auto", max_effects=1, plots=False)
-    assert result["start"]["model"] == "kinematic"
-    assert "wheel_radius" in result["start"]["excluded_effects"]
+    assert result["start"]["kind"] == "kinematic"
+    assert "wheel_radius" in result["start"]["kept_effects"]
     assert result["settings"]["folds_by"] == "session" and result["settings"]["folds"] == 2
     h = result["heldout"]
     assert [s["session"] for s in h["per_session"]] == ["day1", "day2"]

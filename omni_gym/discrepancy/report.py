@@ -123,7 +123,7 @@ def _heldout_lines(result: dict) -> list[str]:
     has_kin = "kinematic" in names
     head += " | reported ÷ kinematic |" if has_kin else " |"
     lines = ["## Held-out whole runs (open loop)", "",
-             f"Start model: **{st.get('model', 'nominal')}** ({st.get('why', '')}). Folds by "
+             f"Start model: **{st.get('kind', 'nominal')}** ({st.get('why', '')}). Folds by "
              f"{h['folds_by']}: every run is replayed from its start pose, open loop, by the models fitted "
              "without its fold (the kinematic calibration too). Metric: " + h["metric"] + ".", "",
              head, "|---|---|" + "---|" * (len(names) + has_kin)]

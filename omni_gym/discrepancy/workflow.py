@@ -61,7 +61,7 @@ METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2
 def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds: int = 3,
         progress: bool | None = None, dt: float = FIT_DT, plots: bool = True, force: bool = False,
         max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET, backend: Backend = SERIAL,
-        start: str = "nominal") -> dict:
+        start: str | SimModel = "nominal") -> dict:
     """Run the workflow on ``dataset``; write the report folder ``out`` (if given); return the result.
 
     ``progress``: tqdm bar on stderr (None: only when stderr is a terminal). Same seed, same result.
@@ -75,9 +75,11 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     nothing to start); the result does not depend on it.
     ``start``: the first model, on top of which effects are searched: ``nominal`` (the dataset's model),
     ``kinematic`` (its kinematic odometry calibration, fitted on the training runs; needs wheel odometry) or
-    ``auto`` (kinematic when every run has wheel odometry, else nominal); :func:`start_model`.
+    ``auto`` (kinematic when every run has wheel odometry and it predicts held-out runs better, else
+    nominal), or a given :class:`SimModel` (e.g. a calibration made elsewhere: used for every fold as it is,
+    its effects kept and not searched again); :func:`start_model`.
     """
-    if start not in STARTS:
+    if not isinstance(start, SimModel) and start not in STARTS:
         raise ValueError(f"start must be one of {', '.join(STARTS)}, got {start!r}")
     if isinstance(max_effects, bool) or not isinstance(max_effects, int) or max_effects < 1:
         raise ValueError(f"max_effects must be an integer >= 1, got {max_effects!r}")
@@ -195,7 +197,7 @@ def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: l
 
 def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress: bool | None, dt: float,
          plots: bool, max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET,
-         backend: Backend = SERIAL, start: str = "nominal") -> dict:
+         backend: Backend = SERIAL, start: str | SimModel = "nominal") -> dict:
     """The workflow of :func:`gap`; the report is written into ``out`` as it is (no transaction)."""
     from tqdm import tqdm
 
@@ -221,8 +223,10 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     first = start_model(whole, fold_src, start, dt)
     if first.kind == "kinematic":
         say(f"start: kinematic calibration ({first.describe()})")
+    elif first.kind == "given":
+        say("starting from the given model" + (f" (keeping its {', '.join(first.excluded)})" if first.excluded else ""))
     nominal = first.model
-    lever = pose_lever(nominal)
+    lever = pose_lever(ds.model)  # the dataset's: the same residual metric whatever the start
     say(f"checking {R} runs for tracker outliers")
     flagged = find_outliers(ds, lever)
     ds = drop_outliers(ds, flagged)  # flagged rows count as not observed (outliers.py)
@@ -392,8 +396,9 @@ HELDOUT_METRIC = ("whole-run open-loop position RMS [m] (Euclidean x, y error ov
 class StartModel:
     """gap's first model and, per held-out fold, the same model fitted without that fold's runs.
 
-    ``kind``: ``nominal`` or ``kinematic``; ``model``: fitted on all runs; ``fold_models[k]``: fitted on
-    the source runs outside fold k (the nominal model for every fold when ``kind`` is nominal);
+    ``kind``: ``nominal``, ``kinematic`` or ``given`` (a model passed in); ``model``: fitted on all runs;
+    ``fold_models[k]``: fitted on the source runs outside fold k (the same model for every fold when ``kind``
+    is nominal or given);
     ``excluded``: library effects the start model already fitted (not searched again: refitting them
     would replace the calibration); ``calibration``/``fold_calibrations``: the kinematic fits (JSON).
     ``nominal``: the dataset's model; ``kinematic_folds``: the kinematic fold models whenever the runs
@@ -419,15 +424,17 @@ class StartModel:
                 f"{1e3 * c['L']:.2f} mm on all {c['runs']} runs")
 
     def to_json(self) -> dict:
-        return {"model": self.kind, "why": self.why, "excluded_effects": list(self.excluded),
-                "calibration": self.calibration, "fold_calibrations": self.fold_calibrations}
+        return {"kind": self.kind, "model": self.model.to_json(), "kept_effects": list(self.excluded),
+                "why": self.why, "calibration": self.calibration, "fold_calibrations": self.fold_calibrations,
+                "note": "the search started from this model; 'nominal' in gap, ranking and steps means it (the "
+                        "dataset's own model is 'nominal' in heldout)"}
 
 
 def _has_odometry(ds: Dataset) -> bool:
     return all(r.enc is not None and np.all(np.isfinite(r.enc)) for r in ds.runs)
 
 
-def start_model(ds: Dataset, fold_src: np.ndarray, start: str, dt: float = FIT_DT) -> StartModel:
+def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: float = FIT_DT) -> StartModel:
     """The first model of the search (``start``: ``nominal``, ``kinematic`` or ``auto``) on the source runs
     ``ds`` with folds ``fold_src`` (-1: a run in no fold).
 
@@ -450,11 +457,19 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str, dt: float = FIT_D
         raise ValueError(f"{ds.path}: run {bad} has no complete wheel odometry (enc1 … enc{ds.n_wheels}): a "
                          "kinematic start dead-reckons from measured wheel angles")
     if not odometry:
+        if isinstance(start, SimModel):
+            return StartModel("given", nominal, start, [start] * K, excluded=tuple(start.effects),
+                              why="the model given (the same for every fold)")
         return StartModel("nominal", nominal, nominal, [nominal] * K,
                           why="the runs have no wheel odometry: no kinematic calibration")
     cal = calibrate(ds.runs, nominal)
     fold_cals = [calibrate([r for r, f in zip(ds.runs, fold_src, strict=True) if f != k], nominal) for k in range(K)]
     kin_folds = [c.model for c in fold_cals]
+    if isinstance(start, SimModel):
+        return StartModel("given", nominal, start, [start] * K, excluded=tuple(start.effects),
+                          calibration=cal.to_json(), fold_calibrations=[c.to_json() for c in fold_cals],
+                          kinematic_folds=kin_folds, kinematic_all=cal.model,
+                          why="the model given (the same for every fold: fitted on which runs, gap cannot know)")
     why_auto = ""
     if start == "auto":
         rows = heldout_whole_runs(ds, fold_src, {"nominal": [nominal] * K, "kinematic": kin_folds},
