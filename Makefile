@@ -22,11 +22,14 @@ test: $(STAMP)
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -n 2 --dist worksteal -m slow
 
-# Writes into out/demo/ (untracked); tests/test_demo.py runs these lines with --quick.
+# Writes into out/demo/ (untracked); tests/test_demo.py runs these lines with --quick. First what the
+# project is for (real logs -> calibrated simulator; controlled robots on the drivable ids), then the
+# physics illustrations (friction limits, the paper's maneuver).
 demo: $(STAMP)
-	$(PY) benchmarks/paper_replication.py --out out/demo
-	$(PY) benchmarks/max_force.py --out out/demo
+	$(PY) benchmarks/demo_calibration.py --out out/demo
 	$(PY) benchmarks/demo_episodes.py --out out/demo
+	$(PY) benchmarks/max_force.py --out out/demo
+	$(PY) benchmarks/paper_replication.py --out out/demo
 
 bench: $(STAMP)
 	$(PY) benchmarks/convergence.py --out benchmarks/results

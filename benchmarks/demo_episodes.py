@@ -234,11 +234,21 @@ def plot(path: Path, env_id: str, tr: Trace, cfg) -> None:
     if tr.outcome.startswith("lost"):
         ax1.text(0.02, 0.80, lost_note(tr, cfg.control_hz, cfg.max_yaw_rate), transform=ax1.transAxes,
                  fontsize=7, va="top", color="tab:red")
-    fig.suptitle(f"{env_id}, seed {SEED}, {CONTROLLER}: {tr.outcome}, final error {tr.err[-1] * 1000:.1f} mm",
+    label = f" ({ILLUSTRATIONS[env_id]})" if env_id in ILLUSTRATIONS else ""
+    fig.suptitle(f"{env_id}{label}, seed {SEED}, {CONTROLLER}: {tr.outcome}, final error {tr.err[-1] * 1000:.1f} mm",
                  fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=80)
     plt.close(fig)
+
+
+# The paper's own task, which its robot cannot follow on carpet (see above): shown last, labelled as such.
+ILLUSTRATIONS = {"OmniPathFollow-WilliamsPaper-v0": "illustration: the paper's task, infeasible on carpet"}
+
+
+def demo_order() -> list[str]:
+    """The registered ids, the drivable ones first and the paper's infeasible task last."""
+    return [i for i in ENV_IDS if i not in ILLUSTRATIONS] + [i for i in ENV_IDS if i in ILLUSTRATIONS]
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -253,11 +263,12 @@ def main(argv: list[str] | None = None) -> None:
     seconds = QUICK_SECONDS if args.quick else args.seconds
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    for env_id in ENV_IDS:
+    for env_id in demo_order():
         t0 = time.perf_counter()
         tr, cfg = run_episode(env_id, seconds, out)
         plot(out / f"{env_id}.png", env_id, tr, cfg)
-        print(f"{env_id:28s} steps {len(tr.err) - 1:4d} ({tr.outcome}): tracking error final "
+        label = f" [{ILLUSTRATIONS[env_id]}]" if env_id in ILLUSTRATIONS else ""
+        print(f"{env_id:28s}{label} steps {len(tr.err) - 1:4d} ({tr.outcome}): tracking error final "
               f"{tr.err[-1] * 1000:6.1f} mm, mean {tr.err.mean() * 1000:6.1f} mm, max {tr.err.max() * 1000:6.1f} mm; "
               f"GIF {tr.frames} frames; {time.perf_counter() - t0:.1f} s")
     print(f"wrote {out}/<id>.gif and {out}/<id>.png")

@@ -87,6 +87,16 @@ def check_known_outputs(out: Path) -> None:
         text = check_markdown(out / "paper_replication.md")
         assert "| initial / paper |" in text and "| roller_gap / paper |" in text
         assert {"paper_paths.png", "paper_initial_paper.png", "paper_roller_gap_paper.png"} <= names
+    if "calibration.md" in names:  # demo_calibration.py: both bundled robots, calibrated better than nominal
+        text = check_markdown(out / "calibration.md")
+        rows = [line for line in text.splitlines() if line.startswith("| omni")]
+        assert [r.split()[1] for r in rows] == ["omni3", "omni4"], rows
+        for row in rows:
+            nominal, calibrated = (float(c) for c in row.split("|")[5:7])
+            # The held-out replay of a calibrated model is far better than nominal on these sessions (full runs:
+            # 147 -> 63 mm, 81 -> 31 mm; --quick replays 20 s of one run): a broken fit or replay loses that.
+            assert calibrated < 0.8 * nominal, row
+        assert {"calibration_omni3.png", "calibration_omni4.png"} <= names
     if any(n.endswith(".gif") for n in names):  # demo_episodes.py --quick: 0.5 s at 100 Hz, a frame every 5 steps
         for env_id in ENV_IDS:
             frames = check_gif(out / f"{env_id}.gif")
