@@ -462,8 +462,17 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
                               why="the model given (the same for every fold)")
         return StartModel("nominal", nominal, nominal, [nominal] * K,
                           why="the runs have no wheel odometry: no kinematic calibration")
-    cal = calibrate(ds.runs, nominal)
-    fold_cals = [calibrate([r for r, f in zip(ds.runs, fold_src, strict=True) if f != k], nominal) for k in range(K)]
+    try:
+        cal = calibrate(ds.runs, nominal)
+        fold_cals = [calibrate([r for r, f in zip(ds.runs, fold_src, strict=True) if f != k], nominal)
+                     for k in range(K)]
+    except ValueError as exc:  # e.g. no convergence on sparse observations
+        if start == "kinematic":
+            raise ValueError(f"{ds.path}: kinematic start: {exc}") from None
+        first = start if isinstance(start, SimModel) else nominal
+        return StartModel("given" if isinstance(start, SimModel) else "nominal", nominal, first, [first] * K,
+                          excluded=tuple(start.effects) if isinstance(start, SimModel) else (),
+                          why=f"no kinematic calibration of these runs ({exc})")
     kin_folds = [c.model for c in fold_cals]
     if isinstance(start, SimModel):
         return StartModel("given", nominal, start, [start] * K, excluded=tuple(start.effects),
