@@ -173,3 +173,13 @@ def test_drift_check_drops_an_effect_that_makes_a_session_drift(omni3):
         assert r.position_rms["extended"] < 2e-3
     _, check = _drift_check(ds, fold_src, first, [same, yaw], 1e-3, gate=False)
     assert check["dropped"] == []
+
+
+def test_kinematic_start_without_odometry_is_refused_in_one_line(tmp_path, omni3):
+    runs, _ = synth.synthesize(omni3, "none", 2, 0.001, seed=4, duration=2.0)
+    write_dataset(tmp_path / "d", omni3.to_json(), "", [replace(r, enc=None) for r in runs])
+    with pytest.raises(ValueError, match=r"run run000 has no complete wheel odometry") as err:
+        gap(tmp_path / "d", None, progress=False, start="kinematic")
+    assert "\n" not in str(err.value)
+    with pytest.raises(ValueError, match="start must be one of"):
+        gap(tmp_path / "d", None, progress=False, start="calibrated")
