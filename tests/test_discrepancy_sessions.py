@@ -125,7 +125,7 @@ def test_gap_starts_from_the_kinematic_calibration(tmp_path, omni3):
     write_dataset(tmp_path / "d", omni3.to_json(), "synthetic, two sessions", runs)
     result = gap(tmp_path / "d", tmp_path / "out", progress=False, start="auto", max_effects=1, plots=False)
     assert result["start"]["kind"] == "kinematic"
-    assert "wheel_radius" in result["start"]["kept_effects"]
+    assert "wheel_radius" in result["start"]["refit_effects"]  # refitted from the calibrated values
     assert result["settings"]["folds_by"] == "session" and result["settings"]["folds"] == 2
     h = result["heldout"]
     assert [s["session"] for s in h["per_session"]] == ["day1", "day2"]

@@ -26,7 +26,7 @@ import math
 import sys
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -154,13 +154,14 @@ def fit_task(shared: FitShared, task: FitTask, tick: Callable[[], None] | None =
 def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: list[str], fold_of: np.ndarray,
                  n_comp: np.ndarray, sigma: float | None, rng: np.random.Generator, bar, say, step: int,
                  reference_excess: float | None = None, seed: int = 0, ex: Executor | None = None,
-                 shared: FitShared | None = None) -> Step:
+                 shared: FitShared | None = None, refit: tuple[str, ...] = ()) -> Step:
     """Fit every library candidate not in ``exclude`` on top of ``base`` and decide (the 70 % rule
     measured against ``reference_excess``, the nominal gap, from the second step on).
 
     The fits run on ``ex`` (None: in this process, with a progress tick per search round); the
-    decision draws from ``rng`` in this process."""
-    cands = [c for c in candidates(base) if c.name not in exclude]
+    decision draws from ``rng`` in this process. ``refit``: effects ``base`` carries that are refitted from
+    their current values (:func:`_from_current`), not from the effect's own null point."""
+    cands = [_from_current(c, base) if c.name in refit else c for c in candidates(base) if c.name not in exclude]
     if step > 1:  # the bar's first total covered step 1 only
         bar.total += 1 + sum(max_ticks(c) + 1 for c in cands)
         bar.refresh()
@@ -240,7 +241,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     # exact model would leave in the residual too (Evaluator.noise_floor).
     sigma, noise_parts = ev.noise_floor(nominal)
     n_comp = count_components(ds)
-    cands = [c for c in candidates(nominal) if c.name not in first.excluded]
+    cands = [c for c in candidates(nominal) if c.name not in first.excluded]  # for the progress bar
     skipped = not_applicable(nominal)  # e.g. roller_gap on mecanum wheels: never fitted, said in result.json
     if skipped:
         say(f"not tried (does not apply to this robot): {', '.join(skipped)}")
@@ -259,7 +260,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         while True:
             step = _search_step(ev, model, base_sse, [*first.excluded, *[s.effect for s in steps]], fold_of, n_comp,
                                 sigma, rng, bar, say, len(steps) + 1, reference_excess=excess0 if steps else None,
-                                seed=seed, ex=ex, shared=shared)
+                                seed=seed, ex=ex, shared=shared, refit=first.refit)
             fit = step.fit
             if fit is None:  # none or unexplained: the search ends here
                 break
@@ -399,8 +400,9 @@ class StartModel:
     ``kind``: ``nominal``, ``kinematic`` or ``given`` (a model passed in); ``model``: fitted on all runs;
     ``fold_models[k]``: fitted on the source runs outside fold k (the same model for every fold when ``kind``
     is nominal or given);
-    ``excluded``: library effects the start model already fitted (not searched again: refitting them
-    would replace the calibration); ``calibration``/``fold_calibrations``: the kinematic fits (JSON).
+    ``excluded``: effects of a given start model, kept as they are (not searched again); ``refit``: the
+    kinematic calibration's effects, searched again in the simulator from the calibrated values;
+    ``calibration``/``fold_calibrations``: the kinematic fits (JSON).
     ``nominal``: the dataset's model; ``kinematic_folds``: the kinematic fold models whenever the runs
     have wheel odometry (for the side-by-side comparison), else None.
     """
@@ -410,6 +412,7 @@ class StartModel:
     model: SimModel
     fold_models: list[SimModel]
     excluded: tuple[str, ...] = ()
+    refit: tuple[str, ...] = ()
     calibration: dict | None = None
     fold_calibrations: list[dict] | None = None
     kinematic_folds: list[SimModel] | None = None
@@ -425,9 +428,29 @@ class StartModel:
 
     def to_json(self) -> dict:
         return {"kind": self.kind, "model": self.model.to_json(), "kept_effects": list(self.excluded),
+                "refit_effects": list(self.refit),
                 "why": self.why, "calibration": self.calibration, "fold_calibrations": self.fold_calibrations,
                 "note": "the search started from this model; 'nominal' in gap, ranking and steps means it (the "
                         "dataset's own model is 'nominal' in heldout)"}
+
+
+def _from_current(cand: Candidate, model: SimModel) -> Candidate:
+    """``cand`` with its null point at the values ``model`` already has for the effect (e.g. the kinematic
+    calibration's wheel scales), so the fit starts there and is never worse on its training runs than
+    ``model``; unchanged when the effect's parameters do not map onto the candidate's dimensions."""
+    params = model.effects.get(cand.name)
+    if not params:
+        return cand
+    null = {}
+    for d in cand.dims:
+        key = d.name.rstrip("0123456789")
+        value = params.get(d.name, params.get(key))
+        if isinstance(value, (list, tuple)) and key != d.name:
+            value = value[int(d.name[len(key):]) - 1]
+        if not isinstance(value, (int, float)):
+            return cand
+        null[d.name] = float(value)
+    return replace(cand, null=null)
 
 
 def _has_odometry(ds: Dataset) -> bool:
@@ -494,9 +517,10 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
                           fold_calibrations=[c.to_json() for c in fold_cals], kinematic_folds=kin_folds,
                           kinematic_all=cal.model,
                           why=why_auto or "start nominal asked for (the kinematic calibration is scored beside it)")
-    excluded = tuple(e for e in ("wheel_radius", "wheel_geometry")
-                     if e in cal.model.effects and cal.model.effects[e] != nominal.effects.get(e))
-    return StartModel("kinematic", nominal, cal.model, kin_folds, excluded=excluded, calibration=cal.to_json(),
+    # The calibration's own effects are searched again, in the simulator, from the calibrated values (their
+    # null point is the calibration: a refit is never worse on its training runs than the start).
+    refit = tuple(e for e in ("wheel_radius", "wheel_geometry") if e in cal.model.effects)
+    return StartModel("kinematic", nominal, cal.model, kin_folds, refit=refit, calibration=cal.to_json(),
                       fold_calibrations=[c.to_json() for c in fold_cals], kinematic_folds=kin_folds,
                       kinematic_all=cal.model,
                       why="the runs have wheel odometry: effects are searched on top of the kinematic calibration "
