@@ -5,11 +5,14 @@ program of :mod:`omni_gym.analysis.max_force`). Here the same friction boxes bou
 wrench (force and yaw moment about the centre of mass), not only a push through the centre of mass.
 
 **The feasible wrench set.** Wheel i with normal load N_i [N] transmits a friction force
-f_i = F_W,i·d_i + F_T,i·a_i with |F_W,i| ≤ μ_W·N_i and |F_T,i| ≤ μ_T·N_i (body frame, d_i the drive and
-a_i the axle direction, ρ_i = p_i − com its lever arm about the centre of mass). The wrenches
+f_i = F_W,i·e_i + F_T,i·f_i with |F_W,i| ≤ μ_W·N_i and |F_T,i| ≤ μ_T·N_i (body frame, e_i the roller axis
+``RobotSpec.roller_axes()``, the direction the wheel constrains, and f_i = z × e_i the direction its floor
+roller rolls freely, ``RobotSpec.free_directions()``; ρ_i = p_i − com its lever arm about the centre of
+mass). For an omni wheel (roller angle γ_i = 0) e_i is the drive direction d_i and f_i the axle a_i; for
+a mecanum wheel both are turned by γ_i (``docs/model.md``, the law for any roller angle). The wrenches
 (F_x, F_y, M_z) the wheels can exert together form the zonotope
 
-    Z = { Σ_j t_j·g_j : |t_j| ≤ 1 },  g = μ_W,i·N_i·(d_i, ρ_i × d_i)  and  μ_T,i·N_i·(a_i, ρ_i × a_i)
+    Z = { Σ_j t_j·g_j : |t_j| ≤ 1 },  g = μ_W,i·N_i·(e_i, ρ_i × e_i)  and  μ_T,i·N_i·(f_i, ρ_i × f_i)
 
 (2n generators in 3-D). Its facets are known in closed form: for every pair of generators (j, k) with
 normal n = g_j × g_k ≠ 0, |n·w| ≤ h = Σ_l |n·g_l|. With the moment set to zero this is exactly the LP
@@ -71,11 +74,12 @@ def wrench_generators(robot: RobotSpec, surface: Surface, loads: np.ndarray,
                       com: Sequence[float] | None = None) -> np.ndarray:
     """Generators (2n, 3) of the wrench zonotope [N, N, N·m], body frame, about the centre of mass.
 
-    Rows 0..n−1: drive directions scaled by μ'_W·N_i; rows n..2n−1: axle directions scaled by μ'_T·N_i.
+    Rows 0..n−1: roller axes e_i (omni wheel: the drive direction) scaled by μ'_W·N_i; rows n..2n−1: free
+    rolling directions f_i = z × e_i (omni wheel: the axle) scaled by μ'_T·N_i.
     """
     c = np.asarray(robot.com if com is None else com, dtype=float)
     rho = robot.positions() - c
-    d, a = robot.drives(), robot.axles()
+    d, a = robot.roller_axes(), robot.free_directions()
     N = np.asarray(loads, dtype=float)
     gd = np.column_stack([d, _cross2(rho, d)]) * (surface.mu_drive * N)[:, None]
     ga = np.column_stack([a, _cross2(rho, a)]) * (surface.mu_transverse * N)[:, None]
@@ -124,11 +128,13 @@ class TractionLimiter:
         gravity: g [m/s²].
 
     ``"moving"``: once a wheel's rollers turn, its transverse force is not free to help: it is the
-    friction law's value at the wheel's transverse speed, F_T,i = −μ'_T·N_i·(2/π)·atan(k·v_T,i), a
+    friction law's value at the rollers' rolling speed, F_T,i = −μ'_T·N_i·(2/π)·atan(k·v_T,i) along f_i, a
     resistance the drive forces must overcome before anything is left to accelerate the robot. The set
     is then {w_T(v) + Σ t_i·g_W,i : |t_i| ≤ 1}, the drive generators around the transverse wrench of the
     previous twist v. If w_T alone is outside the drive set, steady motion along v is not possible
-    without slip and the limiter holds the previous twist (λ = 0).
+    without slip and the limiter holds the previous twist (λ = 0). The rolling speed is the one of a
+    wheel turning without slip along e_i: with the wheel-centre velocity u_i, v_T,i = u_i·f_i + r·w_i·sin γ_i
+    and r·w_i·cos γ_i = u_i·e_i, so v_T,i = (u_i·a_i)/cos γ_i (a_i the axle; u_i·a_i for an omni wheel).
 
     Call it as the limiter hook ``limiter(twist, prev_twist, estimate, dt) -> twist`` with (N, 3)
     arrays of body twists (vx, vy [m/s], ω [rad/s]) and pose estimates (x, y [m], θ [rad]); dt [s].
@@ -157,7 +163,8 @@ class TractionLimiter:
         # Wrench = A·(a_x, a_y, α) for the geometric centre's acceleration a and the yaw acceleration α.
         self.wrench_matrix = np.array([[m, 0.0, -m * cy], [0.0, m, m * cx], [0.0, 0.0, inertia]])
         self._positions = robot.positions()
-        self._axles = robot.axles()
+        # Rolling speed of a no-slip wheel along f_i: (u·a_i)/cos γ_i (class docstring), so the axle over cos γ.
+        self._rolling = robot.axles() / np.cos(robot.roller_angles())[:, None]
         normals, offsets, transverse = [], [], []
         for c in cases:
             loads = wheel_loads(self._positions, self.com, m, gravity, c)
@@ -174,11 +181,11 @@ class TractionLimiter:
         """Facet projections (N, K) of the transverse friction wrench drawn by body twists (N, 3) ("moving")."""
         if self.mode == "static":
             return np.zeros((twist.shape[0], self.offsets.shape[0]))
-        # Wheel-centre velocity v + ω z × p_i along the axle a_i (the slip law acts at the contact).
+        # Rolling speed (u_i·a_i)/cos γ_i of the wheel-centre velocity u_i = v + ω z × p_i (class docstring).
         px, py = self._positions[:, 0], self._positions[:, 1]
         ux = twist[:, :1] - twist[:, 2:3] * py
         uy = twist[:, 1:2] + twist[:, 2:3] * px
-        vt = ux * self._axles[:, 0] + uy * self._axles[:, 1]  # (N, n) [m/s]
+        vt = ux * self._rolling[:, 0] + uy * self._rolling[:, 1]  # (N, n) [m/s]
         share = (2.0 / math.pi) * np.arctan(self.surface.k * vt)  # of μ'_T·N_i, opposing the motion
         return -share @ self._transverse
 

@@ -1,14 +1,18 @@
-"""Baseline table: every scripted policy (open-loop, odometry-pid, ekf-pid, ekf-pid-traction) on two path-following ids.
+"""Baseline table: every scripted policy (open-loop, odometry-pid, ekf-pid, ekf-pid-traction) on the path-following ids.
 
-The ids: ``OmniPathFollow-Phunopas-v0`` (phunopas2018, 4 wheels) and ``OmniPathFollow-WilliamsPaper-v0``
-(williams2002, 3 wheels); ``--env`` picks a subset. The same conditions, seeds and code path run on both,
-so a Phunopas row does not depend on whether the Williams rows are computed too.
+The ids: ``OmniPathFollow-Phunopas-v0`` (phunopas2018, 4 omni wheels), ``OmniPathFollow-WilliamsPaper-v0``
+(williams2002, 3 omni wheels) and ``OmniPathFollow-Mecanum-v0`` (optiodom_omni4, 4 mecanum wheels);
+``--env`` picks a subset. The same conditions, seeds and code path run on every id, so one id's rows do not
+depend on whether the others are computed too.
 
 Conditions (everything else the id's defaults: 20 s random-waypoint paths, sensors at default noise):
 
 * no slip: ``surface="grip", friction="initial", lift_rate=0``
 * slip: ``surface="carpet", friction="roller_gap", lift_rate=0``
-* slip + lift-off: ``surface="carpet", friction="roller_gap", lift_rate=0.5`` (the id's defaults)
+* slip + lift-off: ``surface="carpet", friction="roller_gap", lift_rate=0.5`` (the Phunopas id's defaults)
+
+On the mecanum id every condition uses the only friction model of mecanum wheels, ``initial``
+(:data:`MECANUM_CONDITIONS`; slip: ``surface="carpet", friction="initial"``, the id's defaults).
 
 Every policy runs the same held-out seeds (from ``--seed``, default 10 000; the tests use seeds below
 10 000), so the comparisons are paired: the same reference, lift-off schedule and sensor noise. Per
@@ -23,11 +27,12 @@ under slip + lift-off is repeated on ``--confirm-episodes`` (default 200) furthe
 Phunopas id only (the question it answers was asked there).
 
 Writes ``baselines.md`` (command line first) and ``baselines.png`` (bars with 95 % CI whiskers) into
-``--out``: one section per id. Usage::
+``--out``: one section per id. With ``--merge`` the ids run replace (or add) only their own sections of an
+existing ``baselines.md``, every other line is kept, and the plot goes to ``baselines-<ids>.png``. Usage::
 
     python benchmarks/baselines.py [--episodes 50] [--confirm-episodes 200] [--seed 10000] [--workers 2]
                                    [--ray [ADDRESS]]
-                                   [--env ID ...] [--out benchmarks/results]
+                                   [--env ID ...] [--merge] [--out benchmarks/results]
 """
 
 from __future__ import annotations
@@ -54,13 +59,25 @@ from agents.rollout import Episode, make_env, run_episode  # noqa: E402
 from omni_gym.parallel import SERIAL, Backend, add_ray_option, backend_from_options, parallel_map  # noqa: E402
 
 GOAL_ENV = "OmniPathFollow-Phunopas-v0"  # the goal and the confirmation run are defined on this id
-ENV_IDS = (GOAL_ENV, "OmniPathFollow-WilliamsPaper-v0")
+MECANUM_ENV = "OmniPathFollow-Mecanum-v0"
+ENV_IDS = (GOAL_ENV, "OmniPathFollow-WilliamsPaper-v0", MECANUM_ENV)
 ENV_ID = GOAL_ENV  # imported by rl_vs_baselines.py, which compares on this id only
 CONDITIONS = {
     "no slip": {"surface": "grip", "friction": "initial", "lift_rate": 0.0},
     "slip": {"surface": "carpet", "friction": "roller_gap", "lift_rate": 0.0},
     "slip + lift-off": {"surface": "carpet", "friction": "roller_gap", "lift_rate": 0.5},
 }
+# Mecanum wheels: roller_gap friction does not apply (docs/model.md); the same floors with the initial model.
+MECANUM_CONDITIONS = {
+    "no slip": {"surface": "grip", "friction": "initial", "lift_rate": 0.0},
+    "slip": {"surface": "carpet", "friction": "initial", "lift_rate": 0.0},
+    "slip + lift-off": {"surface": "carpet", "friction": "initial", "lift_rate": 0.5},
+}
+
+
+def conditions(env_id: str) -> dict[str, dict]:
+    """The three conditions (same names on every id) with the keywords they pass to ``env_id``."""
+    return MECANUM_CONDITIONS if env_id == MECANUM_ENV else CONDITIONS
 GOAL_RATIO = 0.2  # ekf-pid / open-loop mean final position error under slip + lift-off
 BOOTSTRAP = BOOTSTRAP_RESAMPLES  # resamples of the paired bootstrap (agents.evaluate.paired_bootstrap_ratio)
 LABELS = {"tracking_rmse": "tracking RMSE [m]", "final_position_error": "final position error [m]",
@@ -83,7 +100,7 @@ def _episode(task: tuple[str, str, str, int, str]) -> tuple[tuple[str, str, str,
     """One episode in a worker process; the env and policy are built once per (id, policy, condition)."""
     env_id, policy, cond, seed, tag = task
     if (env_id, policy, cond) not in _cache:
-        env = make_env(env_id, CONDITIONS[cond])
+        env = make_env(env_id, conditions(env_id)[cond])
         _cache[(env_id, policy, cond)] = (env, make_policy(policy, env))
     env, pol = _cache[(env_id, policy, cond)]
     return (env_id, policy, cond, tag), run_episode(env, pol, seed)
@@ -140,7 +157,7 @@ def final_errors(episodes: list[Episode]) -> np.ndarray:
 def condition_tables(env_id: str, summaries: dict, eps: dict) -> list[str]:
     """One table per condition for ``env_id``: metric means with 95 % intervals and the lost count."""
     lines = []
-    for cond, kw in CONDITIONS.items():
+    for cond, kw in conditions(env_id).items():
         lines += [f"### {cond} (`{', '.join(f'{k}={v!r}' for k, v in kw.items())}`)", "",
                   "| policy | tracking RMSE [m] | final position error [m] | final heading error [rad] "
                   "| success rate | lost |", "|---|---|---|---|---|---|"]
@@ -207,7 +224,7 @@ def ratio_section(env_id: str, eps: dict) -> tuple[list[str], dict]:
 
 
 def write_markdown(path: Path, command: str, env_ids: list[str], summaries: dict, eps: dict, confirm: list,
-                   episodes: int, seed: int, elapsed: float) -> dict:
+                   episodes: int, seed: int, elapsed: float, merge: bool = False) -> dict:
     """Write the table (one section per id); return the ekf-pid / open-loop ratio per id."""
     lines = [f"# Baselines on {' and '.join(env_ids)}", "", "```", command, "```", "",
              f"{episodes} episodes per id, policy and condition on seeds {seed}–{seed + episodes - 1} (the same "
@@ -215,15 +232,45 @@ def write_markdown(path: Path, command: str, env_ids: list[str], summaries: dict
              "Student-t interval per metric; success (within 5 cm and 0.1 rad at the end, not lost) with its "
              "95 % Wilson interval; 'lost' counts episodes ended early because the robot left the reference by "
              f"more than the id's limit. {LOST_NOTE} Wall time {elapsed / 60:.1f} min.", ""]
-    goals = {}
+    goals, sections = {}, {}
     for env_id in env_ids:
-        lines += [f"## {env_id}", ""] + condition_tables(env_id, summaries, eps) + paired_tests(env_id, eps)
+        sec = [f"## {env_id}", ""] + condition_tables(env_id, summaries, eps) + paired_tests(env_id, eps)
         if env_id == GOAL_ENV and confirm:
-            lines += confirmation(confirm)
+            sec += confirmation(confirm)
         ratio_lines, goals[env_id] = ratio_section(env_id, eps)
-        lines += ratio_lines
-    path.write_text("\n".join(lines))
+        sections[env_id] = sec + ratio_lines
+    if merge and path.is_file():
+        text = merge_sections(path.read_text(encoding="utf-8"), sections, command, episodes, seed, elapsed)
+    else:
+        text = "\n".join(lines + [x for env_id in env_ids for x in sections[env_id]])
+    path.write_text(text, encoding="utf-8")
     return goals
+
+
+def merge_sections(text: str, sections: dict[str, list[str]], command: str, episodes: int, seed: int,
+                   elapsed: float) -> str:
+    """``text`` (an earlier baselines.md) with the ``## <id>`` section of every id in ``sections`` replaced, or
+    appended in :data:`ENV_IDS` order; every other line kept. A merged section opens with its own command."""
+    lines = text.rstrip("\n").split("\n")
+    starts = [i for i, x in enumerate(lines) if x.startswith("## ")]
+    head = lines[:starts[0]] if starts else lines
+    old = {lines[a][3:].strip(): lines[a:b] for a, b in zip(starts, [*starts[1:], len(lines)], strict=True)}
+    note = ["```", command, "```", "", f"Merged into this file by the command above: {episodes} episodes per policy "
+            f"and condition on seeds {seed}–{seed + episodes - 1}, wall time {elapsed / 60:.1f} min.", ""]
+    for env_id, sec in sections.items():
+        old[env_id] = sec[:2] + note + sec[2:] + [""]
+    order = [e for e in ENV_IDS if e in old] + [e for e in old if e not in ENV_IDS]
+    ids = [e for e in order if e in ENV_IDS]
+    if head and head[0].startswith("# Baselines on "):
+        head = [f"# Baselines on {', '.join(ids[:-1])} and {ids[-1]}" if len(ids) > 1 else f"# Baselines on {ids[0]}",
+                *head[1:]]
+    out = list(head)
+    for env_id in order:
+        sec = list(old[env_id])
+        while sec and not sec[-1].strip():  # one blank line between sections, whatever the old file had
+            sec.pop()
+        out += [*sec, ""]
+    return "\n".join(out).rstrip("\n") + "\n"
 
 
 def plot(path: Path, env_ids: list[str], summaries: dict) -> None:
@@ -271,6 +318,9 @@ def main(argv: list[str] | None = None) -> int:
     add_ray_option(ap, "the episode batches", "--workers")
     ap.add_argument("--env", action="append", choices=ENV_IDS, dest="envs",
                     help=f"environment id (repeatable; default both: {', '.join(ENV_IDS)})")
+    ap.add_argument("--merge", action="store_true",
+                    help="replace only the sections of the ids run in an existing OUT/baselines.md (others kept); "
+                         "plot to OUT/baselines-<ids>.png")
     ap.add_argument("--out", default="benchmarks/results", help="output directory")
     args = ap.parse_args(argv)
     if args.episodes < 2:
@@ -290,10 +340,11 @@ def main(argv: list[str] | None = None) -> int:
                if args.confirm_episodes > 1 and GOAL_ENV in env_ids else [])
     summaries = {k: summarize(v, interval="t") for k, v in eps.items()}  # Student-t, as the header says
     goals = write_markdown(out / "baselines.md", command.strip(), env_ids, summaries, eps, confirm, args.episodes,
-                           args.seed, time.time() - t0)
-    plot(out / "baselines.png", env_ids, summaries)
+                           args.seed, time.time() - t0, merge=args.merge)
+    short = "-".join(e.split("-")[1].lower() for e in env_ids)  # OmniPathFollow-Mecanum-v0 → mecanum
+    plot(out / (f"baselines-{short}.png" if args.merge else "baselines.png"), env_ids, summaries)
     for env_id in env_ids:
-        for cond in CONDITIONS:
+        for cond in conditions(env_id):
             for p in POLICY_NAMES:
                 s = summaries[(env_id, p, cond)]
                 print(f"{env_id} {cond:16s} {p:13s} rmse {fmt_ci(s['tracking_rmse'])}  "

@@ -1,31 +1,41 @@
-"""Real OptiOdom logs: the workflow's extended model against kinematic odometry calibration (issue 15).
+"""Real OptiOdom logs, both robots: gap's extended model against kinematic odometry calibration.
 
-    # the committed table (benchmarks/results/real_optiodom.md, .json, .png, _model.json, _gap.json): gap on
-    # all 24 training runs, fitted within its default budget of 120 s of robot time (about 20 min on 2 cores)
-    python benchmarks/real_optiodom.py --out benchmarks/results
-    # re-render the table from an earlier run's gap record (no gap run; a few seconds):
-    python benchmarks/real_optiodom.py --gap-model benchmarks/results/real_optiodom_gap.json --out DIR
-    # older, smaller variants: gap on N runs per training session cut to S seconds
-    python benchmarks/real_optiodom.py --gap-runs 4 --gap-seconds 20 --out DIR
+    # one robot's tables (benchmarks/results/real_optiodom_<robot>.md, .json, .png, _model.json, _gap.json) and
+    # the two-robot summary benchmarks/results/real_optiodom.md (from every real_optiodom_<robot>.json in --out):
+    # gap on all 24 training runs of the robot, fitted within its default budget of 120 s of robot time
+    python benchmarks/real_optiodom.py --robot omni4 --out benchmarks/results
+    python benchmarks/real_optiodom.py --robot omni3 --out benchmarks/results
+    # re-render from an earlier run's gap record (no gap run; the held-out replay only):
+    python benchmarks/real_optiodom.py --robot omni3 --out DIR \
+        --gap-model benchmarks/results/real_optiodom_omni3_gap.json
+    # smaller variants: gap on N runs per training session cut to S seconds
+    python benchmarks/real_optiodom.py --robot omni4 --gap-runs 4 --gap-seconds 20 --out DIR
     # smoke test: 4 training runs cut to 10 s, one 20 s run per held-out session (gap dominates the time)
-    python benchmarks/real_optiodom.py --quick
+    python benchmarks/real_optiodom.py --robot omni4 --quick
 
-Training: the sessions circular/221220201701 and square/221220201953 imported together (24 runs) with
-``omni_gym.discrepancy.importers.optiodom`` (nominal model from the metadata, assumed mass 8 kg,
-inertia 0.5·m·L², surface grip). Models, all fitted on the training runs only:
+Robots (``data/optiodom-omni3``, ``data/optiodom-omni4``; their READMEs):
+
+* omni3 (three omni wheels): training circular/221220201701 + square/221220201953 (24 runs); held out
+  circular/221220201643, …1722, …1726, …1730 and joystick/211220201842;
+* omni4 (four mecanum wheels): training circular/080920201015 + square/080920201810 (24 runs, day 1); held out
+  square/080920201715 (day 1), circular/231220200440 and circular/231220200502 (day 2).
+
+The training sessions are imported together with ``omni_gym.discrepancy.importers.optiodom`` (nominal model
+from the metadata and the importer's documented assumptions for mass, inertia and surface). Models, all
+fitted on the robot's training runs only:
 
 * (a) nominal: simulated in our world (``omni_gym.discrepancy.simulate``) at the workflow's FIT_DT;
-* (b) kinematic: ``omni_gym.discrepancy.kinematic_calibration`` (least squares over the three wheel
-  diameters and L), dead-reckoned from the encoders (an arc per 40 ms cycle);
+* (b) kinematic: ``omni_gym.discrepancy.kinematic_calibration`` (least squares over the wheel diameters and
+  L for omni3, l1 + l2 for omni4), dead-reckoned from the encoders (an arc per control cycle);
 * (c) kinematic, simulated: the calibration's SimModel in our world, as (a);
 * (d) extended: the ``model`` that ``omni_gym.discrepancy.workflow.gap`` returns on the training
-  dataset, simulated as (a).
+  dataset (starting from the nominal model), simulated as (a).
 
-Held-out sessions: circular/221220201643, …1722, …1726, …1730 and joystick/211220201842. Each run is
-replayed open loop from its start pose with its measured wheel speeds; the score is the position RMS
-[m] over the run's tracked rows (Euclidean x, y error against motion capture). Per session the table
-gives the mean over its runs. Mass and inertia are not published: (a)-(d) are repeated on one session
-with mass and inertia ×0.5 and ×2 (models not refitted). Progress on stderr, one line per stage.
+Each held-out run is replayed open loop from its start pose with its measured wheel speeds; the score is
+the position RMS [m] over the run's tracked rows (Euclidean x, y error against motion capture; what
+``omni-gym score`` reports). Per session the table gives the mean over its runs. Mass and inertia are not
+published: (a)-(d) are repeated on one session with mass and inertia ×0.5 and ×2 (models not refitted).
+Progress on stderr, one line per stage.
 """
 
 from __future__ import annotations
@@ -59,11 +69,31 @@ from omni_gym.discrepancy.simulate import FIT_DT, Job, simulate_poses  # noqa: E
 from omni_gym.physics.model import SimModel, read_json  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-DATA = ROOT / "data" / "optiodom-omni3"
-TRAIN = ("circular/221220201701", "square/221220201953")
-HELDOUT = ("circular/221220201643", "circular/221220201722", "circular/221220201726", "circular/221220201730",
-           "joystick/211220201842")
-MASS_SESSION = "circular/221220201643"  # the mass/inertia check: the longest held-out circular session
+
+
+@dataclass(frozen=True)
+class Robot:
+    """One OptiOdom robot of the benchmark: its data folder, training and held-out sessions, and the held-out
+    session of the mass/inertia check (the longest held-out circular one)."""
+
+    name: str
+    title: str
+    data: Path
+    train: tuple[str, ...]
+    heldout: tuple[str, ...]
+    mass_session: str
+
+
+ROBOTS = {
+    "omni3": Robot("omni3", "omni3: three omni wheels", ROOT / "data" / "optiodom-omni3",
+                   ("circular/221220201701", "square/221220201953"),
+                   ("circular/221220201643", "circular/221220201722", "circular/221220201726",
+                    "circular/221220201730", "joystick/211220201842"), "circular/221220201643"),
+    "omni4": Robot("omni4", "omni4: four mecanum wheels", ROOT / "data" / "optiodom-omni4",
+                   ("circular/080920201015", "square/080920201810"),
+                   ("square/080920201715", "circular/231220200440", "circular/231220200502"),
+                   "circular/231220200440"),
+}
 MASS_FACTORS = (0.5, 2.0)
 MODELS = ("nominal", "kinematic", "kinematic_sim", "extended")
 # --quick: 2 training runs per session cut to QUICK_TRAIN s, the first held-out run of each session cut to
@@ -92,25 +122,25 @@ def cut(run: Run, seconds: float) -> Run:
                enc=None if run.enc is None else run.enc[:K].copy())
 
 
-def load(quick: bool) -> tuple[SimModel, list, list[Run], list[Session]]:
-    """(nominal model, training metadata, training runs, held-out sessions) from ``data/optiodom-omni3``."""
-    metas, train = read_sessions([DATA / s for s in TRAIN])
+def load(robot: Robot, quick: bool) -> tuple[SimModel, list, list[Run], list[Session]]:
+    """(nominal model, training metadata, training runs, held-out sessions) of ``robot``."""
+    metas, train = read_sessions([robot.data / s for s in robot.train])
     nominal = nominal_model(metas[0])
     sessions = []
-    for s in HELDOUT:
-        m, runs = read_sessions([DATA / s])
+    for s in robot.heldout:
+        m, runs = read_sessions([robot.data / s])
         # One robot configuration: the held-out sessions share the training nominal model.
         if m[0].robot_key() != metas[0].robot_key():
             raise ValueError(f"{s}: robot configuration differs from the training sessions")
         sessions.append(Session(s, runs))
     if quick:
-        per = len(train) // len(TRAIN)
+        per = len(train) // len(robot.train)
         train = [cut(r, QUICK_TRAIN) for r in (train[0], train[per // 2], train[per], train[per + per // 2])]
         sessions = [Session(s.name, [cut(s.runs[0], QUICK_HELDOUT)]) for s in sessions]
     return nominal, metas, train, sessions
 
 
-def gap_subset(train: list[Run], runs: int | None, seconds: float | None) -> list[Run]:
+def gap_subset(robot: Robot, train: list[Run], runs: int | None, seconds: float | None) -> list[Run]:
     """The training runs gap sees: ``runs`` of each training session spread evenly (N = 4 of 12: runs 1, 4, 7,
     10), each cut to its first ``seconds``."""
     out = train
@@ -118,7 +148,7 @@ def gap_subset(train: list[Run], runs: int | None, seconds: float | None) -> lis
         if runs < 1:
             raise ValueError(f"--gap-runs must be >= 1, got {runs}")
         out = []
-        for s in TRAIN:
+        for s in robot.train:
             mine = [q for q in train if q.name.startswith(s.rsplit("/", 1)[-1] + "_")]
             # Spread over the session: its runs come in blocks of one path kind (direction of travel,
             # driving wheels), so the first N runs would show gap a single kind.
@@ -129,8 +159,10 @@ def gap_subset(train: list[Run], runs: int | None, seconds: float | None) -> lis
     return out
 
 
-def run_gap(nominal: SimModel, metas: list, train: list[Run], seed: int, fit_budget: float) -> tuple[dict, float]:
-    """``gap`` on the training runs (written to a temporary dataset); (result, wall time [s])."""
+def run_gap(nominal: SimModel, metas: list, train: list[Run], seed: int, fit_budget: float,
+            start: SimModel | None = None) -> tuple[dict, float]:
+    """``gap`` on the training runs (written to a temporary dataset), from ``start`` (None: the dataset's
+    nominal model); (result, wall time [s])."""
     from omni_gym.discrepancy.workflow import gap
 
     with tempfile.TemporaryDirectory(prefix="real_optiodom_") as tmp:
@@ -138,7 +170,7 @@ def run_gap(nominal: SimModel, metas: list, train: list[Run], seed: int, fit_bud
         desc = describe(metas, len(train), nominal.robot.mass, nominal.robot.inertia, nominal.surface.name)
         write_dataset(ds, nominal.to_json(), desc, train)
         t0 = time.perf_counter()
-        result = gap(ds, None, seed=seed, progress=None, fit_budget=fit_budget)
+        result = gap(ds, None, seed=seed, progress=None, fit_budget=fit_budget, start=start)
         wall = time.perf_counter() - t0
     return result, wall
 
@@ -209,11 +241,14 @@ def residual_analysis(sessions: list[Session], pred: dict, nominal: SimModel, ca
 
 
 def model_geometry(model: SimModel) -> tuple[np.ndarray, float]:
-    """Effective wheel diameters (n,) [m] and mean centre-to-wheel distance [m] of a model, its effects
-    applied (what the force kernel reads)."""
+    """Effective wheel diameters (n,) [m] and the calibration's length [m] of a model, its effects applied
+    (what the force kernel reads): the mean centre-to-wheel distance L for omni wheels, l1 + l2 =
+    2·mean(|x_i| + |y_i|) for mecanum wheels at (±l1/2, ±l2/2)."""
     from omni_gym.physics.layout import WP_PX, WP_PY, WP_R
 
     _, wp = model.kernel_params()
+    if model.robot.has_angled_rollers:
+        return 2.0 * wp[:, WP_R], float(2.0 * np.mean(np.abs(wp[:, WP_PX]) + np.abs(wp[:, WP_PY])))
     return 2.0 * wp[:, WP_R], float(np.mean(np.hypot(wp[:, WP_PX], wp[:, WP_PY])))
 
 
@@ -229,8 +264,9 @@ def fmt_params(params: dict) -> str:
     return ", ".join(f"{k} {one(v)}" for k, v in params.items())
 
 
-def plot(out: Path, sessions: list[Session], pred: dict, n_train: int) -> Path:
-    """xy paths of the first run of every held-out session: motion capture and the four models."""
+def plot(out: Path, stem: str, robot: Robot, sessions: list[Session], pred: dict, n_train: int,
+         start: str = "nominal") -> Path:
+    """xy paths of the first run of every held-out session: motion capture and three models."""
     fig, axes = plt.subplots(1, len(sessions), figsize=(4 * len(sessions), 4.2))
     styles = {"nominal": ("tab:gray", "nominal (sim)"), "kinematic": ("tab:blue", "kinematic calibration"),
               "extended": ("tab:red", "extended model (sim)")}
@@ -240,17 +276,20 @@ def plot(out: Path, sessions: list[Session], pred: dict, n_train: int) -> Path:
         ax.plot(run.pose[ok, 0], run.pose[ok, 1], "k-", lw=2.0, label="motion capture")
         for m, (color, label) in styles.items():
             p = pred[(s.name, run.name)][m]
-            ax.plot(p[:, 0], p[:, 1], color=color, lw=1.0, label=label)
+            # extended dashed: where gap added nothing it lies on its start model's curve, which shows through
+            ax.plot(p[:, 0], p[:, 1], color=color, lw=1.2 if m == "extended" else 1.0,
+                    ls="--" if m == "extended" else "-", label=label)
         ax.plot(*run.start_pose[:2], "ko", ms=4)
         ax.set_title(f"{s.name}\n{run.name.split('_')[-1]} ({run.t[-1]:.0f} s)", fontsize=9)
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x [m]")
     np.atleast_1d(axes)[0].set_ylabel("y [m]")
     np.atleast_1d(axes)[0].legend(fontsize=7, loc="best")
-    fig.suptitle(f"Held-out OptiOdom runs replayed open loop from the start pose (kinematic calibration on {n_train} "
-                 "training runs, extended model: gap's; the nominal curve lies under it where gap added nothing)")
+    fig.suptitle(f"{robot.title}: held-out OptiOdom runs replayed open loop from the start pose\n(kinematic "
+                 f"calibration on {n_train} training runs; extended model: gap's, started from the {start} model, "
+                 "dashed: it covers that model's curve where gap added nothing)", fontsize=10)
     fig.tight_layout()
-    path = out / "real_optiodom.png"
+    path = out / f"{stem}.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
@@ -258,14 +297,22 @@ def plot(out: Path, sessions: list[Session], pred: dict, n_train: int) -> Path:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robot", choices=sorted(ROBOTS), default=None,
+                    help="which OptiOdom robot (real_optiodom.md in --out summarises every robot run there)")
+    ap.add_argument("--summary", action="store_true",
+                    help="only rewrite real_optiodom.md from the real_optiodom_<robot>.json records in --out")
     ap.add_argument("--quick", action="store_true",
                     help="few short runs: a smoke test of the whole pipeline (a few minutes: gap dominates)")
     ap.add_argument("--out", default=None, help="output folder (default benchmarks/results; --quick: a temporary "
                                                  "folder, printed)")
     ap.add_argument("--gap-model", default=None, help="reuse this model.json, gap result.json or the "
-                                                       "real_optiodom_gap.json an earlier run wrote (which keeps gap's "
-                                                       "decision and wall time) instead of running gap")
+                                                       "real_optiodom_<robot>_gap.json an earlier run wrote (which "
+                                                       "keeps gap's decision and wall time) instead of running gap")
     ap.add_argument("--seed", type=int, default=0, help="gap's seed")
+    ap.add_argument("--gap-start", choices=("nominal", "kinematic"), default="nominal",
+                    help="the model gap starts from: the nominal model (default) or the kinematic calibration "
+                         "(its wheel_radius and geometry kept, the other effects searched on top); the files get "
+                         "the suffix _from_kinematic")
     ap.add_argument("--gap-runs", type=int, default=None, metavar="N",
                     help="give gap only N runs of each training session, spread evenly (default: all; the kinematic "
                          "calibration always uses every training run); for when gap on all 24 runs is too slow")
@@ -279,9 +326,16 @@ def main(argv: list[str] | None = None) -> int:
                                            else ROOT / "benchmarks" / "results")
     out.mkdir(parents=True, exist_ok=True)
     dt = FIT_DT
+    if args.summary:
+        say(f"wrote {write_summary(out)}")
+        return 0
+    if args.robot is None:
+        ap.error("--robot is required (or --summary)")
 
-    say("importing the training and held-out sessions" + (" (--quick: cut runs)" if args.quick else ""))
-    nominal, metas, train, sessions = load(args.quick)
+    robot = ROBOTS[args.robot]
+    stem = f"real_optiodom_{robot.name}" + ("_from_kinematic" if args.gap_start == "kinematic" else "")
+    say(f"{robot.name}: importing the training and held-out sessions" + (" (--quick: cut runs)" if args.quick else ""))
+    nominal, metas, train, sessions = load(robot, args.quick)
     say(f"{len(train)} training runs ({sum(r.t[-1] for r in train):.0f} s), "
         f"{sum(len(s.runs) for s in sessions)} held-out runs in {len(sessions)} sessions")
 
@@ -304,25 +358,29 @@ def main(argv: list[str] | None = None) -> int:
             gap_info = {"source": f"reused {args.gap_model}", "wall": None, "effect": None, "why": None}
         say(f"extended model from {args.gap_model} (gap not run)")
     else:
-        gap_train = gap_subset(train, args.gap_runs, args.gap_seconds)
+        gap_train = gap_subset(robot, train, args.gap_runs, args.gap_seconds)
         say(f"running gap on {len(gap_train)} training runs ({sum(r.t[-1] for r in gap_train):.0f} s; its stage "
             "lines follow)")
-        result, wall = run_gap(nominal, metas, gap_train, args.seed, args.fit_budget)
+        result, wall = run_gap(nominal, metas, gap_train, args.seed, args.fit_budget,
+                               start=cal.model if args.gap_start == "kinematic" else None)
         extended = SimModel.from_json(result["model"], where="gap result")
         subset = "" if len(gap_train) == len(train) and args.gap_seconds is None else (
             f" on a subset of the training runs: {len(gap_train)} runs, {sum(r.t[-1] for r in gap_train):.0f} s "
             f"({', '.join(r.name for r in gap_train)}); the kinematic calibration used all {len(train)}")
         subset += f"; gap fitted {result['dataset']['fitted']['description']}"
+        start_txt = ", start=the kinematic calibration's model" if args.gap_start == "kinematic" else ""
         gap_info = {"source": f"omni_gym.discrepancy.workflow.gap(seed={args.seed}, "
-                              f"fit_budget={args.fit_budget:g}){subset}", "wall": wall,
+                              f"fit_budget={args.fit_budget:g}{start_txt}){subset}", "wall": wall, "command": command,
+                    "start": args.gap_start,
                     "effect": result["effect"], "why": result["why"], "gap": result["gap"],
                     "effects": result.get("effects")}
         say(f"gap named {result['effect']!r} in {wall:.0f} s")
-        (out / "real_optiodom_model.json").write_text(json.dumps(result["model"], indent=1) + "\n")
+        (out / f"{stem}_model.json").write_text(json.dumps(result["model"], indent=1) + "\n")
         # gap's whole result and the table's story of it: --gap-model FILE re-renders the table from it.
-        (out / "real_optiodom_gap.json").write_text(json.dumps(
+        (out / f"{stem}_gap.json").write_text(json.dumps(
             {"model": result["model"], "gap_info": gap_info, "result": result}, indent=1) + "\n")
-    named = named_effects(nominal, extended)
+    start_model = cal.model if gap_info.get("start") == "kinematic" else nominal
+    named = named_effects(start_model, extended)
 
     models = {"nominal": nominal, "kinematic_sim": cal.model, "extended": extended}
     say(f"replaying {sum(len(s.runs) for s in sessions)} held-out runs with {len(models)} simulated models "
@@ -331,7 +389,7 @@ def main(argv: list[str] | None = None) -> int:
     rms, pred = score(sessions, models, cal, dt)
     say(f"held-out replay done ({time.perf_counter() - t0:.0f} s)")
 
-    mass_session = next((s for s in sessions if s.name == MASS_SESSION), sessions[0])
+    mass_session = next((s for s in sessions if s.name == robot.mass_session), sessions[0])
     mass_rms = {}
     for f in MASS_FACTORS:
         say(f"mass and inertia x{f:g} on {mass_session.name}")
@@ -342,12 +400,12 @@ def main(argv: list[str] | None = None) -> int:
     say("residual analysis (per-session kinematic calibrations)")
     left = residual_analysis(sessions, pred, nominal, cal)
     say("writing the table and the plot")
-    png = plot(out, sessions, pred, len(train))
-    md = table(command, args.quick, nominal, cal, extended, named, gap_info, sessions, rms, mass_session, mass_rms,
-               train, dt, left)
-    (out / "real_optiodom.md").write_text(md)
-    (out / "real_optiodom.json").write_text(json.dumps({
-        "command": command, "quick": args.quick, "dt": dt,
+    png = plot(out, stem, robot, sessions, pred, len(train), gap_info.get("start", "nominal"))
+    md = table(robot, stem, command, args.quick, nominal, cal, extended, named, gap_info, sessions, rms, mass_session,
+               mass_rms, train, dt, left)
+    (out / f"{stem}.md").write_text(md)
+    (out / f"{stem}.json").write_text(json.dumps({
+        "robot": robot.name, "command": command, "quick": args.quick, "dt": dt,
         "kinematic_calibration": cal.to_json(), "extended_effects": named,
         "gap": {k: v for k, v in gap_info.items() if k != "gap"} | {"gap": gap_info.get("gap")},
         "heldout": {s: {m: v for m, v in d.items()} for s, d in rms.items()},
@@ -355,20 +413,24 @@ def main(argv: list[str] | None = None) -> int:
         "mass_check": {"session": mass_session.name, "rms": {str(f): d for f, d in mass_rms.items()}},
         "residual_analysis": left,
     }, indent=1) + "\n")
-    say(f"wrote {out / 'real_optiodom.md'} and {png}")
+    summary = write_summary(out)
+    say(f"wrote {out / (stem + '.md')}, {png} and {summary}")
     print(md)
     return 0
 
 
-def table(command: str, quick: bool, nominal: SimModel, cal: KinematicCalibration, extended: SimModel,
-          named: dict, gap_info: dict, sessions: list[Session], rms: dict, mass_session: Session,
+def table(robot: Robot, stem: str, command: str, quick: bool, nominal: SimModel, cal: KinematicCalibration,
+          extended: SimModel, named: dict, gap_info: dict, sessions: list[Session], rms: dict, mass_session: Session,
           mass_rms: dict, train: list[Run], dt: float, left: dict) -> str:
     """The markdown of ``real_optiodom.md``."""
-    lines = [f"<!-- made by: {command} -->", "# Real OptiOdom logs: extended model vs kinematic calibration", ""]
+    lines = [f"<!-- made by: {command} -->",
+             f"# Real OptiOdom logs, {robot.title}: extended model vs kinematic calibration", "",
+             "Both robots' summary: [real_optiodom.md](real_optiodom.md).", ""]
     if quick:
         lines += ["**--quick smoke test: cut runs, not a result.**", ""]
     lines += [f"`{command}`", "",
-              f"Training: {' + '.join(TRAIN)} ({len(train)} runs, {sum(r.t[-1] for r in train):.0f} s of robot time). "
+              f"Training: {' + '.join(robot.train)} ({len(train)} runs, {sum(r.t[-1] for r in train):.0f} s of robot "
+              "time). "
               "Every model is fitted on these runs only. Each held-out run is replayed open loop from its start pose "
               "with its measured wheel speeds; score: position RMS [mm] over the run's tracked rows (Euclidean x, y "
               "error against motion capture), mean over the session's runs. Simulated models: our world at "
@@ -402,12 +464,14 @@ def table(command: str, quick: bool, nominal: SimModel, cal: KinematicCalibratio
               f"{1000 * cal.nominal_L:.1f}); training position RMS {mm(cal.nominal_position_rms)} → "
               f"{mm(cal.train_position_rms)} mm over {cal.rows} tracked rows.", ""]
     wall = gap_info.get("wall")
+    start = gap_info.get("start", "nominal")
     lines.append(f"**Extended model** ({gap_info['source']}"
                  + (f"; wall time {wall:.0f} s = {wall / 60:.1f} min" if wall is not None else "") + "): "
                  + (f"decision `{gap_info['effect']}`. " if gap_info.get("effect") else "")
-                 + ("effects added to the nominal model: " + "; ".join(f"`{k}` ({fmt_params(v)})" for k, v in
+                 + (f"effects added to the {start} model: "
+                    + "; ".join(f"`{k}` ({fmt_params(v)})" for k, v in
                                                                        named.items())
-                    if named else "no effect added (the extended model is the nominal model)") + ".")
+                    if named else f"no effect added (the extended model is the {start} model)") + ".")
     if gap_info.get("why"):
         lines += ["", f"gap's reason: {gap_info['why']}"]
     if named.keys() & {"wheel_radius", "wheel_geometry"}:
@@ -443,8 +507,52 @@ def table(command: str, quick: bool, nominal: SimModel, cal: KinematicCalibratio
                      f"{a['distance']:.1f} |")
     lines += ["", f"Training calibration for comparison: D = {', '.join(f'{1000 * d:.2f}' for d in cal.diameters)} mm, "
                   f"L = {1000 * cal.L:.2f} mm."]
-    lines += ["", "![held-out runs](real_optiodom.png)", ""]
+    lines += ["", f"![held-out runs]({stem}.png)", ""]
     return "\n".join(lines)
+
+
+def write_summary(out: Path) -> Path:
+    """``out/real_optiodom.md``: one row per held-out session of every robot whose ``real_optiodom_<robot>.json``
+    is in ``out`` (mean position RMS [mm] per model, extended / kinematic, gap's wall time, the command)."""
+    lines = ["# Real OptiOdom logs, both robots: extended model vs kinematic calibration", "",
+             "Per held-out session: mean over its runs of the whole-run position RMS [mm] (open-loop replay from the "
+             "start pose with the measured wheel speeds, Euclidean x, y error against motion capture: what "
+             "`omni-gym score` computes). Every model is fitted on that robot's training sessions only: nominal "
+             "(metadata geometry, simulated), kinematic calibration (dead reckoning), gap's extended model "
+             "(simulated; gap starts from the model the column says: the nominal one, or the kinematic calibration's "
+             "with its wheel diameters and size kept). Details, per-run values and plots: one file per robot, "
+             "linked below.", "",
+             "| robot | held-out session | runs | nominal | kinematic | extended | extended / kinematic | "
+             "gap starts from | gap wall time |", "|---|---|---|---|---|---|---|---|---|"]
+    commands = []
+    found = []
+    for name, variant in [(r, v) for r in sorted(ROBOTS) for v in ("", "_from_kinematic")]:
+        path = out / f"real_optiodom_{name}{variant}.json"
+        if not path.exists():
+            continue
+        rec = json.loads(path.read_text())
+        found.append((name, variant))
+        wall = rec["gap"].get("wall")
+        wall_txt = "–" if wall is None else f"{wall:.0f} s ({wall / 60:.1f} min)"
+        if rec["gap"].get("source", "").find("reused") >= 0:
+            wall_txt += " (reused record)"
+        quick = " **(--quick smoke test: not a result)**" if rec.get("quick") else ""
+        for sname, d in rec["heldout"].items():
+            m = {k: float(np.mean(v)) for k, v in d.items()}
+            lines.append(f"| {name} | {sname} | {len(d['nominal'])} | {mm(m['nominal'])} | {mm(m['kinematic'])} | "
+                         f"{mm(m['extended'])} | {m['extended'] / m['kinematic']:.3f} | "
+                         f"{rec['gap'].get('start') or 'nominal'} | {wall_txt}{quick} |")
+        commands.append(f"- {name}, gap from the {rec['gap'].get('start') or 'nominal'} model: `{rec['command']}`; "
+                        + (f"gap run by `{rec['gap']['command']}`; " if rec["gap"].get("command") else "")
+                        + f"extended model: {rec['gap'].get('source', '–')}")
+    lines += ["", "Commands (what made each robot's files):", ""] + commands + [""]
+    for name, variant in found:
+        stem = f"real_optiodom_{name}{variant}"
+        lines += [f"- {ROBOTS[name].title}" + (", gap from the kinematic calibration" if variant else "")
+                  + f": [{stem}.md]({stem}.md)", "", f"![{stem}]({stem}.png)", ""]
+    path = out / "real_optiodom.md"
+    path.write_text("\n".join(lines) + "\n")
+    return path
 
 
 if __name__ == "__main__":

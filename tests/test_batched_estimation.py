@@ -1,8 +1,8 @@
 """The batched estimation and control stack (agents/batched/) against the single-robot reference classes.
 
 Every test runs the single classes robot by robot and the batched ones on all robots together, on
-real environment episodes (sensors observations, slip, lift-off on the Phunopas robot, the 3-wheel
-Williams robot), with robots that reset at different steps.
+real environment episodes (sensors observations, slip, lift-off on the Phunopas robot and on the
+four-wheel mecanum robot, the 3-wheel Williams robot), with robots that reset at different steps.
 
 Tolerances: the batched EKF computes the same formulas as OmniEKF but multiplies its small matrices
 with explicit loops (numpy: BLAS, another summation order, fused multiply-adds), inverts and
@@ -37,6 +37,7 @@ from omni_gym.envs.decode import BatchSensorObsDecoder, SensorObsDecoder
 
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"  # 4 wheels, slip and lift-off
 WILLIAMS = "OmniPathFollow-WilliamsPaper-v0"  # 3 wheels, slip
+MECANUM = "OmniPathFollow-Mecanum-v0"  # 4 mecanum wheels, slip and lift-off
 EKF_TOL = 1e-9  # module docstring: measured differences <= 1.3e-12
 PID_TOL = 1e-12  # module docstring: vectorised cos/sin against math's
 F32_TOL = 1e-6  # module docstring: float32 outputs
@@ -78,7 +79,7 @@ def _record(env_id: str, seed: int, steps: int, fault: str) -> tuple[list[np.nda
     return out, env
 
 
-@pytest.fixture(scope="module", params=[PHUNOPAS, WILLIAMS])
+@pytest.fixture(scope="module", params=[PHUNOPAS, WILLIAMS, MECANUM])
 def streams(request):
     """Per robot a list of episodes (observation lists): 4 robots whose episodes end at different steps."""
     env_id = request.param
@@ -146,9 +147,10 @@ def test_batch_ekf_matches_single_filters(streams):
     assert all(v > 0 for v in seen.values()), seen
 
 
-def test_batch_slip_detector_matches_single():
+@pytest.mark.parametrize("env_id", [PHUNOPAS, MECANUM])
+def test_batch_slip_detector_matches_single(env_id):
     """Random innovations (slips of several σ on random wheels) through both detectors, robot by robot."""
-    robot = gym.make(PHUNOPAS).unwrapped.robot
+    robot = gym.make(env_id).unwrapped.robot
     W = robot.wheel_matrix()
     rng = np.random.default_rng(2)
     M, n = 5, W.shape[0]
@@ -241,7 +243,7 @@ def _run_policy_pair(env_id: str, name: str, num: int, steps: int, limiter=None,
     return worst, ends
 
 
-@pytest.mark.parametrize("env_id", [PHUNOPAS, WILLIAMS])
+@pytest.mark.parametrize("env_id", [PHUNOPAS, WILLIAMS, MECANUM])
 @pytest.mark.parametrize("name", VECTOR_POLICY_NAMES)
 def test_vector_policies_match_single_policies(env_id, name):
     worst, ends = _run_policy_pair(env_id, name, 3, 250)

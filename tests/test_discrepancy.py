@@ -306,3 +306,16 @@ def test_sparse_end_points_still_answer_with_uncertainty(tmp_path):
     if result["params"]:
         assert unc["params_5_95"]  # and the fitted parameters come with their bootstrap range
     assert "sparse" in (tmp_path / "rep" / "report.md").read_text()
+
+
+def test_gap_from_a_start_model_keeps_its_effects_and_searches_the_others(small_dataset):
+    """``start``: the search starts from the given model (here the truth, motor_lag τ = 0.08 s); its effect
+    is kept as it is, never refitted or ranked, and the gap it leaves is at the noise level."""
+    start = load_dataset(small_dataset).model.with_effect("motor_lag", {"tau": 0.08})
+    result = gap(small_dataset, None, progress=False, max_effects=1, start=start)
+    assert result["start"]["kept_effects"] == ["motor_lag"]
+    assert "motor_lag" not in [e["effect"] for e in result["ranking"]]
+    assert result["model"]["effects"]["motor_lag"] == {"tau": 0.08}
+    # With the hidden effect in the start model only the 1 mm tracker noise is left: the gap beyond the
+    # noise floor (what the start model leaves) is well under that noise.
+    assert result["gap"]["before"] < 0.001, result["gap"]

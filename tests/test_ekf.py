@@ -26,6 +26,7 @@ DT = 0.01
 ROBOT = phunopas2018()
 W = ROBOT.wheel_matrix()
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"
+MECANUM = "OmniPathFollow-Mecanum-v0"  # optiodom_omni4: four mecanum wheels (rollers at ±45°, r = 3 cm)
 
 
 def obs(enc, gyro, compass, accel, camera=(0.0, 0.0, 0.0), age=0.05) -> SensorObs:
@@ -481,14 +482,16 @@ def test_config_for_env_matches_sensor_config():
     assert c0.gyro_std > 0 and c0.compass_std > 0 and c0.accel_std > 0 and c0.camera_heading_std > 0
 
 
-def make_env(**kw):
+def make_env(env_id=PHUNOPAS, **kw):
     base = dict(obs_mode="sensors", surface="grip", friction="initial", lift_rate=0.0, lost_distance=100.0,
                 arena_half_size=5.0)
-    return gym.make(PHUNOPAS, **{**base, **kw})
+    return gym.make(env_id, **{**base, **kw})
 
 
+# The same bounds hold on the mecanum robot: its filter and detector see only the wheel matrix.
+@pytest.mark.parametrize("env_id", [PHUNOPAS, MECANUM])
 @pytest.mark.parametrize("wheel", [0, 1])
-def test_env_lifted_wheel_detection_delay(wheel):
+def test_env_lifted_wheel_detection_delay(wheel, env_id):
     """The real environment, 'grip' floor, wheel commands, robot driving (0.2, 0.1) m/s while turning 0.5 rad/s.
 
     1. 0–1 s: all wheels down. 2. 1–1.5 s: wheel lifted with `set_contact`, still commanded consistently:
@@ -501,7 +504,7 @@ def test_env_lifted_wheel_detection_delay(wheel):
        back in use after 4–5 periods (measured), required ≤ 10.
     The pose error stays below 1.5 cm throughout (camera at 10 Hz, 5 mm).
     """
-    env = make_env(action_mode="wheels")
+    env = make_env(env_id, action_mode="wheels")
     o, info = env.reset(seed=0)
     dec = SensorObsDecoder.for_env(env)
     core = env.unwrapped.core
@@ -536,12 +539,13 @@ def test_env_lifted_wheel_detection_delay(wheel):
     assert recover is not None and recover <= 10, recover
 
 
+@pytest.mark.parametrize("env_id", [PHUNOPAS, MECANUM])
 @pytest.mark.parametrize("noise, use, pos_tol, head_tol", [
     (0.1, {}, 0.01, 0.02),
     (0.1, {"use_camera": False, "use_compass": False}, 0.01, 0.02),
     (1.0, {}, 0.02, 0.05),
 ])
-def test_env_grip_feedforward_pose_within_cm(noise, use, pos_tol, head_tol):
+def test_env_grip_feedforward_pose_within_cm(noise, use, pos_tol, head_tol, env_id):
     """Feed-forward twist on the 'grip' floor (no slip, no lift-off) for 5 s: the EKF pose follows info["pose"].
 
     Twist: vx = 0.25 sin(1.3 t), vy = 0.2 cos(0.9 t) m/s, ω = 1.2 sin(0.7 t) rad/s, ramped in over 0.3 s.
@@ -553,7 +557,7 @@ def test_env_grip_feedforward_pose_within_cm(noise, use, pos_tol, head_tol):
     sign drifts by decimetres in 5 s.
     """
     for seed in (0, 1):
-        env = make_env(sensor_noise=noise)
+        env = make_env(env_id, sensor_noise=noise)
         o, info = env.reset(seed=seed)
         dec = SensorObsDecoder.for_env(env)
         ekf = OmniEKF(env.unwrapped.core.robot, EKFConfig.for_env(env, **use))

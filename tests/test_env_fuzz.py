@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 import omni_gym  # noqa: F401  (registers the ids)
 from omni_gym.physics.model import load_model
 
-IDS = ("OmniPathFollow-WilliamsPaper-v0", "OmniPathFollow-Phunopas-v0", "OmniGoToPose-v0")
+IDS = ("OmniPathFollow-WilliamsPaper-v0", "OmniPathFollow-Phunopas-v0", "OmniPathFollow-Mecanum-v0", "OmniGoToPose-v0")
 STEPS = 3
 
 # Values no numeric keyword may take, or that only some may (0, tiny, huge): wrong types included.
@@ -45,7 +45,9 @@ NUMPY_TYPES = (np.float32, np.float64, np.int64)
 LIFT = load_model("phunopas2018").with_effect("wheel_liftoff", {"lift_rate": 3.0, "recover_rate": 4.0})
 # (values that should work, values that should be refused) of the other keywords.
 CHOICES = {
-    "robot": (["williams2002", "phunopas2018", "regular3", "regular16"], ["regular17", "regular", 5, None, ["x"]]),
+    # optiodom_omni4 (mecanum) runs with friction 'initial' and is refused, naming robot, with 'roller_gap'.
+    "robot": (["williams2002", "phunopas2018", "optiodom_omni4", "regular3", "regular16"],
+              ["regular17", "regular", 5, None, ["x"]]),
     "surface": (["paper", "carpet", "grip"], ["ice", 3]),
     "friction": (["initial", "roller_gap"], ["magic"]),
     "task": (["path", "goto"], ["fly"]),

@@ -275,3 +275,48 @@ def test_scripted_policy_reads_the_model_robot():
     episode = result["per_episode"]
     assert episode["terminated"] == [False]
     assert episode["tracking_rmse"][0] < 0.02
+
+
+MECANUM = "OmniPathFollow-Mecanum-v0"
+
+
+def mecanum_model():
+    """optiodom_omni4 (mecanum wheels, initial friction) on paper with a radius and a centre-of-mass effect."""
+    return (load_model("optiodom_omni4", surface="paper")
+            .with_effect("wheel_radius", {"scale": [1.03, 0.98, 1.0, 1.01]})
+            .with_effect("com_offset", {"com": [0.01, -0.005]}))
+
+
+def test_mecanum_model_file_in_env_replays_as_simulate(tmp_path):
+    """A mecanum model file drives the environment exactly as simulate replays it (as the omni model above)."""
+    model = mecanum_model()
+    assert model.friction == "initial" and model.robot.has_angled_rollers
+    path = write_model(tmp_path / "mecanum.json", model)
+    steps = 150
+    poses, commands, env = env_poses(str(path), steps)
+    cfg = env.unwrapped.cfg
+    times = np.arange(steps + 1) / cfg.control_hz
+    replay = simulate_commands(load_model(str(path)), times, np.vstack([commands, commands[-1:]]), dt=cfg.physics_dt)
+    assert np.array_equal(poses, replay[1:, 0:3])
+    assert math.hypot(*poses[-1, 0:2]) > 0.05  # it moved
+    core = env.unwrapped.core
+    np.testing.assert_allclose(core.world.wp[0, :, WP_R] / core.robot.wheel_radius, [1.03, 0.98, 1.0, 1.01],
+                               rtol=1e-15)  # one rounding of r·scale
+
+
+def test_mecanum_id_takes_model_files_of_either_wheel_kind(tmp_path):
+    """model= replaces the ids' robot, surface and friction keywords: a mecanum model on the omni Phunopas id
+    (which passes friction='roller_gap') and an omni model with roller-gap friction on the Mecanum id (which
+    passes 'initial') both run; the Mecanum id's episode with its own model file differs from the nominal one."""
+    mec = write_model(tmp_path / "mecanum.json", mecanum_model())
+    env = gym.make(PHUNOPAS, model=str(mec))
+    assert env.unwrapped.core.robot.has_angled_rollers and env.unwrapped.cfg.base_model().friction == "initial"
+    omni = write_model(tmp_path / "omni.json", load_model("williams2002", surface="paper", friction="roller_gap"))
+    env = gym.make(MECANUM, model=str(omni), action_mode="wheels")
+    assert env.unwrapped.core.n_wheels == 3 and env.action_space.shape == (3,)
+    assert env.unwrapped.cfg.base_model().friction == "roller_gap"
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    runs = [rollout(gym.make(MECANUM, **kw), seed=5, steps=60) for kw in ({"model": str(mec)}, {"model": mec}, {})]
+    assert_same(runs[0], runs[1])  # str and Path name the same file
+    assert not np.array_equal(runs[0][-1][-1], runs[2][-1][-1])  # the model file, not the nominal robot

@@ -28,7 +28,8 @@ from omni_gym.physics.liftoff import contact_cases
 WILLIAMS = "OmniPathFollow-WilliamsPaper-v0"
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"
 GOTO = "OmniGoToPose-v0"
-IDS = (WILLIAMS, PHUNOPAS, GOTO)
+MECANUM = "OmniPathFollow-Mecanum-v0"  # optiodom_omni4: four mecanum wheels, lift-off as PHUNOPAS
+IDS = (WILLIAMS, PHUNOPAS, MECANUM, GOTO)
 CUSTOM = "OmniPathFollow-Custom-v0"
 # "My robot": five wheels on paper with a calibrated lift-off (the custom id takes everything from it).
 CUSTOM_MODEL = omni_gym.load_model("regular5", surface="paper").with_effect(
@@ -127,10 +128,11 @@ def test_env_checkers(env_id, obs_mode, action_mode):
 # --- 2. determinism ----------------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("env_id", [PHUNOPAS, MECANUM])
 @pytest.mark.parametrize("extra", [{}, RANDOMIZE], ids=["liftoff", "liftoff+randomized"])
-def test_same_seed_same_episodes(extra):
+def test_same_seed_same_episodes(extra, env_id):
     kwargs = {"obs_mode": "sensors", **extra}
-    env_a, env_b = gym.make(PHUNOPAS, **kwargs), gym.make(PHUNOPAS, **kwargs)
+    env_a, env_b = gym.make(env_id, **kwargs), gym.make(env_id, **kwargs)
     actions = random_actions(env_a, 600, seed=123)
     first_a, first_b = rollout(env_a, actions[:300], seed=42), rollout(env_b, actions[:300], seed=42)
     assert_rollouts_equal(first_a, first_b, "seeded run")
@@ -160,10 +162,11 @@ def test_different_seeds_differ(env_id):
 # --- 3. pickling -------------------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("env_id", [PHUNOPAS, MECANUM])
 @pytest.mark.parametrize("kwargs", [{"obs_mode": "state"}, {"obs_mode": "sensors", **RANDOMIZE}],
                          ids=["state", "sensors+randomized"])
-def test_pickle_round_trip_mid_episode(kwargs):
-    env = gym.make(PHUNOPAS, **kwargs)
+def test_pickle_round_trip_mid_episode(kwargs, env_id):
+    env = gym.make(env_id, **kwargs)
     actions = random_actions(env, 150, seed=9)
     env.reset(seed=3)
     for a in actions[:50]:
@@ -234,13 +237,14 @@ def test_sb3_subproc_vec_env_matches_in_process():
 # --- 5. native vector env vs single envs -------------------------------------------------------
 
 
+@pytest.mark.parametrize("env_id", [PHUNOPAS, MECANUM])
 @pytest.mark.parametrize("kwargs", [{}, {"obs_mode": "sensors"}, {"obs_mode": "sensors", **RANDOMIZE}],
                          ids=["state", "sensors", "sensors+randomized"])
-def test_native_vector_env_matches_single_envs(kwargs):
+def test_native_vector_env_matches_single_envs(kwargs, env_id):
     n = 4
     kwargs = {"episode_seconds": 0.3, **kwargs}
-    venv = gym.make_vec(PHUNOPAS, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
-    singles = [gym.make(PHUNOPAS, **kwargs) for _ in range(n)]
+    venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+    singles = [gym.make(env_id, **kwargs) for _ in range(n)]
 
     assert venv.single_observation_space == singles[0].observation_space
     assert venv.single_action_space == singles[0].action_space
@@ -548,8 +552,9 @@ def check_info_layout(env: gym.Env, info: dict) -> None:
 # lost_distance=1.0: this test is about when truncation happens, and with lift-off the naive controller's worst
 # error (≈ 0.4 m on some seeds) comes close to the default 0.5 m; termination has its own tests below.
 @pytest.mark.parametrize(("env_id", "extra"), [(WILLIAMS, {"surface": "paper"}), (PHUNOPAS, {"lost_distance": 1.0}),
-                                               (GOTO, {"lost_distance": 1.0}), (PHUNOPAS, {"episode_seconds": 0.5})],
-                         ids=["williams-paper", "phunopas", "goto", "phunopas-0.5s"])
+                                               (GOTO, {"lost_distance": 1.0}), (PHUNOPAS, {"episode_seconds": 0.5}),
+                                               (MECANUM, {"lost_distance": 1.0})],
+                         ids=["williams-paper", "phunopas", "goto", "phunopas-0.5s", "mecanum"])
 def test_truncation_at_end_of_reference(env_id, extra):
     env = gym.make(env_id, obs_mode="state", action_mode="twist", **extra)
     cfg = env.unwrapped.cfg
@@ -575,7 +580,7 @@ def test_truncation_at_end_of_reference(env_id, extra):
 
 
 @pytest.mark.parametrize(("env_id", "lost_distance"), [(WILLIAMS, None), (PHUNOPAS, None), (GOTO, None),
-                                                       (PHUNOPAS, 0.2)])
+                                                       (PHUNOPAS, 0.2), (MECANUM, None)])
 def test_terminates_when_lost(env_id, lost_distance):
     kwargs = {"obs_mode": "state", "action_mode": "twist"}
     if lost_distance is not None:
@@ -599,7 +604,7 @@ def test_terminates_when_lost(env_id, lost_distance):
     assert info["tracking_error"] > limit
 
 
-@pytest.mark.parametrize("env_id", [WILLIAMS, PHUNOPAS])
+@pytest.mark.parametrize("env_id", [WILLIAMS, PHUNOPAS, MECANUM])
 def test_terminates_on_wall_collision(env_id):
     # lost_distance far beyond the arena so the wall, not the tracking error, ends the episode.
     env = gym.make(env_id, walls=True, arena_half_size=0.5, lost_distance=10.0, action_mode="twist")
@@ -626,7 +631,7 @@ def test_terminates_on_wall_collision(env_id):
 
 def test_registered_ids_from_fresh_interpreter(tmp_path):
     steps = {env_id: kwargs_steps[1] for env_id, kwargs_steps in omni_gym.ENV_IDS.items()}
-    assert steps == {WILLIAMS: 2000, "OmniPathFollow-Williams-v1": 2000, PHUNOPAS: 2000, GOTO: 800}
+    assert steps == {WILLIAMS: 2000, "OmniPathFollow-Williams-v1": 2000, PHUNOPAS: 2000, MECANUM: 2000, GOTO: 800}
     code = (
         "import sys\n"
         "import gymnasium as gym\n"
@@ -716,7 +721,7 @@ def test_sensor_noise_randomisation_scales_each_robots_noise():
     assert [r[4]["pose"].tolist() for r in state_a] == [r[4]["pose"].tolist() for r in state_b]
 
 
-@pytest.mark.parametrize(("env_id", "extra"), [(WILLIAMS, {"surface": "paper"}), (PHUNOPAS, {})])
+@pytest.mark.parametrize(("env_id", "extra"), [(WILLIAMS, {"surface": "paper"}), (PHUNOPAS, {}), (MECANUM, {})])
 def test_contact_mask_changes_with_lift_off(env_id, extra):
     env = gym.make(env_id, **extra)  # full 20 s episode (Williams on paper: trackable, see the truncation test)
     lift_rate = env.unwrapped.cfg.lift_rate
@@ -770,6 +775,29 @@ def test_custom_id_takes_robot_floor_and_liftoff_from_the_model():
     assert lifted
 
 
+def test_mecanum_id_defaults_and_the_mecanum_robot_on_an_omni_id():
+    """The mecanum id: optiodom_omni4 on carpet with the initial friction model and the Phunopas lift-off.
+    The omni-wheel ids pass friction='roller_gap', which mecanum wheels refuse: a one-line error naming the
+    keyword and the fix, from the single and the vector env alike; with friction='initial' it works."""
+    cfg = gym.make(MECANUM).unwrapped.cfg
+    model = cfg.base_model()
+    assert model.robot.name == "optiodom_omni4" and model.robot.has_angled_rollers
+    assert model.surface == SURFACES["carpet"] and model.friction == "initial"
+    assert cfg.contact_rates() == (0.5, 5.0) == (omni_gym.envs.LIFT_OFF["lift_rate"],
+                                                 omni_gym.envs.LIFT_OFF["recover_rate"])
+    message = "invalid friction='roller_gap' for robot='optiodom_omni4'"
+    for make in (lambda **kw: gym.make(PHUNOPAS, **kw),
+                 lambda **kw: gym.make_vec(WILLIAMS, num_envs=2, vectorization_mode="vector_entry_point", **kw),
+                 lambda **kw: gym.make(MECANUM, friction="roller_gap", **kw)):
+        with pytest.raises(ValueError, match=re.escape(message)) as err:
+            make(robot="optiodom_omni4")
+        assert "\n" not in str(err.value) and "friction='initial'" in str(err.value)
+    env = gym.make(PHUNOPAS, robot="optiodom_omni4", friction="initial")
+    assert env.unwrapped.robot.n_wheels == 4 and env.unwrapped.robot.has_angled_rollers
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+
+
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({}, "OmniPathFollow-Custom-v0 needs model="),
     ({"model": CUSTOM_MODEL, "robot": "williams2002"}, "invalid robot='williams2002' for OmniPathFollow-Custom-v0"),
@@ -814,7 +842,7 @@ def test_old_williams_id_names_its_new_name_and_the_new_names_make_without_warni
             warnings.simplefilter("ignore", DeprecationWarning)  # Gymnasium's version hint comes first
             gym.make("OmniPathFollow-Williams-v0")
     assert isinstance(err.value, gym.error.Error)
-    for env_id in (WILLIAMS, "OmniPathFollow-Williams-v1", CUSTOM):
+    for env_id in (WILLIAMS, "OmniPathFollow-Williams-v1", MECANUM, CUSTOM):
         with warnings.catch_warnings():
             warnings.simplefilter("error")  # no "out of date, consider upgrading" for any current id
             gym.make(env_id, **ID_KWARGS.get(env_id, {})).close()

@@ -159,3 +159,30 @@ def test_gif_writing_without_imageio_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "imageio.v3", None)
     with pytest.raises(ModuleNotFoundError, match=r'writing GIFs needs the .imageio. package.*omni-gym\[render\]'):
         render.require("imageio.v3", "writing GIFs")
+
+
+def test_mecanum_wheels_show_their_roller_axis():
+    """Each optiodom_omni4 wheel carries a dark stripe along its floor roller's axis e (±45° from the drive);
+    the other diagonal of the wheel stays in the wheel's colour, so the stripe tells the two roller hands apart."""
+    env = gym.make("OmniPathFollow-Mecanum-v0", render_mode="rgb_array", arena_half_size=0.25, lift_rate=0.0)
+    env.reset(seed=0)
+    frame = env.render()
+    r = env.unwrapped._renderer
+    core = env.unwrapped.core
+    th = core.true[0, 2]
+    c, s = math.cos(th), math.sin(th)
+    robot = core.robot
+    half_len = max(robot.wheel_radius * r.scale, render.MIN_WHEEL_PX / 2)
+    half_wid = max(0.5 * render.WHEEL_WIDTH * robot.wheel_radius * r.scale, render.MIN_WHEEL_PX / 2)
+    assert half_wid > 6  # large enough (arena_half_size 0.25) that a stripe pixel and a wheel pixel are apart
+    for i, (e_body, d_body) in enumerate(zip(robot.roller_axes(), robot.drives(), strict=True)):
+        e = np.array([c * e_body[0] - s * e_body[1], s * e_body[0] + c * e_body[1]])
+        d = np.array([c * d_body[0] - s * d_body[1], s * d_body[0] + c * d_body[1]])
+        mirrored = 2 * (e @ d) * d - e  # the roller axis of the opposite hand
+        col, row = wheel_pixel(env, r, i)
+        t = 0.6 * min(half_len / abs(e @ d), half_wid / abs(e[0] * d[1] - e[1] * d[0]))
+        on = frame[int(round(row - t * e[1])), int(round(col + t * e[0]))]
+        off = frame[int(round(row - t * mirrored[1])), int(round(col + t * mirrored[0]))]
+        assert tuple(on) == render.HEADING, (i, on)
+        assert tuple(off) == render.ROLLING, (i, off)
+    env.close()

@@ -130,6 +130,7 @@ def _check_env_runner_stack(trained) -> None:
 
 def test_registry_creators_build_the_native_vector_env_and_distinct_seeds():
     import gymnasium as gym
+    from ray.tune.registry import ENV_CREATOR, _global_registry
 
     from agents.rllib.env import DistinctSeeds, TrainingEnvCreator
     from omni_gym.envs import CUSTOM_ID, ENV_IDS
@@ -137,14 +138,19 @@ def test_registry_creators_build_the_native_vector_env_and_distinct_seeds():
     from omni_gym.rllib import EnvCreator, register_envs
 
     assert register_envs() == [*ENV_IDS, CUSTOM_ID]
-    venv = EnvCreator("OmniPathFollow-Williams-v1")({"num_envs": 3, "obs_mode": "state", "episode_seconds": 1.0})
-    single = EnvCreator("OmniPathFollow-Williams-v1")({"obs_mode": "state", "episode_seconds": 1.0})
-    try:
-        assert isinstance(venv.unwrapped, OmniPathVectorEnv) and venv.num_envs == 3
-        assert isinstance(single, gym.Env) and single.observation_space == venv.single_observation_space
-    finally:
-        venv.close()
-        single.close()
+    assert "OmniPathFollow-Mecanum-v0" in ENV_IDS
+    for env_id in ("OmniPathFollow-Williams-v1", "OmniPathFollow-Mecanum-v0"):  # 3 omni, 4 mecanum wheels
+        assert _global_registry.contains(ENV_CREATOR, env_id)  # what RLlib looks up for .environment(env_id)
+        creator = _global_registry.get(ENV_CREATOR, env_id)
+        venv = creator({"num_envs": 3, "obs_mode": "state", "episode_seconds": 1.0})
+        single = EnvCreator(env_id)({"obs_mode": "state", "episode_seconds": 1.0})
+        try:
+            assert isinstance(venv.unwrapped, OmniPathVectorEnv) and venv.num_envs == 3
+            assert isinstance(single, gym.Env) and single.observation_space == venv.single_observation_space
+            assert venv.unwrapped.robot.name == gym.spec(env_id).kwargs["robot"]
+        finally:
+            venv.close()
+            single.close()
     # Env runner k resets with base + k; robot i of runner k must start from base + k*num_envs + i: the
     # second runner's first robot (seed 10 + 4) is a single env reset with seed 14.
     train = TrainingEnvCreator()({"env_id": PATH_IDS[0], "reward": "squared", "seed": 10, "num_envs": 4,

@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.optimize import linprog
 
 from agents.pid import PIDGains
 from agents.policies import make_policy
@@ -16,7 +17,7 @@ from omni_gym.physics.friction import SURFACES
 from omni_gym.physics.loads import wheel_loads
 from omni_gym.physics.robot import robot_preset
 
-ROBOTS = ("williams2002", "phunopas2018")
+ROBOTS = ("williams2002", "phunopas2018", "optiodom_omni4")  # omni 3 and 4 wheels, mecanum (rollers at ±45°)
 DT = 0.01
 
 
@@ -135,3 +136,53 @@ def test_default_references_are_within_the_static_bound(env_id):
     for seed in range(5):
         # Measured ≤ 0.23 over 200 seeds (benchmarks/results/feasibility.md); a third leaves room for draws.
         assert reference_demand(cfg, lim, seed).utilisation < 1 / 3
+
+
+@pytest.mark.parametrize("surface", ("paper", "carpet"))
+def test_moving_set_of_a_mecanum_robot_matches_the_slip_law(surface):
+    """"moving" mode on the mecanum preset against a computation written here from the wheel law alone.
+
+    For a steady twist v, each wheel turning without slip (w = W·v) rolls its floor roller at
+    v_T = (u − r·w·d)·f (docs/model.md: u the wheel-centre velocity, d the drive, f = z × e the free
+    direction of the roller axis e = cos γ·d + sin γ·a); the rolling friction −μ'_T·N·(2/π)·atan(k·v_T)
+    along f gives a wrench w_T about the centre of mass. Its utilisation is the smallest s with w_T in
+    s·{Σ t_i·g_i : |t_i| ≤ 1}, g_i = μ'_W·N_i·(e_i, ρ_i × e_i): a linear program, solved here with HiGHS.
+    """
+    robot, surf = robot_preset("optiodom_omni4"), SURFACES[surface]
+    lim = TractionLimiter(robot, surf, mode="moving")
+    loads = wheel_loads(robot.positions(), robot.com, robot.mass, 9.81)
+    r = robot.wheel_radius
+    rng = np.random.default_rng(5)
+    twists = rng.uniform(-1, 1, size=(12, 3)) * [0.4, 0.4, 1.5]
+    twists[0] = [0.3, 0.0, 0.0]  # straight ahead: the rollers of this layout do not roll
+    twists[1] = [0.0, 0.3, 0.0]  # sideways: every roller rolls at √2·|v|
+    for v in twists:
+        w_T = np.zeros(3)
+        gens = []
+        for i, wheel in enumerate(robot.wheels):
+            p = np.array(wheel.position)
+            d = np.array(wheel.drive)
+            a = np.array([-d[1], d[0]])
+            g = wheel.roller_angle
+            e = math.cos(g) * d + math.sin(g) * a
+            f = np.array([-e[1], e[0]])
+            u = v[:2] + v[2] * np.array([-p[1], p[0]])
+            w = float(robot.wheel_matrix()[i] @ v)  # no-slip wheel speed [rad/s]
+            assert (u - r * w * d) @ e == pytest.approx(0.0, abs=1e-12)  # indeed no slip along e
+            vt = (u - r * w * d) @ f
+            force = -surf.mu_transverse * loads[i] * (2 / math.pi) * math.atan(surf.k * vt) * f
+            w_T += [force[0], force[1], p[0] * force[1] - p[1] * force[0]]
+            gens.append(surf.mu_drive * loads[i] * np.array([e[0], e[1], p[0] * e[1] - p[1] * e[0]]))
+        G = np.array(gens).T  # (3, n)
+        n = G.shape[1]
+        # min s  s.t.  G t = w_T,  −s ≤ t_i ≤ s  (variables t_1..t_n, s).
+        res = linprog(np.r_[np.zeros(n), 1.0],
+                      A_ub=np.block([[np.eye(n), -np.ones((n, 1))], [-np.eye(n), -np.ones((n, 1))]]),
+                      b_ub=np.zeros(2 * n), A_eq=np.c_[G, np.zeros(3)], b_eq=w_T,
+                      bounds=[(None, None)] * n + [(0, None)], method="highs")
+        assert res.status == 0
+        # HiGHS is exact to its feasibility tolerance (~1e-9 relative); 1e-7 leaves room for the facet sums.
+        assert lim.utilisation(np.zeros((1, 3)), v[None])[0] == pytest.approx(res.x[-1], rel=1e-7, abs=1e-9)
+    # The two named cases: straight ahead draws nothing; sideways draws the rolling friction of every wheel.
+    assert lim.utilisation(np.zeros((1, 3)), twists[:1])[0] == pytest.approx(0.0, abs=1e-12)
+    assert lim.utilisation(np.zeros((1, 3)), twists[1:2])[0] > 0.5 * surf.mu_transverse / surf.mu_drive

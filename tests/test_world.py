@@ -260,3 +260,108 @@ def test_mixed_omni_and_mecanum_batch_matches_lone_robots_bit_for_bit(actuation)
         np.testing.assert_array_equal(batch.wheel_speed[j], lone.wheel_speed[0])
     # The mecanum robot commanded sideways moved sideways, though its drives all point along ±x.
     assert batch.pose[1, 1] > 0.01 and abs(batch.pose[1, 0]) < 1e-6
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_compiled_substep_loop_matches_python_calls_bit_for_bit(parallel):
+    """World.substeps runs read, kernel, write and pymunk step in one compiled call (run_substeps in physics/kernel.py);
+    the same calls made one by one from Python, robots driven into the walls (so pymunk's collision
+    callback fires inside the compiled loop), give the same bits and the same collision flags."""
+    from omni_gym.physics.kernel import substep, substep_parallel
+
+    model = load_model("williams2002", "carpet", "roller_gap")  # drives along body y (see the walls test)
+    worlds = [World(model, n_robots=3, arena=Arena(0.4, walls=True), parallel=parallel) for _ in range(2)]
+    cmds = np.array([twist_commands(model, tw) for tw in [(0.0, 0.4, 0.0), (0.0, -0.4, 0.0), (0.0, 0.3, 0.3)]])
+    compiled, by_hand = worlds
+    for w in worlds:
+        w.set_commands(cmds)
+    compiled.substeps(3000)
+    kernel = substep_parallel if parallel else substep
+    batch = by_hand._batch
+    by_hand.space.step(0.0)
+    for _ in range(3000):
+        batch.read()
+        kernel(by_hand.dt, batch.states, by_hand.wheels, by_hand.sp, by_hand.wp, by_hand.ext_force, batch.forces,
+               by_hand.slip)
+        batch.write()
+        batch.step(by_hand.dt)
+    assert compiled.collided.all()  # every robot reached a wall within 1.5 s
+    np.testing.assert_array_equal(compiled.collided, by_hand.collided)
+    for name in ("pose", "velocity", "wheels", "slip"):
+        np.testing.assert_array_equal(getattr(compiled, name), getattr(by_hand, name), err_msg=name)
+
+
+def test_robots_split_among_spaces_match_one_space_bit_for_bit():
+    """A threaded world without obstacles gives each thread its own pymunk space (physics/kernel.py:
+    run_substeps_spaces); with lift-off switches splitting the runs, every robot matches the same robot
+    in a one-space world (built with one numba thread), bit for bit."""
+    import numba
+
+    model = load_model("phunopas2018", "carpet", "roller_gap")
+    rng = np.random.default_rng(7)
+    cmds = rng.uniform(-15.0, 15.0, size=(96, 4))
+
+    def run() -> World:
+        w = World(model, n_robots=96, parallel=True)
+        for j in (3, 50, 95):
+            w.set_contact_process(j, ContactProcess(4, 20.0, 40.0, np.random.default_rng(j)))
+        w.set_commands(cmds)
+        w.substeps(300)
+        return w
+
+    threads = numba.get_num_threads()
+    split = run()
+    numba.set_num_threads(1)
+    try:
+        single = run()
+    finally:
+        numba.set_num_threads(threads)
+    assert len(single.spaces) == 1
+    if threads > 1:
+        assert len(split.spaces) == min(threads, 3)  # 96 robots, at least 32 per space
+    for name in ("pose", "velocity", "wheels", "slip", "contact"):
+        np.testing.assert_array_equal(getattr(split, name), getattr(single, name), err_msg=name)
+    assert not split.contact[[3, 50, 95]].all()  # the switches happened
+
+
+def test_split_world_pickles_and_resumes_bit_for_bit():
+    """A world split among spaces (threaded, no obstacles) gathers its bodies for pickling and resumes exactly."""
+    import pickle
+
+    w = World(load_model("phunopas2018", "carpet", "roller_gap"), n_robots=96, parallel=True)
+    w.set_commands(np.random.default_rng(0).uniform(-10.0, 10.0, (96, 4)))
+    w.substeps(50)
+    copy = pickle.loads(pickle.dumps(w))
+    assert len(copy.spaces) == len(w.spaces)
+    w.substeps(100)
+    copy.substeps(100)
+    for name in ("pose", "velocity", "wheels"):
+        np.testing.assert_array_equal(getattr(copy, name), getattr(w, name), err_msg=name)
+
+
+@pytest.mark.parametrize("actuation", ["ideal", "servo"])
+def test_kernel_gap_memo_changes_no_bit_and_set_model_forgets_it(actuation):
+    """The kernel reuses the rigid-material measure of the last substep's end angle (layout WH_GAP_*).
+    A world that forgets it before every substep gives the same bits, also across a set_model that
+    changes the gap width but not the phase (the memo's angle would still match: set_model must clear it)."""
+    from omni_gym.physics.layout import WH_GAP_AT
+
+    base = load_model("phunopas2018", "carpet", "roller_gap")
+    wider = base.with_effect("roller_gap", {"mu_gap": 0.6, "roller_fraction": 0.8, "phase": [0.0, 0.1, 0.2, 0.3]})
+    narrow = wider.with_effect("roller_gap", {"mu_gap": 0.6, "roller_fraction": 0.95, "phase": [0.0, 0.1, 0.2, 0.3]})
+    cmds = np.array([twist_commands(base, (0.2, 0.1, 0.8)), twist_commands(base, (-0.1, 0.3, -0.5))])
+    memo, fresh = (World(wider, n_robots=2, actuation=Actuation(actuation)) for _ in range(2))
+    for w in (memo, fresh):
+        w.set_commands(cmds)
+    for k in range(600):
+        if k == 300:
+            for w in (memo, fresh):
+                w.set_model(1, narrow)
+        memo.substeps(1)
+        fresh.wheels[:, :, WH_GAP_AT] = np.nan
+        fresh.substeps(1)
+    for name in ("pose", "velocity", "wheels", "slip"):
+        a, b = getattr(memo, name), getattr(fresh, name)
+        if name == "wheels":
+            a, b = a[:, :, :WH_GAP_AT], b[:, :, :WH_GAP_AT]
+        np.testing.assert_array_equal(a, b, err_msg=name)

@@ -61,7 +61,7 @@ METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2
 def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds: int = 3,
         progress: bool | None = None, dt: float = FIT_DT, plots: bool = True, force: bool = False,
         max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET, backend: Backend = SERIAL,
-        start: str | SimModel = "nominal") -> dict:
+        start: str | SimModel | None = "nominal") -> dict:
     """Run the workflow on ``dataset``; write the report folder ``out`` (if given); return the result.
 
     ``progress``: tqdm bar on stderr (None: only when stderr is a terminal). Same seed, same result.
@@ -77,8 +77,10 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     ``kinematic`` (its kinematic odometry calibration, fitted on the training runs; needs wheel odometry) or
     ``auto`` (kinematic when every run has wheel odometry and it predicts held-out runs better, else
     nominal), or a given :class:`SimModel` (e.g. a calibration made elsewhere: used for every fold as it is,
-    its effects kept and not searched again); :func:`start_model`.
+    its effects kept and not searched again; None: ``nominal``); :func:`start_model`.
     """
+    if start is None:  # the dataset's own model
+        start = "nominal"
     if not isinstance(start, SimModel) and start not in STARTS:
         raise ValueError(f"start must be one of {', '.join(STARTS)}, got {start!r}")
     if isinstance(max_effects, bool) or not isinstance(max_effects, int) or max_effects < 1:

@@ -6,6 +6,10 @@
   the translation (``ref_turn="before"``): references the robot's friction can follow (docs/agents.md).
 * ``OmniPathFollow-Phunopas-v0``: phunopas2018 (4 wheels) on carpet, roller-gap friction, random lift-off,
   random-waypoint paths, 20 s.
+* ``OmniPathFollow-Mecanum-v0``: optiodom_omni4 (4 mecanum wheels, rollers at ±45°) on carpet, ``initial``
+  friction (the only model for mecanum wheels), random lift-off as the Phunopas id, random-waypoint paths, 20 s.
+  Carpet as every other id, so the robots are compared on one floor; there the rollers' rolling friction
+  (μ'_T = 0.6·μ'_W) makes sideways and diagonal moves sluggish (docs/environments.md).
 * ``OmniGoToPose-v0``: phunopas2018, reach a random pose along a quintic while wheels slip and lift off
   (Phunopas & Inoue 2018), 8 s.
 * ``OmniPathFollow-Custom-v0``: "my robot": robot, surface, friction, effects and lift-off entirely from
@@ -35,6 +39,8 @@ ENV_IDS = {
                                     "episode_seconds": 20.0, "ref_turn": "before"}, 2000),
     "OmniPathFollow-Phunopas-v0": ({"robot": "phunopas2018", "surface": "carpet", "friction": "roller_gap",
                                     "episode_seconds": 20.0, **LIFT_OFF}, 2000),
+    "OmniPathFollow-Mecanum-v0": ({"robot": "optiodom_omni4", "surface": "carpet", "friction": "initial",
+                                   "episode_seconds": 20.0, **LIFT_OFF}, 2000),
     "OmniGoToPose-v0": ({"robot": "phunopas2018", "surface": "carpet", "friction": "roller_gap", "task": "goto",
                          "trajectory": "goto", "episode_seconds": 8.0, **LIFT_OFF}, 800),
 }

@@ -351,7 +351,13 @@ def make_config(**kwargs) -> EnvConfig:
 
 
 def _check_combination(cfg: EnvConfig) -> None:
-    """Checks across keywords: task/trajectory, control period vs physics step, episode length, start pose."""
+    """Checks across keywords: robot/friction, task/trajectory, control period vs physics step, episode length,
+    start pose."""
+    if cfg.model is None and cfg.friction == "roller_gap" and robot_preset(cfg.robot).has_angled_rollers:
+        # The omni-wheel ids pass friction='roller_gap': a mecanum preset given to them needs friction='initial'.
+        raise ValueError(f"invalid friction='roller_gap' for robot={cfg.robot!r}: its wheels are mecanum wheels "
+                         "(rollers at an angle), to which only friction='initial' applies (docs/model.md); pass "
+                         "friction='initial' or use OmniPathFollow-Mecanum-v0")
     if (cfg.task == "goto") != (cfg.trajectory == "goto"):
         raise ValueError(f"invalid trajectory={cfg.trajectory!r} for task={cfg.task!r}; task 'goto' uses "
                          "trajectory 'goto' and task 'path' one of 'waypoints', 'circle', 'figure_eight', 'line'")

@@ -69,6 +69,70 @@ def apply_actions(raw, twist_mode, scale, W, wheels, out_clipped):
     return True
 
 
+@numba.njit(cache=True, inline="always")
+def _observe_robot(b, state, origins, sp, ref_pose, ref_vel, step, look, prev_action, scales, offsets, out_obs,
+                   out_err, out_true, out_reward):
+    """Robot b's part of :func:`observe_state` (shared by the serial and the threaded loop)."""
+    n_act = prev_action.shape[1]
+    vmax = scales[0]
+    wmax = scales[1]
+    err, vel, rvel, look0, stride, act = offsets[0], offsets[1], offsets[2], offsets[3], offsets[4], offsets[5]
+    x = state[b, 0] - origins[b, 0]
+    y = state[b, 1] - origins[b, 1]
+    th = state[b, 2]
+    c = math.cos(th)
+    s = math.sin(th)
+    om = state[b, 5]
+    # Geometric-centre velocity: v_com − ω z × (R com).
+    rcx = c * sp[b, SP_CX] - s * sp[b, SP_CY]
+    rcy = s * sp[b, SP_CX] + c * sp[b, SP_CY]
+    vx = state[b, 3] + om * rcy
+    vy = state[b, 4] - om * rcx
+    out_true[b, 0] = x
+    out_true[b, 1] = y
+    out_true[b, 2] = th
+    out_true[b, 3] = vx
+    out_true[b, 4] = vy
+    out_true[b, 5] = om
+    k = step[b]
+    dx = ref_pose[b, k, 0] - x
+    dy = ref_pose[b, k, 1] - y
+    dth = _wrap(ref_pose[b, k, 2] - th)
+    out_err[b, 0] = math.sqrt(dx * dx + dy * dy)
+    out_err[b, 1] = dth
+    o = out_obs[b]
+    o[err] = (c * dx + s * dy) / POS_SCALE  # tracking_error_body, then heading_error
+    o[err + 1] = (-s * dx + c * dy) / POS_SCALE
+    o[err + 2] = dth / math.pi
+    o[vel] = (c * vx + s * vy) / vmax
+    o[vel + 1] = (-s * vx + c * vy) / vmax
+    o[vel + 2] = om / wmax
+    rvx = ref_vel[b, k, 0]
+    rvy = ref_vel[b, k, 1]
+    o[rvel] = (c * rvx + s * rvy) / vmax
+    o[rvel + 1] = (-s * rvx + c * rvy) / vmax
+    o[rvel + 2] = ref_vel[b, k, 2] / wmax
+    for j in range(look.shape[0]):
+        kk = k + look[j]
+        lx = ref_pose[b, kk, 0] - x
+        ly = ref_pose[b, kk, 1] - y
+        q = look0 + stride * j
+        o[q] = (c * lx + s * ly) / LOOK_SCALE
+        o[q + 1] = (-s * lx + c * ly) / LOOK_SCALE
+        o[q + 2] = _wrap(ref_pose[b, kk, 2] - th) / math.pi
+    effort = 0.0
+    for j in range(n_act):
+        o[act + j] = prev_action[b, j]
+        effort += prev_action[b, j] * prev_action[b, j]
+    out_reward[b] = (W_POS * math.exp(-out_err[b, 0] / E_POS) + W_HEAD * math.exp(-abs(dth) / E_HEAD)
+                     - W_EFFORT * effort / n_act)
+    for j in range(o.shape[0]):
+        if o[j] > OBS_CLIP:
+            o[j] = OBS_CLIP
+        elif o[j] < -OBS_CLIP:
+            o[j] = -OBS_CLIP
+
+
 @numba.njit(cache=True)
 def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action, scales, offsets, out_obs,
                   out_err, out_true, out_reward):
@@ -79,66 +143,31 @@ def observe_state(state, origins, sp, ref_pose, ref_vel, step, look, prev_action
     out_err (B, 2): position error [m], heading error [rad]. out_true (B, 6): local pose and the
     geometric centre's world velocity. out_reward (B,): reward of the last action (``prev_action``).
     """
-    n_robots = state.shape[0]
-    n_act = prev_action.shape[1]
-    vmax = scales[0]
-    wmax = scales[1]
-    err, vel, rvel, look0, stride, act = offsets[0], offsets[1], offsets[2], offsets[3], offsets[4], offsets[5]
-    for b in range(n_robots):
-        x = state[b, 0] - origins[b, 0]
-        y = state[b, 1] - origins[b, 1]
-        th = state[b, 2]
-        c = math.cos(th)
-        s = math.sin(th)
-        om = state[b, 5]
-        # Geometric-centre velocity: v_com − ω z × (R com).
-        rcx = c * sp[b, SP_CX] - s * sp[b, SP_CY]
-        rcy = s * sp[b, SP_CX] + c * sp[b, SP_CY]
-        vx = state[b, 3] + om * rcy
-        vy = state[b, 4] - om * rcx
-        out_true[b, 0] = x
-        out_true[b, 1] = y
-        out_true[b, 2] = th
-        out_true[b, 3] = vx
-        out_true[b, 4] = vy
-        out_true[b, 5] = om
-        k = step[b]
-        dx = ref_pose[b, k, 0] - x
-        dy = ref_pose[b, k, 1] - y
-        dth = _wrap(ref_pose[b, k, 2] - th)
-        out_err[b, 0] = math.sqrt(dx * dx + dy * dy)
-        out_err[b, 1] = dth
-        o = out_obs[b]
-        o[err] = (c * dx + s * dy) / POS_SCALE  # tracking_error_body, then heading_error
-        o[err + 1] = (-s * dx + c * dy) / POS_SCALE
-        o[err + 2] = dth / math.pi
-        o[vel] = (c * vx + s * vy) / vmax
-        o[vel + 1] = (-s * vx + c * vy) / vmax
-        o[vel + 2] = om / wmax
-        rvx = ref_vel[b, k, 0]
-        rvy = ref_vel[b, k, 1]
-        o[rvel] = (c * rvx + s * rvy) / vmax
-        o[rvel + 1] = (-s * rvx + c * rvy) / vmax
-        o[rvel + 2] = ref_vel[b, k, 2] / wmax
-        for j in range(look.shape[0]):
-            kk = k + look[j]
-            lx = ref_pose[b, kk, 0] - x
-            ly = ref_pose[b, kk, 1] - y
-            q = look0 + stride * j
-            o[q] = (c * lx + s * ly) / LOOK_SCALE
-            o[q + 1] = (-s * lx + c * ly) / LOOK_SCALE
-            o[q + 2] = _wrap(ref_pose[b, kk, 2] - th) / math.pi
-        effort = 0.0
-        for j in range(n_act):
-            o[act + j] = prev_action[b, j]
-            effort += prev_action[b, j] * prev_action[b, j]
-        out_reward[b] = (W_POS * math.exp(-out_err[b, 0] / E_POS) + W_HEAD * math.exp(-abs(dth) / E_HEAD)
-                         - W_EFFORT * effort / n_act)
-        for j in range(o.shape[0]):
-            if o[j] > OBS_CLIP:
-                o[j] = OBS_CLIP
-            elif o[j] < -OBS_CLIP:
-                o[j] = -OBS_CLIP
+    for b in range(state.shape[0]):
+        _observe_robot(b, state, origins, sp, ref_pose, ref_vel, step, look, prev_action, scales, offsets,
+                       out_obs, out_err, out_true, out_reward)
+
+
+@numba.njit(cache=True, parallel=True)
+def observe_state_parallel(state, origins, sp, ref_pose, ref_vel, step, look, prev_action, scales, offsets,
+                           out_obs, out_err, out_true, out_reward):
+    """:func:`observe_state` with the robots shared among threads (each writes only its own rows, so
+    results are bit-identical); used where the world's kernel is threaded."""
+    for b in numba.prange(state.shape[0]):
+        _observe_robot(b, state, origins, sp, ref_pose, ref_vel, step, look, prev_action, scales, offsets,
+                       out_obs, out_err, out_true, out_reward)
+
+
+@numba.njit(cache=True)
+def all_finite(obs, reward):
+    """True if every observation (B, D) and reward (B,) is a real number (one pass, no temporaries)."""
+    for v in obs.ravel():
+        if not math.isfinite(v):
+            return False
+    for v in reward:
+        if not math.isfinite(v):
+            return False
+    return True
 
 
 @numba.njit(cache=True)
@@ -292,8 +321,11 @@ class TaskCore:
             self._sensor_offsets = sensor_offsets(self.layout)
             self._sensor_scales = np.array([self.wheel_scale, cfg.max_yaw_rate, cfg.max_speed, cfg.arena_half_size,
                                             ACC_SCALE])
-        self.obs = np.zeros((n_robots, self.obs_dim))
         self._state_obs = np.zeros((n_robots, self.state_dim))
+        # In state mode the observation is the state rows themselves (no copy per step).
+        self.obs = self._state_obs if cfg.obs_mode == "state" else np.zeros((n_robots, self.obs_dim))
+        self._sensors_mode = cfg.obs_mode == "sensors"
+        self._observe_state = observe_state_parallel if self.world.parallel else observe_state
         self.models = [self.base_model] * n_robots
         self._contact_cases = contact_cases(self.n_wheels)  # shared by every robot's contact process: read-only
         self._contact_cases.setflags(write=False)
@@ -342,7 +374,8 @@ class TaskCore:
         if not apply_actions(raw.reshape(self._clipped.shape), self._twist_mode, self._action_scale, self.W,
                              self.world.wheels, self._clipped):
             raise ValueError(f"action contains NaN or infinity: {_brief(raw.tolist())}")
-        self.prev_true[:] = self.true
+        if self._sensors_mode:
+            self.prev_true[:] = self.true  # for the accelerometer (body_acceleration)
         self.world.substeps(self.cfg.substeps)
         self.step_count += 1
         self.prev_action[:] = self._clipped
@@ -357,14 +390,12 @@ class TaskCore:
         """
         world = self.world
         world._read_state()
-        observe_state(world._state_view, world.origins, world.sp, self.ref_pose, self.ref_vel, self.step_count,
+        self._observe_state(world._state_view, world.origins, world.sp, self.ref_pose, self.ref_vel, self.step_count,
                       self.look, self.prev_action, self.scales, self._state_offsets, self._state_obs, self.err,
                       self.true, self.reward)
-        if self.cfg.obs_mode == "state":
-            self.obs[:] = self._state_obs
-        else:
+        if self._sensors_mode:
             self._observe_sensors(self._all if robots is None else np.asarray(robots, dtype=np.int64))
-        if not (np.isfinite(self.obs).all() and np.isfinite(self.reward).all()):
+        if not all_finite(self.obs, self.reward):
             # Never hand NaN to a learner: within the keyword and model bounds this should not happen.
             bad = np.flatnonzero(~(np.isfinite(self.obs).all(axis=1) & np.isfinite(self.reward)))
             raise FloatingPointError(f"the simulation diverged (non-finite observation or reward) for robot(s) "
@@ -411,8 +442,29 @@ class TaskCore:
         }
 
     def info(self, j: int) -> dict:
-        """:meth:`infos` of robot j, with plain Python scalars."""
-        return {key: v.item() if np.ndim(v) == 0 else v for key, v in self.infos(j).items()}
+        """:meth:`infos` of robot j, with plain Python scalars (built directly: a single environment
+        returns one per step, and the generic path cost a third of its step)."""
+        e = float(self.err[j, 0])
+        e_theta = float(self.err[j, 1])
+        true = self.true[j].copy()
+        world = self.world
+        return {
+            "pose": true[0:3],
+            "velocity": true[3:6],
+            "reference_pose": self.ref_pose[j, self.step_count[j]].copy(),
+            "tracking_error": e,
+            "heading_error": e_theta,
+            "slip": world.slip[j].copy(),
+            "contact": world.contact[j].copy(),
+            "collided": bool(world.collided[j]),
+            "is_success": e <= self.cfg.success_distance and abs(e_theta) <= self.cfg.success_heading,
+        }
+
+    def outcome(self, j: int) -> tuple[float, bool, bool]:
+        """(reward, terminated, truncated) of robot j as Python scalars, as :meth:`rewards`,
+        :meth:`terminated` and :meth:`truncated` give them for all robots."""
+        terminated = bool(self.err[j, 0] > self.cfg.lost_distance or self.world.collided[j])
+        return float(self.reward[j]), terminated, bool(self.step_count[j] >= self.cfg.episode_steps)
 
 
 class RobotEnvAttributes:

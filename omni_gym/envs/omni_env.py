@@ -157,9 +157,8 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
         core = self.core
         core.advance(as_actions(action, self.action_space.shape))
         core.observe()
-        reward = float(core.rewards()[0])
-        terminated = bool(core.terminated()[0])
-        truncated = bool(core.truncated()[0]) and not terminated
+        reward, terminated, truncated = core.outcome(0)
+        truncated = truncated and not terminated
         self._needs_reset = terminated or truncated
         if self._renderer is not None:
             self._renderer.record(core)

@@ -13,7 +13,9 @@ What is drawn (world frame, x right, y up, the arena ``[-h, h]²`` filling the c
 * the robot body (disc of ``body_radius`` with a heading line) and each wheel as a rectangle at its
   centre, long side along its drive direction, coloured by state: lifted (no floor contact)
   :data:`LIFTED`, slipping (drive slip |v_W| > :data:`SLIP_THRESHOLD`) red, darker with more slip,
-  rolling :data:`ROLLING`;
+  rolling :data:`ROLLING`; a mecanum wheel (roller angle γ ≠ 0) also shows its floor roller's axis
+  e = cos γ·d + sin γ·a as a dark stripe across the rectangle (for an omni wheel the axis is the
+  drive direction itself, so no stripe is drawn);
 * a text line with time, tracking error and the contact mask (skipped if no font is available).
 """
 
@@ -74,6 +76,16 @@ def require(module: str, purpose: str) -> ModuleType:
                                   name=module.split(".")[0]) from None
 
 
+def roller_stripe(axis, drive, half_len: float, half_wid: float) -> tuple[float, float]:
+    """Half-length vector [px, world orientation: y up] of a mecanum wheel's roller stripe: along the roller
+    axis ``axis`` (unit, world frame), as long as fits in the wheel rectangle of half sides ``half_len``
+    (along the unit ``drive``) and ``half_wid`` (across it)."""
+    along = abs(axis[0] * drive[0] + axis[1] * drive[1])  # |cos γ|
+    across = abs(axis[0] * drive[1] - axis[1] * drive[0])  # |sin γ|
+    t = min(half_len / along if along > 1e-12 else math.inf, half_wid / across if across > 1e-12 else math.inf)
+    return t * axis[0], t * axis[1]
+
+
 def wheel_color(contact: bool, drive_slip: float) -> tuple[int, int, int]:
     """Colour of a wheel: lifted, slipping (red, darker with |v_W|) or rolling."""
     if not contact:
@@ -108,6 +120,8 @@ class Renderer:
         self.cy = TEXT_BAND + (self.height - TEXT_BAND) / 2.0
         self._wheel_pos = robot.positions()
         self._wheel_dir = robot.drives()
+        self._roller_dir = robot.roller_axes()  # floor roller axes e_i (body frame)
+        self._mecanum = robot.roller_angles() != 0.0
         self._trail = np.zeros((max(cfg.episode_steps, 1) + 1, 2))
         self._n_trail = 0
         self._background = None
@@ -216,6 +230,7 @@ class Renderer:
         rot = np.array([[c, -s], [s, c]])
         pos = self._wheel_pos @ rot.T + np.array([x, y])
         drive = self._wheel_dir @ rot.T
+        roller = self._roller_dir @ rot.T
         half_len = max(robot.wheel_radius * scale, MIN_WHEEL_PX / 2)
         half_wid = max(0.5 * WHEEL_WIDTH * robot.wheel_radius * scale, MIN_WHEEL_PX / 2)
         contact = core.world.contact[0]
@@ -231,6 +246,9 @@ class Renderer:
             pg.draw.polygon(surf, color, corners)
             edge = LIFTED_EDGE if not contact[i] else HEADING
             pg.draw.polygon(surf, edge, corners, width=1)
+            if self._mecanum[i]:
+                stripe = roller_stripe(roller[i], drive[i], half_len, half_wid)
+                pg.draw.line(surf, edge, (cx + stripe[0], cy - stripe[1]), (cx - stripe[0], cy + stripe[1]), 2)
         # Status line.
         if self.font is not None:
             t = int(core.step_count[0]) * self.cfg.control_dt

@@ -21,8 +21,24 @@ import math
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic
 
 from omni_gym.physics.layout import (
+    C_EACH_BODY,
+    C_FORCES,
+    C_GET_INT_NUM,
+    C_GET_ITER,
+    C_GET_NUM,
+    C_GET_REQ,
+    C_N_SET,
+    C_SET_ITER,
+    C_SET_NUM,
+    C_SET_REQ,
+    C_SPACE,
+    C_STATES,
+    C_STEP,
     N_SP,
     N_WH,
     N_WP,
@@ -43,6 +59,8 @@ from omni_gym.physics.layout import (
     SP_VS,
     WH_ANGLE,
     WH_CMD,
+    WH_GAP_AT,
+    WH_GAP_MEASURE,
     WH_INT,
     WH_LOAD,
     WH_SPEED,
@@ -104,6 +122,22 @@ def gap_fraction(theta0, theta1, pitch, gap):
         m = theta0 - math.floor(theta0 / pitch) * pitch
         return 1.0 if abs(m - 0.5 * pitch) < 0.5 * gap else 0.0
     return (gap_measure(theta1, pitch, gap) - gap_measure(theta0, pitch, gap)) / d
+
+
+@numba.njit(cache=True, inline="always")
+def gap_fraction_memo(theta0, theta1, pitch, gap, memo_at, memo_measure):
+    """:func:`gap_fraction` given a memo (angle, gap_measure at that angle); returns the fraction and
+    gap_measure(θ1) (NaN where it was not computed). Bit-identical to :func:`gap_fraction`: the memo is
+    used only for the very same θ0, and the same operations follow."""
+    if gap <= 0.0:
+        return 0.0, math.nan
+    d = theta1 - theta0
+    if abs(d) < 1e-12:
+        m = theta0 - math.floor(theta0 / pitch) * pitch
+        return (1.0 if abs(m - 0.5 * pitch) < 0.5 * gap else 0.0), math.nan
+    m0 = memo_measure if theta0 == memo_at else gap_measure(theta0, pitch, gap)
+    m1 = gap_measure(theta1, pitch, gap)
+    return (m1 - m0) / d, m1
 
 
 @numba.njit(cache=True, inline="always")
@@ -169,7 +203,8 @@ def _robot_substep(b, dt, state, wheels, sp, wp, ext, out_force, out_slip):
         th0 = wheels[b, i, WH_ANGLE]
         # 1) Actuation: wheel speed at the end of the substep and the angle turned.
         if servo:
-            f0 = gap_fraction(th0 + phase, th0 + phase + w0 * dt, pitch, gap)
+            f0, _ = gap_fraction_memo(th0 + phase, th0 + phase + w0 * dt, pitch, gap, wheels[b, i, WH_GAP_AT],
+                                      wheels[b, i, WH_GAP_MEASURE])
             mu_w_max = (1.0 - f0) * wp[b, i, WP_MUW] + f0 * wp[b, i, WP_GAPW]
             mu, dmu = friction_coefficient(ux * ex + uy * ey - rc * w0, mu_w_max, k, kin, v_s)
             f_drive = -load * mu  # force on the robot along the drive direction
@@ -207,8 +242,12 @@ def _robot_substep(b, dt, state, wheels, sp, wp, ext, out_force, out_slip):
         th1 = th0 + dth
         wheels[b, i, WH_SPEED] = w1
         wheels[b, i, WH_ANGLE] = th1
-        # 2) Rigid-material share of this substep, 3) coefficients and slip.
-        f = gap_fraction(th0 + phase, th1 + phase, pitch, gap)
+        # 2) Rigid-material share of this substep (the start's measure from the last substep's end),
+        # 3) coefficients and slip.
+        a1 = th1 + phase
+        f, m1 = gap_fraction_memo(th0 + phase, a1, pitch, gap, wheels[b, i, WH_GAP_AT], wheels[b, i, WH_GAP_MEASURE])
+        wheels[b, i, WH_GAP_AT] = a1 if m1 == m1 else math.nan  # NaN m1: nothing to remember
+        wheels[b, i, WH_GAP_MEASURE] = m1
         mu_w_max = (1.0 - f) * wp[b, i, WP_MUW] + f * wp[b, i, WP_GAPW]
         mu_t_max = (1.0 - f) * wp[b, i, WP_MUT] + f * wp[b, i, WP_GAPT]
         v_w = ux * ex + uy * ey - rc * w1
@@ -271,9 +310,10 @@ def substep(dt, state, wheels, sp, wp, ext, out_force, out_slip):
     Arrays (B robots, n wheels); few arguments on purpose, as each costs dispatch time:
         state (B, 6): body x, y [m] (world), heading θ [rad], centre-of-mass velocity V_x, V_y [m/s]
             (world) and yaw rate ω [rad/s], as pymunk's batch API lays them out.
-        wheels (B, n, 5): per wheel the integrated angle [rad] and speed [rad/s] (both updated), the
-            commanded speed [rad/s], the PI integrator state [rad] (servo only; updated) and the
-            normal load N_i [N] (zero for a lifted wheel); layout WH_* in :mod:`omni_gym.physics.layout`.
+        wheels (B, n, N_WH): per wheel the integrated angle [rad] and speed [rad/s] (both updated), the
+            commanded speed [rad/s], the PI integrator state [rad] (servo only; updated), the
+            normal load N_i [N] (zero for a lifted wheel) and the rigid-material memo (updated);
+            layout WH_* in :mod:`omni_gym.physics.layout`.
         sp (B, N_SP), wp (B, n, N_WP): parameters, layouts in :mod:`omni_gym.physics.layout`.
         ext (B, 3): extra generalised force (F_x, F_y [N], torque [N·m] about the centre of mass).
         out_force (B, 3): effective F_x, F_y [N] at the centre of mass and torque [N·m]; written.
@@ -310,3 +350,128 @@ def warm_up(kernel=substep) -> None:
     sp = z((2, N_SP))
     sp[:, SP_MASS] = sp[:, SP_INERTIA] = sp[:, SP_K] = sp[:, SP_KIN_RATIO] = sp[:, SP_VS] = sp[:, SP_PITCH] = 1.0
     kernel(1e-3, z((2, 6)), z((2, 3, N_WH)), sp, z((2, 3, N_WP)), z((2, 3)), z((2, 3)), z((2, 3, 2)))
+
+
+# --- The substep loop compiled: batched read, force kernel, batched write and pymunk step ----------
+#
+# World.substeps runs the substeps between two contact switches through run_substeps (or
+# run_substeps_parallel, the threaded kernel; run_substeps_spaces, one pymunk space per thread). Each
+# substep makes the same calls, in the same order, as a Python loop over BodyBatch.read, the kernel,
+# BodyBatch.write and BodyBatch.step, so results are bit-identical; only the cost of the Python calls
+# is gone (a few µs per substep, more than one robot's physics). pymunk's C functions are called
+# through their addresses (BodyBatch.c_table, columns C_* of the layout; pymunk_batch is the only
+# module that knows pymunk's internals) by small intrinsics that cast an integer to a function
+# pointer. The loops hold the GIL, so pymunk's collision callbacks (Python, through cffi) run as
+# they did from Python. They live in this file because numba's cache does not notice edits to a
+# function defined in another file: a loop elsewhere would keep running a stale kernel.
+
+_VOID_P = ir.IntType(8).as_pointer()
+
+
+@intrinsic
+def _each_body(typingctx, fn, space, func, data):
+    """Call ``void cpSpaceEachBody(cpSpace *, void (*)(cpBody *, void *), void *)`` at address ``fn``."""
+    sig = types.void(types.int64, types.int64, types.int64, types.int64)
+
+    def codegen(context, builder, signature, args):
+        fnty = ir.FunctionType(ir.VoidType(), [_VOID_P, _VOID_P, _VOID_P])
+        target = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(target, [builder.inttoptr(a, _VOID_P) for a in args[1:]])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@intrinsic
+def _space_step(typingctx, fn, space, dt):
+    """Call ``void cpSpaceStep(cpSpace *, double)`` at address ``fn``."""
+    sig = types.void(types.int64, types.int64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        fnty = ir.FunctionType(ir.VoidType(), [_VOID_P, ir.DoubleType()])
+        target = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(target, [builder.inttoptr(args[1], _VOID_P), args[2]])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@intrinsic
+def _store_int(typingctx, address, value):
+    """Store ``value`` as a C ``int`` (int32) at ``address`` (the element count of a pymunk array)."""
+    sig = types.void(types.int64, types.int64)
+
+    def codegen(context, builder, signature, args):
+        i32 = ir.IntType(32)
+        ptr = builder.inttoptr(args[0], i32.as_pointer())
+        builder.store(builder.trunc(args[1], i32), ptr)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@intrinsic
+def _float_pointer(typingctx, address):
+    """The float64 pointer at integer ``address`` (for ``numba.carray`` over a pymunk buffer)."""
+    sig = types.CPointer(types.float64)(types.int64)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], ir.DoubleType().as_pointer())
+
+    return sig, codegen
+
+
+@numba.njit(cache=True, inline="always")
+def _read(c):
+    _store_int(c[C_GET_NUM], 0)
+    _store_int(c[C_GET_INT_NUM], 0)
+    _each_body(c[C_EACH_BODY], c[C_SPACE], c[C_GET_ITER], c[C_GET_REQ])
+
+
+@numba.njit(cache=True, inline="always")
+def _write_and_step(c, dt):
+    _store_int(c[C_SET_NUM], 0)
+    _each_body(c[C_EACH_BODY], c[C_SPACE], c[C_SET_ITER], c[C_SET_REQ])
+    _store_int(c[C_SET_NUM], c[C_N_SET])
+    _space_step(c[C_STEP], c[C_SPACE], dt)
+
+
+@numba.njit(cache=True)
+def run_substeps(count, c, dt, state, wheels, sp, wp, ext, force, slip):
+    """``count`` substeps of ``dt`` [s]: read the bodies into ``state``, run the serial kernel, write
+    ``force`` and step the space (``c``: ``BodyBatch.c_table``; arrays as in ``kernel.substep``)."""
+    for _ in range(count):
+        _read(c)
+        substep(dt, state, wheels, sp, wp, ext, force, slip)
+        _write_and_step(c, dt)
+
+
+@numba.njit(cache=True)
+def run_substeps_parallel(count, c, dt, state, wheels, sp, wp, ext, force, slip):
+    """:func:`run_substeps` with the threaded kernel (bit-identical results)."""
+    for _ in range(count):
+        _read(c)
+        substep_parallel(dt, state, wheels, sp, wp, ext, force, slip)
+        _write_and_step(c, dt)
+
+
+@numba.njit(cache=True, parallel=True)
+def run_substeps_spaces(count, tables, dt, bounds, state, wheels, sp, wp, ext, slip):
+    """:func:`run_substeps` for robots split among pymunk spaces: space k (``tables[k]``, one
+    ``BodyBatch.c_table`` each) holds robots ``bounds[k]`` to ``bounds[k + 1]``; each thread runs
+    every substep of its spaces (read, serial kernel, write, step) with no join between substeps,
+    then gathers its robots' final states into ``state`` (B, 6). Each robot's arithmetic is that of
+    :func:`run_substeps`, so results are bit-identical whatever the split and the thread count."""
+    for k in numba.prange(tables.shape[0]):
+        c = tables[k]
+        lo = bounds[k]
+        hi = bounds[k + 1]
+        own = numba.carray(_float_pointer(c[C_STATES]), (hi - lo, 6))
+        force = numba.carray(_float_pointer(c[C_FORCES]), (hi - lo, 3))
+        w, p, q, e, s = wheels[lo:hi], sp[lo:hi], wp[lo:hi], ext[lo:hi], slip[lo:hi]
+        for _ in range(count):
+            _read(c)
+            substep(dt, own, w, p, q, e, force, s)
+            _write_and_step(c, dt)
+        _read(c)
+        state[lo:hi] = own

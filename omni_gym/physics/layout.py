@@ -24,6 +24,16 @@ WP_PX, WP_PY, WP_DX, WP_DY, WP_R, WP_MUW, WP_MUT, WP_GAPW, WP_GAPT, WP_PHASE = r
 WP_COSG, WP_SING = 10, 11
 N_WP = 12
 # Per-wheel state rows ``wheels`` (B, n, N_WH): angle [rad], speed [rad/s], command [rad/s],
-# servo integral [rad], normal load [N].
-WH_ANGLE, WH_SPEED, WH_CMD, WH_INT, WH_LOAD = range(5)
-N_WH = 5
+# servo integral [rad], normal load [N], and the kernel's memo of the rigid-material measure: the
+# roller angle θ + phase [rad] at the end of the last substep and the rigid angle [rad] swept from 0
+# to it (NaN angle: no memo). The next substep starts at that same angle, so it reuses the value
+# instead of recomputing it (same input, same bits).
+WH_ANGLE, WH_SPEED, WH_CMD, WH_INT, WH_LOAD, WH_GAP_AT, WH_GAP_MEASURE = range(7)
+N_WH = 7
+# Columns of ``BodyBatch.c_table`` (int64, :mod:`omni_gym.physics.pymunk_batch`): the space, the C
+# functions cpSpaceEachBody and cpSpaceStep, pymunk's batched get/set iterators and their requests,
+# the addresses of the three int32 element counts to reset before each batched call, the float count
+# of a full write, and the addresses of the float64 arrays behind ``BodyBatch.states``/``forces``.
+(C_SPACE, C_EACH_BODY, C_STEP, C_GET_ITER, C_GET_REQ, C_SET_ITER, C_SET_REQ, C_GET_NUM, C_GET_INT_NUM,
+ C_SET_NUM, C_N_SET, C_STATES, C_FORCES) = range(13)
+N_C = 13

@@ -15,6 +15,23 @@ import re
 import numpy as np
 import pymunk
 
+from omni_gym.physics.layout import (
+    C_EACH_BODY,
+    C_FORCES,
+    C_GET_INT_NUM,
+    C_GET_ITER,
+    C_GET_NUM,
+    C_GET_REQ,
+    C_N_SET,
+    C_SET_ITER,
+    C_SET_NUM,
+    C_SET_REQ,
+    C_SPACE,
+    C_STATES,
+    C_STEP,
+    N_C,
+)
+
 # [lower, upper) of the supported pymunk versions; keep equal to the pin in pyproject.toml.
 SUPPORTED = ((7, 0), (8, 0))
 SUPPORTED_TEXT = "pymunk>=7.0,<8"
@@ -79,6 +96,36 @@ class BodyBatch:
         self._cspace = space._space
         self._each_body = lib.cpSpaceEachBody
         self._space_step = lib.cpSpaceStep
+        self._space = space
+
+        def address(cdata) -> int:
+            return int(ffi.cast("uintptr_t", cdata))
+
+        # The same three calls as raw addresses, for the compiled substep loop (columns C_*); the
+        # arrays never grow (the read and write counts are reset before each call), so the
+        # addresses stay valid as long as this object (which keeps the space alive) lives.
+        table = np.zeros(N_C, dtype=np.int64)
+        table[C_SPACE] = address(self._cspace)
+        table[C_EACH_BODY] = address(ffi.addressof(lib, "cpSpaceEachBody"))
+        table[C_STEP] = address(ffi.addressof(lib, "cpSpaceStep"))
+        table[C_GET_ITER] = address(self._get_iter)
+        table[C_GET_REQ] = address(self._get_req)
+        table[C_SET_ITER] = address(self._set_iter)
+        table[C_SET_REQ] = address(self._set_req)
+        table[C_GET_NUM] = address(ffi.addressof(self._get_arr[0], "num"))
+        table[C_GET_INT_NUM] = address(ffi.addressof(self._get_int[0], "num"))
+        table[C_SET_NUM] = address(ffi.addressof(self._set_arr[0], "num"))
+        table[C_N_SET] = self._n_set
+        table[C_STATES] = self.states.ctypes.data
+        table[C_FORCES] = self.forces.ctypes.data
+        table.setflags(write=False)
+        self.c_table = table
+
+    def check_new_bodies(self) -> None:
+        """Let pymunk check bodies whose mass or moment changed (its ``Space.step`` does, and only it)
+        before C steps; a no-op when none is pending."""
+        if self._space._bodies_to_check:
+            self._space.step(0.0)
 
     def read(self) -> None:
         """Fill :attr:`states` from the space."""

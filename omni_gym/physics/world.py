@@ -21,10 +21,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 import pymunk
 
-from omni_gym.physics.kernel import PARALLEL_MIN_ROBOTS, substep, substep_parallel, warm_up
+from omni_gym.physics.kernel import (
+    PARALLEL_MIN_ROBOTS,
+    run_substeps,
+    run_substeps_parallel,
+    run_substeps_spaces,
+    substep,
+    substep_parallel,
+    warm_up,
+)
 from omni_gym.physics.layout import (
     N_SP,
     N_WH,
@@ -35,6 +44,7 @@ from omni_gym.physics.layout import (
     SP_MASS,
     WH_ANGLE,
     WH_CMD,
+    WH_GAP_AT,
     WH_INT,
     WH_LOAD,
     WH_SPEED,
@@ -59,6 +69,8 @@ _NEVER = np.iinfo(np.int64).max  # the switch tick of a robot with no switch sch
 # default 0.5 ms it is 71,000 years away) and is not scheduled. Below it, tick counts are exact
 # floats, so switch_tick finds the switch substep among five candidates.
 SWITCH_HORIZON_TICKS = 2**52
+# Fewest robots per pymunk space when a threaded world splits its robots among spaces.
+MIN_ROBOTS_PER_SPACE = 32
 ROBOT_COLLISION = 1
 OBSTACLE_COLLISION = 2
 
@@ -146,6 +158,7 @@ class World:
         self.wheel_cmd = self.wheels[:, :, WH_CMD]  # rad/s
         self.servo_int = self.wheels[:, :, WH_INT]  # rad
         self.loads = self.wheels[:, :, WH_LOAD]  # N
+        self.wheels[:, :, WH_GAP_AT] = math.nan  # the kernel's rigid-material memo starts empty
         self.contact = np.ones((B, n), dtype=bool)
         self.ext_force = np.zeros((B, 3))
         self.force = np.zeros((B, 3))
@@ -159,12 +172,13 @@ class World:
         # process switches among a few masks, and recomputing the static balance at every switch and reset
         # cost more than the switch itself.
         self._load_cache: list[dict[bytes, np.ndarray]] = [{} for _ in range(B)]
+        # Threaded force kernel for large batches (bit-identical results); None chooses by size.
+        self.parallel = B >= PARALLEL_MIN_ROBOTS if parallel is None else bool(parallel)
         self._build_space(model_list)
         for j, m in enumerate(model_list):
             self.set_model(j, m)
-        # Threaded force kernel for large batches (bit-identical results); None chooses by size.
-        self.parallel = B >= PARALLEL_MIN_ROBOTS if parallel is None else bool(parallel)
         self._kernel = substep_parallel if self.parallel else substep
+        self._loop = run_substeps_parallel if self.parallel else run_substeps
         warm_up(self._kernel)
 
     # --- pickling: rebuild the space, then restore every state variable exactly ------------------
@@ -193,7 +207,7 @@ class World:
             body.position = (row[0], row[1])
             body.velocity = (row[3], row[4])
             body.angular_velocity = row[5]
-            self.space.reindex_shapes_for_body(body)
+            body.space.reindex_shapes_for_body(body)
         self.tick = state["tick"]
         self.contact_processes = state["contact_processes"]
         self._next_switch_tick = state["next_switch_tick"]
@@ -201,24 +215,35 @@ class World:
     # --- construction ---------------------------------------------------------------------------
 
     def _build_space(self, models: list[SimModel]) -> None:
-        self.space = space = pymunk.Space()
-        space.iterations = 10
-        self.bodies: list[pymunk.Body] = []
         # Robots only get collision shapes when there is something to hit: each robot is alone in its
         # arena, and shapes without partners would only cost broad-phase time (2.5x the step at B = 1024).
         self._has_obstacles = self.arena.walls or bool(self.arena.obstacles)
-        for j, m in enumerate(models):
-            body = pymunk.Body(m.robot.mass, m.robot.inertia)
-            body.position = tuple(self.origins[j])
-            space.add(body)
-            if self._has_obstacles:
-                shape = pymunk.Circle(body, m.robot.body_radius)
-                shape.collision_type = ROBOT_COLLISION
-                shape.friction = 0.3
-                shape.elasticity = 0.0
-                space.add(shape)
-            self.bodies.append(body)
-            self._add_arena(j)
+        # A threaded world without obstacles splits its robots among several spaces, one per thread,
+        # each stepped by its thread (pymunk's step is then parallel too). Robots never interact and
+        # pymunk integrates each body on its own, so the split changes no bit (tests/test_world.py).
+        # With obstacles, collision callbacks run Python, which needs the one thread holding the GIL.
+        n_spaces = 1
+        if self.parallel and not self._has_obstacles:
+            n_spaces = max(1, min(numba.get_num_threads(), self.n_robots // MIN_ROBOTS_PER_SPACE))
+        self._bounds = np.linspace(0, self.n_robots, n_spaces + 1).round().astype(np.int64)
+        self.spaces = [pymunk.Space() for _ in range(n_spaces)]
+        self.space = space = self.spaces[0]
+        self.bodies: list[pymunk.Body] = []
+        for k, sp in enumerate(self.spaces):
+            sp.iterations = 10
+            for j in range(int(self._bounds[k]), int(self._bounds[k + 1])):
+                m = models[j]
+                body = pymunk.Body(m.robot.mass, m.robot.inertia)
+                body.position = tuple(self.origins[j])
+                sp.add(body)
+                if self._has_obstacles:
+                    shape = pymunk.Circle(body, m.robot.body_radius)
+                    shape.collision_type = ROBOT_COLLISION
+                    shape.friction = 0.3
+                    shape.elasticity = 0.0
+                    sp.add(shape)
+                self.bodies.append(body)
+                self._add_arena(j)
         if self._has_obstacles:
             index = {b: j for j, b in enumerate(self.bodies)}
 
@@ -229,15 +254,21 @@ class World:
 
             space.on_collision(ROBOT_COLLISION, OBSTACLE_COLLISION, begin=begin)
         # One batched read of (position, angle, velocity, angular velocity) per body and one batched
-        # write of (force, torque), through the module that owns pymunk's internals.
-        self._batch = BodyBatch(space, self.n_robots)
-        self._state_view = self._batch.states
-        self._force_view = self._batch.forces
+        # write of (force, torque) per space, through the module that owns pymunk's internals.
+        self._batches = [BodyBatch(sp, int(self._bounds[k + 1] - self._bounds[k])) for k, sp in enumerate(self.spaces)]
+        self._batch = self._batches[0]
+        self._c_tables = np.stack([b.c_table for b in self._batches])
+        if n_spaces == 1:
+            self._state_view = self._batch.states
+            self._force_view = self._batch.forces
+        else:  # the spaces' states gathered after each run (World.pose, the environments read this)
+            self._state_view = np.zeros((self.n_robots, 6))
+            self._force_view = None
 
     def _add_arena(self, j: int) -> None:
         ox, oy = self.origins[j]
         h = self.arena.half_size
-        static = self.space.static_body
+        static = self.space.static_body  # one space whenever there are walls or obstacles
         shapes = []
         if self.arena.walls:
             corners = [(-h, -h), (h, -h), (h, h), (-h, h)]
@@ -260,6 +291,7 @@ class World:
         sp, wp = model.kernel_params(self.actuation)
         self.sp[j] = sp
         self.wp[j] = wp
+        self.wheels[j, :, WH_GAP_AT] = math.nan  # a new pitch, gap or phase: forget the kernel's memo
         body = self.bodies[j]
         body.mass = sp[SP_MASS]
         body.moment = sp[SP_INERTIA]
@@ -287,7 +319,7 @@ class World:
             body.position = (self.origins[j, 0] + poses[row, 0], self.origins[j, 1] + poses[row, 1])
             body.velocity = (0.0, 0.0)
             body.angular_velocity = 0.0
-            self.space.reindex_shapes_for_body(body)
+            body.space.reindex_shapes_for_body(body)
         for arr in (self.wheel_angle, self.wheel_speed, self.wheel_cmd, self.servo_int, self.slip):
             arr[idx] = 0.0
         self.collided[idx] = False
@@ -373,7 +405,12 @@ class World:
         self._next_switch_tick = int(self._switch_tick.min())
 
     def _read_state(self) -> None:
-        self._batch.read()
+        if len(self._batches) == 1:
+            self._batch.read()
+            return
+        for k, batch in enumerate(self._batches):
+            batch.read()
+            self._state_view[self._bounds[k]:self._bounds[k + 1]] = batch.states
 
     @property
     def pose(self) -> np.ndarray:
@@ -405,20 +442,27 @@ class World:
         self.substeps(steps)
 
     def substeps(self, count: int) -> None:
-        """Run ``count`` physics substeps of ``dt``."""
+        """Run ``count`` physics substeps of ``dt``.
+
+        The substeps between two contact switches run in one compiled call (``run_substeps*`` in
+        :mod:`omni_gym.physics.kernel`): read, kernel, write and pymunk step, each substep the same calls
+        as a Python loop would make, so results do not depend on where switches split the run.
+        """
+        for batch in self._batches:
+            batch.check_new_bodies()
         dt = self.dt
-        space = self.space
-        space.step(0.0)  # lets pymunk check newly added bodies; later substeps call the C step directly
-        batch = self._batch
-        read, write, space_step = batch.read, batch.write, batch.step
-        state = self._state_view
-        wheels, sp, wp, ext, force, slip = self.wheels, self.sp, self.wp, self.ext_force, self._force_view, self.slip
-        kernel = self._kernel
-        for _ in range(count):
+        if len(self._batches) == 1:
+            loop, table = self._loop, self._batch.c_table
+            args = (self._state_view, self.wheels, self.sp, self.wp, self.ext_force, self._force_view, self.slip)
+        else:
+            loop, table = run_substeps_spaces, self._c_tables
+            args = (self._bounds, self._state_view, self.wheels, self.sp, self.wp, self.ext_force, self.slip)
+        left = int(count)
+        while left > 0:
             if self.tick >= self._next_switch_tick:
                 self._advance_contacts(self.tick)
-            read()
-            kernel(dt, state, wheels, sp, wp, ext, force, slip)
-            write()
-            space_step(dt)
-            self.tick += 1
+            # Up to the next switch (at least one substep: a switch is handled once per tick).
+            chunk = min(left, max(1, self._next_switch_tick - self.tick))
+            loop(chunk, table, dt, *args)
+            self.tick += chunk
+            left -= chunk
