@@ -356,6 +356,10 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(data, dict) and "gap_info" in data:  # a gap record this script wrote: keep its story
             gap_info = data["gap_info"]
             gap_info["source"] += f" (reused from {args.gap_model})"
+        elif isinstance(data, dict) and "heldout" in data:  # a gap result.json: keep its decision and checks
+            gap_info = {"source": f"reused the gap report {args.gap_model}", "wall": None, "effect": data["effect"],
+                        "why": data["why"], "heldout": data["heldout"], "effects": data.get("effects"),
+                        "start": (data.get("start") or {}).get("kind", "nominal")}
         else:
             gap_info = {"source": f"reused {args.gap_model}", "wall": None, "effect": None, "why": None}
         say(f"extended model from {args.gap_model} (gap not run)")
