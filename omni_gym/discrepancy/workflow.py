@@ -288,15 +288,17 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         bar.update(max(bar.total - bar.n, 0))
     say("scoring whole runs open loop (held-out drift)")
     rows, drift = _drift_check(whole, fold_src, first, steps, dt, gate=fitted.segmented)
+    searched = list(steps)  # before the drift check: the first step's decision and ranking stay the report's
     if drift["dropped"]:
         say(f"dropped (worse whole-run held-out drift): {', '.join(drift['dropped'])}")
         kept = [s.effect for s in steps].index(drift["dropped"][0])  # that effect and every later one
+        drift["dropped_params"] = {s.effect: s.fit.params_all for s in steps[kept:]}
         steps, uncertainties = steps[:kept], uncertainties[:kept]
         model = nominal
         for s in steps:
             model = model.with_effect(s.effect, s.fit.params_all)
         step = steps[-1] if steps else step
-    first_step = steps[0] if steps else step
+    first_step = searched[0] if searched else step
     final = step if step.fit is None else None  # the none/unexplained answer that ended the search, if one did
     if drift["dropped"]:
         final = None
