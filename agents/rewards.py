@@ -13,6 +13,15 @@ a ∈ [−1, 1]^A:
   rewards are flat; the squared reward weighs them as the RMSE does. The termination penalty is what
   staying lost for the discounting horizon would cost, so ending early does not pay.
 
+* ``"gaussian"``:  r = 0.5·exp(−(e/0.01 m)²) + 0.5·exp(−(e/0.1 m)²) − 0.01·mean(a²): a tracking reward with
+  scales, as in the field's tracking tasks. Near the path it resolves millimetres (its slope at e = 5 mm
+  is 0.39 per cm, the squared reward's 0.01 per cm), the wide term still pulls back from 10–20 cm, and it
+  is positive, so getting lost ends the income (no termination penalty needed).
+
+* ``"pose"``:  the gaussian reward plus a heading term 0.25·exp(−(e_θ/0.02 rad)²) + 0.25·exp(−(e_θ/0.2 rad)²),
+  e_θ = wrap(θ_ref − θ) [rad] (``info["heading_error"]``): the position-only rewards leave the heading free,
+  and a privileged agent trained on them lets it drift by radians (docs/agents.md, "Diagnosis").
+
 The reward is a training signal only: no policy observes e.
 
 * :func:`tracking_reward`: the formula, for one robot or N at once; :func:`step_errors`: which error each
@@ -28,7 +37,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorWrapper
 
-REWARDS = ("env", "tracking", "squared")
+REWARDS = ("env", "tracking", "squared", "gaussian", "pose")
 LOST_HORIZON = 50  # steps: the squared reward's penalty for getting lost (≈ 1/(1 − γ) at γ = 0.98)
 ERROR_SCALE = 0.1  # m: the squared reward's unit of tracking error
 # One line per mode, for plot labels and reports (e: true tracking error [m], a: the agent's action).
@@ -36,7 +45,11 @@ REWARD_FORMULAS = {
     "env": "the environment's reward (docs/environments.md)",
     "tracking": "0.5·exp(−(e/0.05 m)²) + 0.5·exp(−e/0.1 m) − 0.02·mean(a²)",
     "squared": "−(e/0.1 m)² − 0.01·mean(a²); once when lost −50·(lost_distance/0.1 m)²",
+    "gaussian": "0.5·exp(−(e/0.01 m)²) + 0.5·exp(−(e/0.1 m)²) − 0.01·mean(a²)",
+    "pose": "gaussian + 0.25·exp(−(e_θ/0.02 rad)²) + 0.25·exp(−(e_θ/0.2 rad)²)",
 }
+GAUSSIAN_SCALES = (0.01, 0.1)  # m: the gaussian reward's narrow and wide error scales
+HEADING_SCALES = (0.02, 0.2)  # rad: the pose reward's narrow and wide heading scales
 
 
 def check_reward(reward: str) -> None:
@@ -45,10 +58,12 @@ def check_reward(reward: str) -> None:
         raise ValueError(f"unknown reward {reward!r}; choose one of {', '.join(REWARDS)}")
 
 
-def tracking_reward(mode: str, env_reward, error, action, terminated, lost_distance: float) -> np.ndarray:
+def tracking_reward(mode: str, env_reward, error, action, terminated, lost_distance: float,
+                    heading=None) -> np.ndarray:
     """Reward of ``mode`` per robot: (N,) from env_reward, error [m], terminated (N,) and action (N, A).
 
-    ``lost_distance`` [m] is the environment's termination distance (``cfg.lost_distance``).
+    ``lost_distance`` [m] is the environment's termination distance (``cfg.lost_distance``); ``heading``
+    (N,) the heading error [rad], needed by ``"pose"`` only.
     """
     env_reward = np.asarray(env_reward, dtype=float)
     if mode == "env":
@@ -61,8 +76,26 @@ def tracking_reward(mode: str, env_reward, error, action, terminated, lost_dista
     if mode == "squared":
         r = -((e / ERROR_SCALE) ** 2) - 0.01 * effort
         return np.where(terminated, r - LOST_HORIZON * (lost_distance / ERROR_SCALE) ** 2, r)
+    if mode in ("gaussian", "pose"):
+        narrow, wide = GAUSSIAN_SCALES
+        r = 0.5 * np.exp(-((e / narrow) ** 2)) + 0.5 * np.exp(-((e / wide) ** 2)) - 0.01 * effort
+        if mode == "pose":
+            if heading is None:
+                raise ValueError("the 'pose' reward needs the heading error")
+            h = np.asarray(heading, dtype=float)
+            r = r + 0.25 * np.exp(-((h / HEADING_SCALES[0]) ** 2)) + 0.25 * np.exp(-((h / HEADING_SCALES[1]) ** 2))
+        return r
     check_reward(mode)
     raise AssertionError("unreachable")
+
+
+def step_headings(info: dict, done: np.ndarray) -> np.ndarray:
+    """Per robot of a native vector env: the heading error [rad] of the step it just took (``done`` from
+    :func:`step_errors`: those robots' ended episodes are in ``info["final_info"]``)."""
+    h = np.asarray(info["heading_error"], dtype=float).copy()
+    if done.any():
+        h[done] = np.asarray(info["final_info"]["heading_error"], dtype=float)[done]
+    return h
 
 
 def step_errors(info: dict, terminated, truncated, same_step: bool,
@@ -106,7 +139,8 @@ class TrackingReward(gym.Wrapper):
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
         a = np.clip(np.asarray(action, dtype=float).reshape(1, -1), -1.0, 1.0)
-        r = tracking_reward(self.reward_mode, [reward], [info["tracking_error"]], a, [terminated], self.lost_distance)
+        r = tracking_reward(self.reward_mode, [reward], [info["tracking_error"]], a, [terminated], self.lost_distance,
+                            [info["heading_error"]])
         return obs, float(r[0]), terminated, truncated, info
 
 
@@ -132,8 +166,8 @@ class VectorTrackingReward(VectorWrapper):
 
     def step(self, actions):
         obs, reward, terminated, truncated, info = self.env.step(actions)
-        e, _, restart, self._autoreset = step_errors(info, terminated, truncated, self.same_step, self._autoreset)
+        e, done, restart, self._autoreset = step_errors(info, terminated, truncated, self.same_step, self._autoreset)
         a = np.clip(np.asarray(actions, dtype=float).reshape(self.num_envs, -1), -1.0, 1.0)
-        r = tracking_reward(self.reward_mode, reward, e, a, terminated, self.lost_distance)
+        r = tracking_reward(self.reward_mode, reward, e, a, terminated, self.lost_distance, step_headings(info, done))
         r[restart] = 0.0
         return obs, r, terminated, truncated, info

@@ -315,7 +315,7 @@ def build_vector(path: str | Path, num: int, env_id: str | None = None, env_kwar
     single :func:`build` environment's within float rounding (the batched EKF; ``tests/test_vector_rollout.py``).
     """
     from agents.vector_rollout import make_vector_env
-    from agents.wrappers import VectorEKFFeatures
+    from agents.wrappers import VectorEKFFeatures, VectorFeedForwardTwist
 
     meta, model, vn = load(path, options)
     env_id = env_id or meta.get("env_id")
@@ -327,7 +327,9 @@ def build_vector(path: str | Path, num: int, env_id: str | None = None, env_kwar
         raise ValueError(f"model {path} was trained with obs_mode={obs_mode!r}; got obs_mode={kw['obs_mode']!r}")
     kw.pop("obs_mode", None)
     venv = make_vector_env(env_id, num, kw, obs_mode=obs_mode)
-    if meta["wrapper"] != "none":
+    if meta["wrapper"] == "feedforward":  # privileged: reference feed-forward + the model's correction
+        venv = VectorFeedForwardTwist(venv, float(meta.get("residual_scale", 0.5)))
+    elif meta["wrapper"] != "none":
         scale = float(meta.get("residual_scale", 0.3)) if meta["wrapper"] == "residual-ekf-pid" else 0.0
         venv = VectorEKFFeatures(venv, scale)
     if venv.single_observation_space.shape != model.observation_space.shape:

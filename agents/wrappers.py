@@ -54,10 +54,17 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorWrapper
 from gymnasium.vector.utils import batch_space
 
-from agents.rewards import TrackingReward, VectorTrackingReward, check_reward, step_errors, tracking_reward
+from agents.rewards import (
+    TrackingReward,
+    VectorTrackingReward,
+    check_reward,
+    step_errors,
+    step_headings,
+    tracking_reward,
+)
 from omni_gym.checks import wrap_angle
 
-WRAPPERS = ("none", "residual-ekf-pid", "ekf-features")
+WRAPPERS = ("none", "residual-ekf-pid", "ekf-features", "feedforward")
 POS_SCALE = 0.05  # m: tracking errors of a few cm are what the agent must act on
 HEAD_SCALE = 0.1  # rad
 LOOK_SCALE = 0.5  # m
@@ -135,7 +142,7 @@ class EKFFeatures(gym.Wrapper):
             total = a
         obs, reward, terminated, truncated, info = self.env.step(total.astype(np.float32))
         reward = float(tracking_reward(self.reward_mode, [reward], [info["tracking_error"]], a[None], [terminated],
-                                       self.lost_distance)[0])
+                                       self.lost_distance, [info["heading_error"]])[0])
         return self._observe(obs), reward, terminated, truncated, info
 
     def _observe(self, obs: np.ndarray) -> np.ndarray:
@@ -245,7 +252,8 @@ class VectorEKFFeatures(VectorWrapper):
         e, done, restart, self._autoreset = step_errors(info, terminated, truncated, self.same_step, self._autoreset)
         live = ~restart
         self.prev_action[live] = a[live]
-        reward = tracking_reward(self.reward_mode, reward, e, a, terminated, self.lost_distance)
+        reward = tracking_reward(self.reward_mode, reward, e, a, terminated, self.lost_distance,
+                                 step_headings(info, done))
         if restart.any():  # NEXT_STEP: obs[restart] are first observations, the actions were ignored
             self.prev_action[restart] = 0.0
             reward[restart] = 0.0
@@ -340,6 +348,60 @@ class SensorNoiseRandomizer(gym.Wrapper):
         return self.env.reset(seed=seed, options=options)
 
 
+class FeedForwardTwist(gym.Wrapper):
+    """Privileged action structure: the environment receives clip(v_ref + scale·a, −1, 1).
+
+    v_ref is the reference's twist in the robot's body frame, read from the ``state`` observation
+    (``reference_velocity``, already divided by v_max, v_max, ω_max, i.e. in action units), so action 0 is
+    pure feed-forward of the reference and the agent learns only the correction, bounded by ``scale`` of the
+    action range. Needs ``obs_mode="state"`` and ``action_mode="twist"``; observations pass unchanged. Not a
+    residual on a controller: nothing here feeds back an error.
+    """
+
+    def __init__(self, env: gym.Env, scale: float = 0.5) -> None:
+        super().__init__(env)
+        layout = env.unwrapped.observation_layout
+        if layout.mode != "state" or env.unwrapped.cfg.action_mode != "twist":
+            raise ValueError("FeedForwardTwist needs obs_mode='state' and action_mode='twist'")
+        self.ref = layout["reference_velocity"]
+        self.scale = float(scale)
+        self._obs = None
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        self._obs, info = self.env.reset(seed=seed, options=options)
+        return self._obs, info
+
+    def step(self, action):
+        a = np.clip(np.asarray(action, dtype=float).reshape(-1), -1.0, 1.0)
+        total = np.clip(self._obs[self.ref] + self.scale * a, -1.0, 1.0).astype(np.float32)
+        self._obs, reward, terminated, truncated, info = self.env.step(total)
+        return self._obs, reward, terminated, truncated, info
+
+
+class VectorFeedForwardTwist(VectorWrapper):
+    """:class:`FeedForwardTwist` for a native vector environment (either autoreset mode: the stored
+    observation is the one the robot acts on, the first observation after a same-step reset)."""
+
+    def __init__(self, env, scale: float = 0.5) -> None:
+        super().__init__(env)
+        layout = env.unwrapped.observation_layout
+        if layout.mode != "state":
+            raise ValueError("VectorFeedForwardTwist needs obs_mode='state'")
+        self.ref = layout["reference_velocity"]
+        self.scale = float(scale)
+        self._obs = None
+
+    def reset(self, *, seed=None, options: dict | None = None):
+        self._obs, info = self.env.reset(seed=seed, options=options)
+        return self._obs, info
+
+    def step(self, actions):
+        a = np.clip(np.asarray(actions, dtype=float).reshape(self.num_envs, -1), -1.0, 1.0)
+        total = np.clip(self._obs[:, self.ref] + self.scale * a, -1.0, 1.0).astype(np.float32)
+        self._obs, reward, terminated, truncated, info = self.env.step(total)
+        return self._obs, reward, terminated, truncated, info
+
+
 def wrap_env(env: gym.Env, name: str = "none", residual_scale: float = 0.3,
              sensor_noise_range: tuple[float, float] | None = None, reward: str = "env") -> gym.Env:
     """Apply the sensor-noise randomiser (if a range is given) and the named wrapper (one of :data:`WRAPPERS`).
@@ -355,8 +417,11 @@ def wrap_env(env: gym.Env, name: str = "none", residual_scale: float = 0.3,
         env = EKFFeatures(env, residual_scale, reward)
     elif name == "ekf-features":
         env = EKFFeatures(env, 0.0, reward)
-    elif reward != "env":  # the privileged agent: the reward alone
-        env = TrackingReward(env, reward)
+    else:
+        if name == "feedforward":  # privileged: reference feed-forward + the agent's correction
+            env = FeedForwardTwist(env, residual_scale)
+        if reward != "env":  # the privileged agent: the reward alone (on the agent's own action)
+            env = TrackingReward(env, reward)
     return env
 
 
@@ -370,4 +435,6 @@ def wrap_vector_env(env, name: str = "none", residual_scale: float = 0.3, reward
         return VectorEKFFeatures(env, residual_scale, reward)
     if name == "ekf-features":
         return VectorEKFFeatures(env, 0.0, reward)
+    if name == "feedforward":
+        env = VectorFeedForwardTwist(env, residual_scale)
     return env if reward == "env" else VectorTrackingReward(env, reward)

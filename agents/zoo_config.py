@@ -15,6 +15,7 @@ LEGACY_KEYS = ("residual_scale", "reward", "sensor_noise_range", "residual_init"
 NOISE_WRAPPER = "agents.wrappers.SensorNoiseRandomizer"
 EKF_WRAPPER = "agents.wrappers.EKFFeatures"
 REWARD_WRAPPER = "agents.rewards.TrackingReward"
+FF_WRAPPER = "agents.wrappers.FeedForwardTwist"
 RESIDUAL_INIT = "agents.callbacks.ResidualInit"
 
 
@@ -85,12 +86,16 @@ def wrapper_spec(hp: dict, where: str) -> WrapperSpec:
             scale = float(kw.get("residual_scale", 0.3))  # EKFFeatures' default
             spec = replace(spec, name="residual-ekf-pid" if scale > 0 else "ekf-features", residual_scale=scale,
                            reward=str(kw.get("reward", "env")))
-        elif path == REWARD_WRAPPER and not seen:  # the privileged agent: the reward alone, no EKF
+        elif path == FF_WRAPPER and not seen:  # privileged: reference feed-forward + correction
+            _known_keywords(path, kw, ("scale",), "env_wrapper", where)
+            spec = replace(spec, name="feedforward", residual_scale=float(kw.get("scale", 0.5)))
+        elif path == REWARD_WRAPPER and (not seen or seen == [FF_WRAPPER]):  # privileged: the reward, no EKF
             _known_keywords(path, kw, ("reward",), "env_wrapper", where)
             spec = replace(spec, reward=str(kw.get("reward", "squared")))
         else:
             raise ValueError(f"{where}: env_wrapper: {path!r}: this trainer builds {NOISE_WRAPPER} then {EKF_WRAPPER} "
-                             f"(each at most once, in this order), or {REWARD_WRAPPER} alone")
+                             f"(each at most once, in this order), or {REWARD_WRAPPER} alone (privileged; optionally "
+                             f"after {FF_WRAPPER})")
         seen.append(path)
     return spec
 

@@ -36,34 +36,11 @@ from tqdm import tqdm  # noqa: E402
 
 from agents.batched.policies import make_vector_policy  # noqa: E402
 from agents.evaluate import summarize  # noqa: E402
+from agents.feedback_law import TrueStateFeedback  # noqa: E402
 from agents.vector_rollout import make_vector_env, run_episodes_vector  # noqa: E402
-from omni_gym.envs.observations import StateObsDecoder  # noqa: E402
 from omni_gym.outputs import write_text_atomic  # noqa: E402
 
 ENV_IDS = ("OmniPathFollow-Phunopas-v0", "OmniPathFollow-Williams-v1")
-
-
-class TrueStateFeedback:
-    """Feed-forward + proportional feedback on the ``state`` observation of N robots (privileged).
-
-    ``gain`` k [1/s]: the position and heading errors decay as exp(−k t) when the wheels follow.
-    Follows :class:`agents.vector_rollout.VectorActor`; stateless, so ``reset`` does nothing.
-    """
-
-    def __init__(self, vec_env, gain: float) -> None:
-        self.decode = StateObsDecoder.for_env(vec_env)
-        sc = self.decode.scales
-        self.gain = float(gain)
-        self.twist_scale = np.array([sc.max_speed, sc.max_speed, sc.max_yaw_rate])
-
-    def reset(self, obs: np.ndarray, mask=None) -> None:
-        """Nothing to reset: the law reads only the current observation."""
-
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        rows = [self.decode(o) for o in obs]  # SI units, body frame of each robot
-        ref = np.array([r.reference_velocity for r in rows])  # m/s, m/s, rad/s
-        err = np.array([[*r.tracking_error_body, r.heading_error] for r in rows])  # m, m, rad
-        return np.clip((ref + self.gain * err) / self.twist_scale, -1.0, 1.0)
 
 
 def run(env_id: str, cond: str, seeds: list[int], gain: float | None) -> list:

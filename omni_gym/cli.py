@@ -65,6 +65,10 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--against", default=None, metavar="POLICY",
                     help="a second policy (same forms as --policy) run on the same seeds: paired ratio of mean "
                          "tracking RMSE with a 95%% bootstrap interval, and the share of episodes each wins")
+    ev.add_argument("--score", action="store_true",
+                    help="also run open-loop and ekf-pid on the same seeds and keywords and print the normalised "
+                         "score: 100*(RMSE_open - RMSE_policy)/(RMSE_open - RMSE_ekfpid), 0 = open-loop, 100 = "
+                         "ekf-pid (agents/normalised_score.py)")
     ev.add_argument("--env-kwargs", default=None, help="gym.make keywords as a JSON object")
     ev.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     ev.add_argument("--algo", default=None, help="plain SB3 .zip: its algorithm (ppo, sac, td3)")
@@ -308,17 +312,38 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
                 raise ValueError(f"--against: {exc}") from None
         result = evaluate(args.policy, args.env, args.episodes, args.seed, kwargs, model_options=options)
         other = None if args.against is None else evaluate(args.against, args.env, args.episodes, args.seed, kwargs)
+        anchors = _score_anchors(args, kwargs, result, other) if args.score else None
     except ImportError as exc:  # a missing extra: one line naming it (agents.require_agents_extra)
         raise ValueError(str(exc)) from None
-    if other is None:
-        print(json.dumps(result) if args.json else format_table(result))
-        return 0
-    cmp = compare(result, other)
-    if args.json:
-        print(json.dumps({**result, "against": other, "comparison": cmp}))
-    else:
-        print("\n\n".join([format_table(result), format_table(other), format_comparison(result, other, cmp)]))
+    out, blocks = dict(result), [format_table(result)]
+    if other is not None:
+        cmp = compare(result, other)
+        out.update(against=other, comparison=cmp)
+        blocks += [format_table(other), format_comparison(result, other, cmp)]
+    if anchors is not None:
+        from agents.normalised_score import score_results
+
+        for res, where in ((result, out), (other, out.get("against"))):
+            if res is not None:
+                sc = score_results(res, *anchors)
+                where["score"] = sc.to_dict()
+                blocks.append(f"{res['policy']}: {sc.text()}")
+    print(json.dumps(out) if args.json else "\n\n".join(blocks))
     return 0
+
+
+def _score_anchors(args: argparse.Namespace, kwargs: dict, *done: dict | None) -> tuple[dict, dict]:
+    """The open-loop and ekf-pid results on the seeds and keywords of ``args``; a policy already evaluated
+    (``--policy ekf-pid``) is reused, not run twice."""
+    from agents.evaluate import evaluate
+    from agents.normalised_score import ANCHORS
+
+    ran = {r["policy"]: r for r in done if r is not None}
+    # The anchors read sensors and command twists; only the physical keywords (condition, randomisation)
+    # carry over from a model's evaluation.
+    physical = {k: v for k, v in kwargs.items() if k not in ("obs_mode", "action_mode")}
+    return tuple(ran[a] if a in ran else evaluate(a, args.env, args.episodes, args.seed, physical)  # type: ignore
+                 for a in ANCHORS)
 
 
 def _cmd_gap(args: argparse.Namespace) -> int:

@@ -47,12 +47,13 @@ def test_privileged_env_gets_the_squared_reward_and_unchanged_observations():
     assert terminated  # random twists leave a 6 cm corridor within 100 steps (10 s)
 
 
+@pytest.mark.parametrize("reward", ["squared", "pose"])  # pose: the heading error of ended robots too
 @pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
-def test_vector_tracking_reward_matches_single_wrappers(mode):
+def test_vector_tracking_reward_matches_single_wrappers(mode, reward):
     num = 3
     vec = VectorTrackingReward(gym.make_vec(ENV, num_envs=num, vectorization_mode="vector_entry_point",
-                                            autoreset_mode=mode, **KW), "squared")
-    ref = SyncVectorEnv([lambda: TrackingReward(gym.make(ENV, **KW), "squared") for _ in range(num)],
+                                            autoreset_mode=mode, **KW), reward)
+    ref = SyncVectorEnv([lambda: TrackingReward(gym.make(ENV, **KW), reward) for _ in range(num)],
                         autoreset_mode=mode)
     o1, _ = vec.reset(seed=11)
     o2, _ = ref.reset(seed=11)
@@ -79,6 +80,14 @@ def test_reward_modes_and_bad_names():
     np.testing.assert_allclose(squared, [0.0, -1.0, -9.0 - 50 * 25.0])
     np.testing.assert_array_equal(tracking_reward("env", [0.25, 0.5, 1.0], e, a, np.zeros(3, bool), 0.5),
                                   [0.25, 0.5, 1.0])
+    # gaussian: 1 on the path; at 1 cm and 10 cm each term is e^-1 of its weight (the scales in the docstring)
+    g = tracking_reward("gaussian", np.zeros(3), [0.0, 0.01, 0.1], a, np.zeros(3, bool), 0.5)
+    np.testing.assert_allclose(g, [1.0, 0.5 * np.exp(-1) + 0.5 * np.exp(-0.01), 0.5 * np.exp(-100) + 0.5 * np.exp(-1)])
+    # pose: the heading term adds 0.5 at zero heading error, 0.25·e^-1 + 0.25·e^-0.01 at 0.02 rad
+    p = tracking_reward("pose", np.zeros(3), np.zeros(3), a, np.zeros(3, bool), 0.5, heading=[0.0, -0.02, 3.0])
+    np.testing.assert_allclose(p, [1.5, 1.0 + 0.25 * np.exp(-1) + 0.25 * np.exp(-0.01), 1.0 + 0.25 * np.exp(-225)])
+    with pytest.raises(ValueError, match="'pose' reward needs the heading error"):
+        tracking_reward("pose", np.zeros(3), e, a, np.zeros(3, bool), 0.5)
     with pytest.raises(ValueError, match="unknown reward 'quadratic'; choose one of env, tracking, squared"):
         TrackingReward(gym.make(ENV, **KW), "quadratic")
     with pytest.raises(ValueError, match="TrackingReward needs an omni-gym environment"):
