@@ -160,9 +160,10 @@ def gap_subset(robot: Robot, train: list[Run], runs: int | None, seconds: float 
 
 
 def run_gap(nominal: SimModel, metas: list, train: list[Run], seed: int, fit_budget: float,
-            start: SimModel | None = None) -> tuple[dict, float]:
-    """``gap`` on the training runs (written to a temporary dataset), from ``start`` (None: the dataset's
-    nominal model); (result, wall time [s])."""
+            start: str | SimModel | None = None) -> tuple[dict, float]:
+    """``gap`` on the training runs (written to a temporary dataset, each run's session recorded), from
+    ``start`` (None: the dataset's nominal model; ``"kinematic"``: gap's own kinematic start, calibrated per
+    held-out fold); (result, wall time [s])."""
     from omni_gym.discrepancy.workflow import gap
 
     with tempfile.TemporaryDirectory(prefix="real_optiodom_") as tmp:
@@ -311,8 +312,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="gap's seed")
     ap.add_argument("--gap-start", choices=("nominal", "kinematic"), default="nominal",
                     help="the model gap starts from: the nominal model (default) or the kinematic calibration "
-                         "(its wheel_radius and geometry kept, the other effects searched on top); the files get "
-                         "the suffix _from_kinematic")
+                         "(gap --start kinematic: calibrated per held-out fold, folds by session, its diameters and "
+                         "length refitted from the calibrated values, the other effects searched on top); the files "
+                         "get the suffix _from_kinematic")
     ap.add_argument("--gap-runs", type=int, default=None, metavar="N",
                     help="give gap only N runs of each training session, spread evenly (default: all; the kinematic "
                          "calibration always uses every training run); for when gap on all 24 runs is too slow")
@@ -354,6 +356,10 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(data, dict) and "gap_info" in data:  # a gap record this script wrote: keep its story
             gap_info = data["gap_info"]
             gap_info["source"] += f" (reused from {args.gap_model})"
+        elif isinstance(data, dict) and "heldout" in data:  # a gap result.json: keep its decision and checks
+            gap_info = {"source": f"reused the gap report {args.gap_model}", "wall": None, "effect": data["effect"],
+                        "why": data["why"], "heldout": data["heldout"], "effects": data.get("effects"),
+                        "start": (data.get("start") or {}).get("kind", "nominal")}
         else:
             gap_info = {"source": f"reused {args.gap_model}", "wall": None, "effect": None, "why": None}
         say(f"extended model from {args.gap_model} (gap not run)")
@@ -362,18 +368,19 @@ def main(argv: list[str] | None = None) -> int:
         say(f"running gap on {len(gap_train)} training runs ({sum(r.t[-1] for r in gap_train):.0f} s; its stage "
             "lines follow)")
         result, wall = run_gap(nominal, metas, gap_train, args.seed, args.fit_budget,
-                               start=cal.model if args.gap_start == "kinematic" else None)
+                               start="kinematic" if args.gap_start == "kinematic" else None)
         extended = SimModel.from_json(result["model"], where="gap result")
         subset = "" if len(gap_train) == len(train) and args.gap_seconds is None else (
             f" on a subset of the training runs: {len(gap_train)} runs, {sum(r.t[-1] for r in gap_train):.0f} s "
             f"({', '.join(r.name for r in gap_train)}); the kinematic calibration used all {len(train)}")
         subset += f"; gap fitted {result['dataset']['fitted']['description']}"
-        start_txt = ", start=the kinematic calibration's model" if args.gap_start == "kinematic" else ""
+        start_txt = ", start='kinematic'" if args.gap_start == "kinematic" else ""
         gap_info = {"source": f"omni_gym.discrepancy.workflow.gap(seed={args.seed}, "
                               f"fit_budget={args.fit_budget:g}{start_txt}){subset}", "wall": wall, "command": command,
                     "start": args.gap_start,
                     "effect": result["effect"], "why": result["why"], "gap": result["gap"],
-                    "effects": result.get("effects")}
+                    "effects": result.get("effects"), "heldout": result.get("heldout"),
+                    "steps": result.get("steps")}
         say(f"gap named {result['effect']!r} in {wall:.0f} s")
         (out / f"{stem}_model.json").write_text(json.dumps(result["model"], indent=1) + "\n")
         # gap's whole result and the table's story of it: --gap-model FILE re-renders the table from it.
@@ -401,6 +408,8 @@ def main(argv: list[str] | None = None) -> int:
     left = residual_analysis(sessions, pred, nominal, cal)
     say("writing the table and the plot")
     png = plot(out, stem, robot, sessions, pred, len(train), gap_info.get("start", "nominal"))
+    growth = error_growth(sessions, pred)
+    growth_plot(out, stem, robot, growth)
     md = table(robot, stem, command, args.quick, nominal, cal, extended, named, gap_info, sessions, rms, mass_session,
                mass_rms, train, dt, left)
     (out / f"{stem}.md").write_text(md)
@@ -411,7 +420,7 @@ def main(argv: list[str] | None = None) -> int:
         "heldout": {s: {m: v for m, v in d.items()} for s, d in rms.items()},
         "runs": {s.name: [r.name for r in s.runs] for s in sessions},
         "mass_check": {"session": mass_session.name, "rms": {str(f): d for f, d in mass_rms.items()}},
-        "residual_analysis": left,
+        "residual_analysis": left, "error_growth": growth,
     }, indent=1) + "\n")
     summary = write_summary(out)
     say(f"wrote {out / (stem + '.md')}, {png} and {summary}")
@@ -507,8 +516,66 @@ def table(robot: Robot, stem: str, command: str, quick: bool, nominal: SimModel,
                      f"{a['distance']:.1f} |")
     lines += ["", f"Training calibration for comparison: D = {', '.join(f'{1000 * d:.2f}' for d in cal.diameters)} mm, "
                   f"L = {1000 * cal.L:.2f} mm."]
-    lines += ["", f"![held-out runs]({stem}.png)", ""]
+    h = gap_info.get("heldout") or {}
+    if h.get("per_session"):
+        names = list(h["mean"]["mean_position_rms"])
+        lines += ["", f"## gap's own held-out check (training sessions, folds by {h.get('folds_by')})", "",
+                  "Each training session replayed whole, open loop, by the models gap fitted without it (the kinematic "
+                  "calibration too); mean position RMS [mm]. " + (h.get("drift_check") or {}).get("rule", ""), "",
+                  "| fold session | runs | " + " | ".join(names) + " | extended / kinematic |",
+                  "|---|---|" + "---|" * (len(names) + 1)]
+        for b in [*h["per_session"], {**h["mean"], "session": "all"}]:
+            m = b["mean_position_rms"]
+            ratio = f"{m['extended'] / m['kinematic']:.2f}" if m.get("kinematic") else "-"
+            lines.append(f"| {b['session']} | {b['runs']} | " + " | ".join(mm(m[n]) for n in names) + f" | {ratio} |")
+    lines += ["", f"![held-out runs]({stem}.png)", "",
+              "Error growth: mean position error [mm] against time since each run's start (1 s bins, mean over the "
+              "session's runs), per held-out session:", "", f"![error growth]({stem}_growth.png)", ""]
     return "\n".join(lines)
+
+
+GROWTH_BIN = 1.0  # s: error-growth bins
+
+
+def error_growth(sessions: list[Session], pred: dict) -> dict:
+    """Per held-out session and model: [[t [s], mean position error [m]], …] in GROWTH_BIN bins of the time
+    since each run's start (mean over the runs that reach the bin)."""
+    out: dict = {}
+    for s in sessions:
+        per: dict[str, dict[int, list[float]]] = {m: {} for m in MODELS}
+        for r in s.runs:
+            ok = r.observed
+            bins = (r.t[ok] // GROWTH_BIN).astype(int)
+            for m, p in pred[(s.name, r.name)].items():
+                e = np.hypot(*(r.pose[ok, :2] - p[ok, :2]).T)
+                for b in np.unique(bins):
+                    per[m].setdefault(int(b), []).append(float(np.mean(e[bins == b])))
+        out[s.name] = {m: [[(b + 0.5) * GROWTH_BIN, float(np.mean(v))] for b, v in sorted(c.items())]
+                       for m, c in per.items() if c}
+    return out
+
+
+def growth_plot(out: Path, stem: str, robot: Robot, growth: dict) -> Path:
+    """``{stem}_growth.png``: mean position error against time, one panel per held-out session."""
+    n = len(growth)
+    fig, axes = plt.subplots(1, n, figsize=(3.6 * n, 3.2), squeeze=False)
+    style = {"nominal": ("tab:gray", ":"), "kinematic": ("tab:blue", "--"), "kinematic_sim": ("tab:cyan", "-."),
+             "extended": ("tab:green", "-")}
+    for ax, (name, curves) in zip(axes[0], growth.items(), strict=True):
+        for m, pts in curves.items():
+            a = np.array(pts)
+            ax.plot(a[:, 0], 1e3 * a[:, 1], style[m][1], color=style[m][0], label=m)
+        ax.set_title(name, fontsize=9)
+        ax.set_xlabel("time since start [s]")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("mean position error [mm]")
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle(f"{robot.title}: error growth on the held-out sessions, whole runs open loop", fontsize=10)
+    fig.tight_layout()
+    path = out / f"{stem}_growth.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 def write_summary(out: Path) -> Path:

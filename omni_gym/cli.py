@@ -99,6 +99,10 @@ def build_parser() -> argparse.ArgumentParser:
                          "longer dataset is fitted on an even sample of segments of every run, each "
                          f"SECONDS / runs long ({MIN_SEGMENT:g} to {SEGMENT:g} s; 24 runs and the default: 5 s) "
                          "and replayed from the tracked state at its start; inf: always whole runs")
+    gp.add_argument("--start", choices=("auto", "kinematic", "nominal"), default="auto",
+                    help="first model, on top of which effects are searched: kinematic = the kinematic odometry "
+                         "calibration of the training runs (as omni-gym calibrate; needs wheel odometry), nominal = "
+                         "the dataset's model; auto (default): kinematic when every run has wheel odometry")
     add_ray_option(gp, "the candidate fits", "all (or --jobs N > 1)")
     gp.add_argument("--jobs", type=int, default=1,
                     help="local worker processes for the candidate fits, at most this machine's cores (with "
@@ -365,7 +369,7 @@ def _cmd_gap(args: argparse.Namespace) -> int:
     # ray missing, an address nothing listens on: one line now (BackendError: ValueError), not after the first stages
     backend = backend_from_options(jobs, args.ray)
     result = gap(args.dataset, args.out, seed=args.seed, plots=not args.no_plots, force=args.force,
-                 max_effects=args.max_effects, backend=backend, **budget)
+                 max_effects=args.max_effects, backend=backend, start=args.start, **budget)
     if args.json:
         print(json.dumps(result, indent=2, allow_nan=False))  # standard JSON (non-finite values are null)
     else:

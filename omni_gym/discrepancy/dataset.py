@@ -2,7 +2,8 @@
 
 A dataset is a folder::
 
-    DATASET/dataset.json      {"model": MODEL JSON (the nominal model), "description": "..."}
+    DATASET/dataset.json      {"model": MODEL JSON (the nominal model), "description": "...",
+                               "sessions": {"RUN NAME": "SESSION ID", ...} (optional)}
     DATASET/runs/*.csv        one run per file, header t,w1..wn[,enc1..encn],x,y,theta[,gyro]
 
 Columns: t [s] from 0, strictly increasing; w_i commanded wheel speeds [rad/s], each held until the
@@ -29,7 +30,7 @@ from omni_gym.discrepancy.units import check_run_units
 from omni_gym.io import InputError, check_times, parse_cell, read_csv_rows
 from omni_gym.physics.model import SimModel, read_json
 
-DATASET_KEYS = ("model", "description")  # dataset.json: any other key is refused (a typo, not data)
+DATASET_KEYS = ("model", "description", "sessions")  # dataset.json: any other key is refused (a typo, not data)
 
 
 @dataclass
@@ -50,6 +51,7 @@ class Run:
     enc: np.ndarray | None = None
     gyro: np.ndarray | None = None
     state0: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+    session: str | None = None  # the recording session (dataset.json "sessions"); None: not recorded
 
     @property
     def observed(self) -> np.ndarray:
@@ -120,9 +122,35 @@ def load_dataset(folder: str | Path) -> Dataset:
     if not files:
         raise InputError(f"{folder / 'runs'}: no run files (*.csv)")
     runs = [read_run(f, model.n_wheels) for f in files]
+    _attach_sessions(meta_path, meta.get("sessions"), runs)
     for f, run in zip(files, runs, strict=True):
         check_run_units(f, run.t, run.cmd, run.pose, model.robot.wheel_radius)
     return Dataset(path=folder, model=model, model_json=meta["model"], description=desc, runs=runs)
+
+
+def _attach_sessions(meta_path: Path, sessions: object, runs: list[Run]) -> None:
+    """Set each run's ``session`` from ``dataset.json``'s optional ``sessions`` object (run name → session
+    id); a run it does not list keeps None. InputError (one line) for a malformed entry or an unknown run."""
+    if sessions is None:
+        return
+    if not isinstance(sessions, dict):
+        raise InputError(f"{meta_path}: 'sessions' must be an object (run name -> session id)")
+    by_name = {r.name: r for r in runs}
+    for name, sid in sessions.items():
+        if not isinstance(sid, str) or not sid:
+            raise InputError(f"{meta_path}: sessions: run {name!r}: the session id must be a non-empty string")
+        if name not in by_name:
+            raise InputError(f"{meta_path}: sessions: run {name!r} has no file runs/{name}.csv")
+        by_name[name].session = sid
+
+
+def sessions_of(runs: list[Run]) -> list[str] | None:
+    """The runs' sessions when every run records one and there are at least two, else None (then
+    held-out folds split by run, not by session)."""
+    ids = [r.session for r in runs]
+    if any(s is None for s in ids) or len(set(ids)) < 2:
+        return None
+    return ids  # type: ignore[return-value]
 
 
 def read_run(path: Path, n_wheels: int) -> Run:
@@ -188,4 +216,8 @@ def write_dataset(folder: str | Path, model_json: dict, description: str, runs: 
         outputs.write_csv_atomic(folder / "runs" / f"{run.name}.csv",
                                  run_header(n, run.enc is not None, run.gyro is not None), np.column_stack(cols),
                                  empty_nan=True)
-    outputs.write_json_atomic(folder / "dataset.json", {"model": model_json, "description": description})
+    meta: dict = {"model": model_json, "description": description}
+    sessions = {r.name: r.session for r in runs if r.session is not None}
+    if sessions:
+        meta["sessions"] = sessions
+    outputs.write_json_atomic(folder / "dataset.json", meta)

@@ -82,6 +82,7 @@ def markdown(result: dict, figures: list[str]) -> str:
               f"| RMS (geometric mean over runs) [mm] | {_mm(g['rms_before'])} | {_mm(g['rms_after'])} |", "",
               f"Gap removed by the reported model: {_pct(g['reduction'])}"
               + (" (no effect was added)." if not result.get("params") else "."), ""]
+    lines += _heldout_lines(result)
     best = result["ranking"][0] if result["ranking"] else None
     if best is not None and effect in ("unexplained", "none"):
         lines += [f"The best candidate, `{best['effect']}`, would remove {_pct(best.get('gap_reduction'))} of the "
@@ -115,6 +116,42 @@ def markdown(result: dict, figures: list[str]) -> str:
     if figures:
         lines += ["", "## Plots", ""] + [f"![{f}]({f})" for f in figures]
     return "\n".join(lines) + "\n"
+
+
+def _heldout_lines(result: dict) -> list[str]:
+    """The model comparison: nominal, kinematic calibration and the reported model side by side, each run
+    replayed whole, open loop, by the models fitted without its fold; per session and over all runs."""
+    h = result.get("heldout")
+    if not h or not h.get("per_session"):
+        return []
+    st = result.get("start", {})
+    names = list(h["mean"]["mean_position_rms"])
+    label = {"nominal": "nominal", "kinematic": "kinematic calibration", "extended": "reported model"}
+    head = "| session | runs | " + " | ".join(f"{label.get(n, n)} [mm]" for n in names)
+    has_kin = "kinematic" in names
+    head += " | reported ÷ kinematic |" if has_kin else " |"
+    lines = ["## Held-out whole runs (open loop)", "",
+             f"Start model: **{st.get('kind', 'nominal')}** ({st.get('why', '')}). Folds by "
+             f"{h['folds_by']}: every run is replayed from its start pose, open loop, by the models fitted "
+             "without its fold (the kinematic calibration too). Metric: " + h["metric"] + ".", "",
+             head, "|---|---|" + "---|" * (len(names) + has_kin)]
+
+    def row(name: str, block: dict) -> str:
+        m = block["mean_position_rms"]
+        cells = " | ".join(_mm(m[n]) for n in names)
+        ratio = (f" | {m['extended'] / m['kinematic']:.2f} |" if has_kin and m["kinematic"] else " |")
+        return f"| {name} | {block['runs']} | {cells}{ratio}"
+
+    lines += [row(f"`{b['session']}`" if b["session"] is not None else "(none recorded)", b)
+              for b in h["per_session"]]
+    lines += [row("**all runs**", h["mean"]), ""]
+    d = h.get("drift_check", {})
+    if d.get("dropped"):
+        lines += [f"Dropped after the search: {', '.join(f'`{e}`' for e in d['dropped'])}: {d['why']} "
+                  f"({d['rule']}).", ""]
+    elif d:
+        lines += [f"Drift check: {d['rule']}; {d['why']}.", ""]
+    return lines
 
 
 def _steps_lines(result: dict) -> list[str]:

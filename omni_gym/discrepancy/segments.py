@@ -67,7 +67,7 @@ class FitData:
             return f"all {self.source_runs} runs ({self.seconds:.0f} s of robot time)"
         return (f"{len(self.groups)} segments of at most {self.segment:g} s from {len(set(self.groups.tolist()))} of "
                 f"{self.source_runs} runs ({self.seconds:.0f} s of {self.total_seconds:.0f} s of robot time), each "
-                "replayed from the tracked state at its start; folds split by source run")
+                "replayed from the tracked state at its start; folds keep each source run whole")
 
     def to_json(self) -> dict:
         """For ``result.json``: what was fitted."""
@@ -155,4 +155,4 @@ def _piece(run: Run, k0: int, k1: int, smooth: np.ndarray, rate: np.ndarray, ang
         state0 = (smooth[k0].copy(), rate[k0].copy(), ang[k0].copy(), run.cmd[k0 - 1].copy())
     return Run(name=f"{run.name}@{run.t[k0]:.0f}s", t=run.t[sl] - run.t[k0], cmd=run.cmd[sl].copy(),
                pose=run.pose[sl].copy(), enc=None if run.enc is None else run.enc[sl].copy(),
-               gyro=None if run.gyro is None else run.gyro[sl].copy(), state0=state0)
+               gyro=None if run.gyro is None else run.gyro[sl].copy(), state0=state0, session=run.session)

@@ -26,21 +26,23 @@ import math
 import sys
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from omni_gym.discrepancy import identifiability, plausible
 from omni_gym.discrepancy.candidates import Candidate, candidates, not_applicable
-from omni_gym.discrepancy.dataset import load_dataset
+from omni_gym.discrepancy.dataset import Dataset, load_dataset, sessions_of
 from omni_gym.discrepancy.decision import RULES, decide
 from omni_gym.discrepancy.events import EVENT_METHOD
 from omni_gym.discrepancy.finite import finite_json
-from omni_gym.discrepancy.fitting import Evaluator, FitResult, fit_candidate, make_folds, max_ticks, param_intervals
+from omni_gym.discrepancy.fitting import Evaluator, FitResult, fit_candidate, max_ticks, param_intervals, source_folds
+from omni_gym.discrepancy.kinematic_calibration import calibrate
 from omni_gym.discrepancy.localise import localise
 from omni_gym.discrepancy.outliers import OUTLIER_RULE, drop_outliers, find_outliers
 from omni_gym.discrepancy.residuals import count_components, geo_mse
+from omni_gym.discrepancy.score import heldout_table, heldout_whole_runs
 from omni_gym.discrepancy.segments import FIT_BUDGET, check_fit_budget, fit_data
 from omni_gym.discrepancy.simulate import FIT_DT
 from omni_gym.discrepancy.synth import pose_lever
@@ -49,6 +51,7 @@ from omni_gym.parallel import SERIAL, Backend, Executor, executor
 from omni_gym.physics.liftoff import contact_cases
 from omni_gym.physics.model import SimModel
 
+STARTS = ("nominal", "kinematic", "auto")  # gap's first model (``start``): see :func:`start_model`
 MAX_EFFECTS = 3  # most effects one gap run names (each step fits the whole library again)
 METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2)), M the geometric mean over runs "
           "(weighted by observed rows) of each run's mean squared residual over x, y and heading x lever; each run is "
@@ -58,7 +61,7 @@ METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2
 def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds: int = 3,
         progress: bool | None = None, dt: float = FIT_DT, plots: bool = True, force: bool = False,
         max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET, backend: Backend = SERIAL,
-        start: SimModel | None = None) -> dict:
+        start: str | SimModel | None = "nominal") -> dict:
     """Run the workflow on ``dataset``; write the report folder ``out`` (if given); return the result.
 
     ``progress``: tqdm bar on stderr (None: only when stderr is a terminal). Same seed, same result.
@@ -70,11 +73,16 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     is, contains or lies inside the dataset is refused.
     ``backend``: where the candidate fits run (:class:`omni_gym.parallel.Backend`; default this process,
     nothing to start); the result does not depend on it.
-    ``start``: the model the search starts from instead of the dataset's (e.g. a kinematic calibration of
-    the same robot, :func:`omni_gym.discrepancy.kinematic_calibration.calibrate`'s ``model``); the effects
-    it already carries are kept as they are and not searched again (refitting one would replace its
-    values, not add to them); in the result and the report "nominal" then means this start model.
+    ``start``: the first model, on top of which effects are searched: ``nominal`` (the dataset's model),
+    ``kinematic`` (its kinematic odometry calibration, fitted on the training runs; needs wheel odometry) or
+    ``auto`` (kinematic when every run has wheel odometry and it predicts held-out runs better, else
+    nominal), or a given :class:`SimModel` (e.g. a calibration made elsewhere: used for every fold as it is,
+    its effects kept and not searched again; None: ``nominal``); :func:`start_model`.
     """
+    if start is None:  # the dataset's own model
+        start = "nominal"
+    if not isinstance(start, SimModel) and start not in STARTS:
+        raise ValueError(f"start must be one of {', '.join(STARTS)}, got {start!r}")
     if isinstance(max_effects, bool) or not isinstance(max_effects, int) or max_effects < 1:
         raise ValueError(f"max_effects must be an integer >= 1, got {max_effects!r}")
     check_fit_budget(fit_budget)
@@ -148,13 +156,14 @@ def fit_task(shared: FitShared, task: FitTask, tick: Callable[[], None] | None =
 def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: list[str], fold_of: np.ndarray,
                  n_comp: np.ndarray, sigma: float | None, rng: np.random.Generator, bar, say, step: int,
                  reference_excess: float | None = None, seed: int = 0, ex: Executor | None = None,
-                 shared: FitShared | None = None) -> Step:
+                 shared: FitShared | None = None, refit: tuple[str, ...] = ()) -> Step:
     """Fit every library candidate not in ``exclude`` on top of ``base`` and decide (the 70 % rule
     measured against ``reference_excess``, the nominal gap, from the second step on).
 
     The fits run on ``ex`` (None: in this process, with a progress tick per search round); the
-    decision draws from ``rng`` in this process."""
-    cands = [c for c in candidates(base) if c.name not in exclude]
+    decision draws from ``rng`` in this process. ``refit``: effects ``base`` carries that are refitted from
+    their current values (:func:`_from_current`), not from the effect's own null point."""
+    cands = [_from_current(c, base) if c.name in refit else c for c in candidates(base) if c.name not in exclude]
     if step > 1:  # the bar's first total covered step 1 only
         bar.total += 1 + sum(max_ticks(c) + 1 for c in cands)
         bar.refresh()
@@ -191,13 +200,14 @@ def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: l
 
 def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress: bool | None, dt: float,
          plots: bool, max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET,
-         backend: Backend = SERIAL, start: SimModel | None = None) -> dict:
+         backend: Backend = SERIAL, start: str | SimModel = "nominal") -> dict:
     """The workflow of :func:`gap`; the report is written into ``out`` as it is (no transaction)."""
     from tqdm import tqdm
 
     show = sys.stderr.isatty() if progress is None else progress
     say = _stage_printer(progress is None and not show)  # redirected stderr: one line per stage
     ds = load_dataset(dataset)
+    whole = ds  # the source runs, whole (the drift-aware held-out score replays them)
     R = len(ds.runs)
     if R < 2:
         raise ValueError(f"{dataset}: needs at least 2 runs (held-out scoring splits by run), got {R}")
@@ -208,27 +218,32 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         say(f"fitting {fitted.describe()}")
     ds = fitted.dataset
     R = len(ds.runs)
+    rng = np.random.default_rng(seed)
+    # Folds over the source runs (by session when the dataset records several), then their segments.
+    sessions = sessions_of(whole.runs)
+    fold_src = source_folds(len(whole.runs), rng, folds, sessions)
+    fold_of, fold_src = _compact_folds(fold_src, fitted.groups)
+    first = start_model(whole, fold_src, start, dt)
+    if first.kind == "kinematic":
+        say(f"start: kinematic calibration ({first.describe()})")
+    elif first.kind == "given":
+        say("starting from the given model" + (f" (keeping its {', '.join(first.excluded)})" if first.excluded else ""))
+    nominal = first.model
     lever = pose_lever(ds.model)  # the dataset's: the same residual metric whatever the start
-    nominal = ds.model if start is None else start
-    kept = list(start.effects) if start is not None else []  # the start's effects: kept, not searched
-    if start is not None:
-        say("starting from the given model" + (f" (keeping its {', '.join(kept)})" if kept else ""))
     say(f"checking {R} runs for tracker outliers")
     flagged = find_outliers(ds, lever)
     ds = drop_outliers(ds, flagged)  # flagged rows count as not observed (outliers.py)
     if flagged:
         say(f"{len(flagged)} outlier row(s) excluded: "
             + ", ".join(f"{o.run} row {o.row}" for o in flagged[:5]) + (" ..." if len(flagged) > 5 else ""))
-    say("simulating the nominal model")
+    say(f"simulating the {first.kind} model")
     ev = Evaluator(ds, lever, dt=dt)
-    rng = np.random.default_rng(seed)
     res0, sse0, tracker = ev.nominal_baseline(nominal)
     # The decision's noise level: tracker noise and the fitting step's own integration error, which an
     # exact model would leave in the residual too (Evaluator.noise_floor).
     sigma, noise_parts = ev.noise_floor(nominal)
     n_comp = count_components(ds)
-    fold_of = make_folds(R, rng, folds, groups=fitted.groups)  # whole runs: groups 0..R-1, the plain folds
-    cands = [c for c in candidates(nominal) if c.name not in kept]
+    cands = [c for c in candidates(nominal) if c.name not in first.excluded]  # for the progress bar
     skipped = not_applicable(nominal)  # e.g. roller_gap on mecanum wheels: never fitted, said in result.json
     if skipped:
         say(f"not tried (does not apply to this robot): {', '.join(skipped)}")
@@ -245,9 +260,9 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         model, base_sse = nominal, sse0
         excess0 = _excess(sse0, n_comp, sigma**2 if sigma is not None else 0.0)
         while True:
-            step = _search_step(ev, model, base_sse, kept + [s.effect for s in steps], fold_of, n_comp, sigma, rng, bar,
-                                say, len(steps) + 1, reference_excess=excess0 if steps else None, seed=seed, ex=ex,
-                                shared=shared)
+            step = _search_step(ev, model, base_sse, [*first.excluded, *[s.effect for s in steps]], fold_of, n_comp,
+                                sigma, rng, bar, say, len(steps) + 1, reference_excess=excess0 if steps else None,
+                                seed=seed, ex=ex, shared=shared, refit=first.refit)
             fit = step.fit
             if fit is None:  # none or unexplained: the search ends here
                 break
@@ -271,10 +286,24 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
                 break
             say(f"{'named' if not step.partial else 'kept (partial)'} {step.effect}; searching the remaining gap")
         bar.update(max(bar.total - bar.n, 0))
-    first = steps[0] if steps else step
+    say("scoring whole runs open loop (held-out drift)")
+    rows, drift = _drift_check(whole, fold_src, first, steps, dt, gate=fitted.segmented)
+    searched = list(steps)  # before the drift check: the first step's decision and ranking stay the report's
+    if drift["dropped"]:
+        say(f"dropped (worse whole-run held-out drift): {', '.join(drift['dropped'])}")
+        kept = [s.effect for s in steps].index(drift["dropped"][0])  # that effect and every later one
+        drift["dropped_params"] = {s.effect: s.fit.params_all for s in steps[kept:]}
+        steps, uncertainties = steps[:kept], uncertainties[:kept]
+        model = nominal
+        for s in steps:
+            model = model.with_effect(s.effect, s.fit.params_all)
+        step = steps[-1] if steps else step
+    first_step = searched[0] if searched else step
     final = step if step.fit is None else None  # the none/unexplained answer that ended the search, if one did
-    decision = first.decision
-    by_name = {f.candidate.name: f for f in first.fits}
+    if drift["dropped"]:
+        final = None
+    decision = first_step.decision
+    by_name = {f.candidate.name: f for f in first_step.fits}
     noise_var = sigma**2 if sigma is not None else 0.0
     N = float(n_comp.sum())
     after_sse = steps[-1].fit.heldout if steps else sse0
@@ -284,6 +313,11 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     explained = bool(steps) and not steps[-1].partial
     if explained:
         effect, why = steps[0].effect, steps[0].decision["why"] if len(steps) == 1 else _chain_why(steps)
+    elif drift["dropped"] and not steps:
+        effect = "unexplained"
+        why = (f"{' + '.join(drift['dropped'])} named on the fitted segments, but the whole runs replayed open loop "
+               f"drift more with it than without on held-out runs ({drift['why']}); model.json is the {first.kind} "
+               "model")
     elif steps:
         effect = "unexplained"
         why = (f"{' + '.join(s.effect for s in steps)} together remove only "
@@ -301,10 +335,6 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         result["params"] = {}
     result["effects"] = [s.effect for s in steps]
     result["not_applicable"] = skipped
-    if start is not None:
-        result["start"] = {"model": start.to_json(), "kept_effects": kept,
-                           "note": "the search started from this model, not the dataset's; 'nominal' in this result "
-                                   "means it"}
     result["steps"] = _steps_json(steps, uncertainties, final, sse0, n_comp, noise_var)
     # What the data determine of the named effects' parameters (identifiability.py): one more batch.
     result["identifiability"] = identifiability.analyse(
@@ -341,9 +371,14 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
                 "the fit is not changed); each ranking entry lists its own under 'implausible'",
     }
     result["outliers"] = {"rows": [o.to_json() for o in flagged], "rule": OUTLIER_RULE}
+    result["start"] = first.to_json()
+    result["heldout"] = {
+        "metric": HELDOUT_METRIC, "folds_by": "session" if sessions is not None else "run",
+        **heldout_table(rows), "per_run": [r.to_json() for r in rows], "drift_check": drift}
     result["score_nominal"] = decision["score_nominal"]
     result["where"] = where
-    result["settings"] = {"seed": seed, "folds": int(fold_of.max()) + 1, "dt": dt, "lever": lever,
+    result["settings"] = {"seed": seed, "folds": int(fold_of.max()) + 1, "dt": dt, "lever": lever, "start": start,
+                          "folds_by": "session" if sessions is not None else "run",
                           "max_effects": max_effects,
                           "fit_budget": None if math.isinf(fit_budget) else float(fit_budget),  # None: no limit
                           "liftoff": EVENT_METHOD, "rules": RULES, "robot_runs_simulated": ev.simulated}
@@ -358,6 +393,210 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         say("writing report")
         write_report(Path(out), result, ds, nominal, model, lever, dt, plots=plots)
     return result
+
+
+HELDOUT_METRIC = ("whole-run open-loop position RMS [m] (Euclidean x, y error over a run's tracked rows, the "
+                  "measure of omni-gym score), each run replayed from its start pose by the models fitted without "
+                  "its fold; per session and over all runs: the mean over runs")
+
+
+@dataclass
+class StartModel:
+    """gap's first model and, per held-out fold, the same model fitted without that fold's runs.
+
+    ``kind``: ``nominal``, ``kinematic`` or ``given`` (a model passed in); ``model``: fitted on all runs;
+    ``fold_models[k]``: fitted on the source runs outside fold k (the same model for every fold when ``kind``
+    is nominal or given);
+    ``excluded``: effects of a given start model, kept as they are (not searched again); ``refit``: the
+    kinematic calibration's effects, searched again in the simulator from the calibrated values;
+    ``calibration``/``fold_calibrations``: the kinematic fits (JSON).
+    ``nominal``: the dataset's model; ``kinematic_folds``: the kinematic fold models whenever the runs
+    have wheel odometry (for the side-by-side comparison), else None.
+    """
+
+    kind: str
+    nominal: SimModel
+    model: SimModel
+    fold_models: list[SimModel]
+    excluded: tuple[str, ...] = ()
+    refit: tuple[str, ...] = ()
+    calibration: dict | None = None
+    fold_calibrations: list[dict] | None = None
+    kinematic_folds: list[SimModel] | None = None
+    kinematic_all: SimModel | None = None
+    why: str = ""
+
+    def describe(self) -> str:
+        c = self.calibration
+        if c is None:
+            return "nominal model"
+        return (f"D = [{', '.join(f'{1e3 * d:.2f}' for d in c['diameters'])}] mm, {c['size_name']} = "
+                f"{1e3 * c['L']:.2f} mm on all {c['runs']} runs")
+
+    def to_json(self) -> dict:
+        return {"kind": self.kind, "model": self.model.to_json(), "kept_effects": list(self.excluded),
+                "refit_effects": list(self.refit),
+                "why": self.why, "calibration": self.calibration, "fold_calibrations": self.fold_calibrations,
+                "note": "the search started from this model; 'nominal' in gap, ranking and steps means it (the "
+                        "dataset's own model is 'nominal' in heldout)"}
+
+
+def _from_current(cand: Candidate, model: SimModel) -> Candidate:
+    """``cand`` with its null point at the values ``model`` already has for the effect (e.g. the kinematic
+    calibration's wheel scales), so the fit starts there and is never worse on its training runs than
+    ``model``; unchanged when the effect's parameters do not map onto the candidate's dimensions."""
+    params = model.effects.get(cand.name)
+    if not params:
+        return cand
+    null = {}
+    for d in cand.dims:
+        key = d.name.rstrip("0123456789")
+        value = params.get(d.name, params.get(key))
+        if isinstance(value, (list, tuple)) and key != d.name:
+            value = value[int(d.name[len(key):]) - 1]
+        if not isinstance(value, (int, float)):
+            return cand
+        null[d.name] = float(value)
+    return replace(cand, null=null)
+
+
+def _has_odometry(ds: Dataset) -> bool:
+    return all(r.enc is not None and np.all(np.isfinite(r.enc)) for r in ds.runs)
+
+
+def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: float = FIT_DT) -> StartModel:
+    """The first model of the search (``start``: ``nominal``, ``kinematic`` or ``auto``) on the source runs
+    ``ds`` with folds ``fold_src`` (-1: a run in no fold).
+
+    The kinematic calibration (:func:`omni_gym.discrepancy.kinematic_calibration.calibrate`: effective wheel
+    diameters and L or l1 + l2 by dead reckoning) is fitted on all runs for the model the search extends,
+    and on each fold's training runs for that fold's held-out scores, so no held-out run informs the
+    kinematic model it is scored with. ValueError (one line) for ``kinematic`` without wheel odometry.
+
+    ``auto`` takes the kinematic calibration only when it also predicts the held-out runs better in the
+    simulator: its fold models' mean whole-run open-loop position RMS (:func:`heldout_whole_runs`) is at most
+    the nominal model's. Dead reckoning assumes rolling wheels; on a robot that slips hard (the synthetic
+    recovery robot's random twist steps: 73 mm dead-reckoning RMS where the simulator's nominal replay is
+    1.4 mm) the calibration fits the slip, and its diameters land at the search bounds.
+    """
+    nominal = ds.model
+    K = int(fold_src.max()) + 1
+    odometry = _has_odometry(ds)
+    if start == "kinematic" and not odometry:
+        bad = next(r.name for r in ds.runs if r.enc is None or not np.all(np.isfinite(r.enc)))
+        raise ValueError(f"{ds.path}: run {bad} has no complete wheel odometry (enc1 … enc{ds.n_wheels}): a "
+                         "kinematic start dead-reckons from measured wheel angles")
+    if not odometry:
+        if isinstance(start, SimModel):
+            return StartModel("given", nominal, start, [start] * K, excluded=tuple(start.effects),
+                              why="the model given (the same for every fold)")
+        return StartModel("nominal", nominal, nominal, [nominal] * K,
+                          why="the runs have no wheel odometry: no kinematic calibration")
+    try:
+        cal = calibrate(ds.runs, nominal)
+        fold_cals = [calibrate([r for r, f in zip(ds.runs, fold_src, strict=True) if f != k], nominal)
+                     for k in range(K)]
+    except ValueError as exc:  # e.g. no convergence on sparse observations
+        if start == "kinematic":
+            raise ValueError(f"{ds.path}: kinematic start: {exc}") from None
+        first = start if isinstance(start, SimModel) else nominal
+        return StartModel("given" if isinstance(start, SimModel) else "nominal", nominal, first, [first] * K,
+                          excluded=tuple(start.effects) if isinstance(start, SimModel) else (),
+                          why=f"no kinematic calibration of these runs ({exc})")
+    kin_folds = [c.model for c in fold_cals]
+    if isinstance(start, SimModel):
+        return StartModel("given", nominal, start, [start] * K, excluded=tuple(start.effects),
+                          calibration=cal.to_json(), fold_calibrations=[c.to_json() for c in fold_cals],
+                          kinematic_folds=kin_folds, kinematic_all=cal.model,
+                          why="the model given (the same for every fold: fitted on which runs, gap cannot know)")
+    why_auto = ""
+    if start == "auto":
+        rows = heldout_whole_runs(ds, fold_src, {"nominal": [nominal] * K, "kinematic": kin_folds},
+                                  {"nominal": nominal, "kinematic": cal.model}, dt=dt)
+        m = {n: float(np.mean([r.position_rms[n] for r in rows])) for n in ("nominal", "kinematic")}
+        why_auto = (f"held-out whole-run position RMS: nominal {1e3 * m['nominal']:.1f} mm, kinematic calibration "
+                    f"{1e3 * m['kinematic']:.1f} mm")
+        if m["kinematic"] > m["nominal"]:
+            start = "nominal"
+            why_auto = f"the kinematic calibration predicts the held-out runs worse than nominal ({why_auto})"
+    if start == "nominal":
+        return StartModel("nominal", nominal, nominal, [nominal] * K, calibration=cal.to_json(),
+                          fold_calibrations=[c.to_json() for c in fold_cals], kinematic_folds=kin_folds,
+                          kinematic_all=cal.model,
+                          why=why_auto or "start nominal asked for (the kinematic calibration is scored beside it)")
+    # The calibration's own effects are searched again, in the simulator, from the calibrated values (their
+    # null point is the calibration: a refit is never worse on its training runs than the start).
+    refit = tuple(e for e in ("wheel_radius", "wheel_geometry") if e in cal.model.effects)
+    return StartModel("kinematic", nominal, cal.model, kin_folds, refit=refit, calibration=cal.to_json(),
+                      fold_calibrations=[c.to_json() for c in fold_cals], kinematic_folds=kin_folds,
+                      kinematic_all=cal.model,
+                      why="the runs have wheel odometry: effects are searched on top of the kinematic calibration "
+                          "(fitted on each fold's training runs for held-out scores)" + (f"; {why_auto}" if why_auto
+                                                                                         else ""))
+
+
+def _compact_folds(fold_src: np.ndarray, groups: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(fold of each fitted run, fold of each source run) with the folds that hold a fitted run numbered
+    0..K-1; a source run whose fold holds no fitted segment gets -1 (no fit saw it)."""
+    seg = fold_src[groups]
+    present = np.unique(seg)
+    remap = np.full(int(fold_src.max()) + 1, -1)
+    remap[present] = np.arange(len(present))
+    return remap[seg], remap[fold_src]
+
+
+def _drift_check(whole: Dataset, fold_src: np.ndarray, first: StartModel, steps: list[Step], dt: float,
+                 gate: bool) -> tuple[list, dict]:
+    """The drift-aware held-out score: every source run replayed whole, open loop, by the nominal model, the
+    kinematic calibration (with odometry) and the start model with the named effects one after another
+    (each fold's own fits: fold params on top of the fold's start model).
+
+    ``gate`` (the fit saw segments, not whole runs): a named effect is kept only while it makes the mean
+    whole-run held-out position RMS of no session (of all runs, without sessions) worse than the chain
+    before it; the first that does is dropped
+    with every later one. A stochastic effect is replayed without its random process (its deterministic
+    part: nothing), so it is never judged here. Returns the per-run rows (models ``nominal``,
+    ``kinematic``, ``extended``) and the check's record.
+    """
+    K = len(first.fold_models)
+    det = [s for s in steps if not s.fit.candidate.stochastic]
+    chain_folds = [list(first.fold_models)]
+    chain_all = [first.model]
+    for s in det:
+        chain_folds.append([m.with_effect(s.effect, s.fit.fold_params[k]) for k, m in enumerate(chain_folds[-1])])
+        chain_all.append(chain_all[-1].with_effect(s.effect, s.fit.params_all))
+    fold_models: dict[str, list[SimModel]] = {"nominal": [first.nominal] * K}
+    all_models: dict[str, SimModel] = {"nominal": first.nominal}
+    if first.kinematic_folds is not None:
+        fold_models["kinematic"] = first.kinematic_folds
+        all_models["kinematic"] = first.kinematic_all
+    for j, (mf, ma) in enumerate(zip(chain_folds, chain_all, strict=True)):
+        fold_models[f"chain{j}"], all_models[f"chain{j}"] = mf, ma
+    rows = heldout_whole_runs(whole, fold_src, fold_models, all_models, dt=dt)
+    means = [float(np.mean([r.position_rms[f"chain{j}"] for r in rows])) for j in range(len(chain_folds))]
+    groups = list(dict.fromkeys(r.session for r in rows))  # sessions (one group of None without them)
+    per_group = [[float(np.mean([r.position_rms[f"chain{j}"] for r in rows if r.session == g])) for g in groups]
+                 for j in range(len(chain_folds))]
+    keep = len(det)
+    if gate:
+        for j in range(1, len(means)):
+            # Worse on any held-out session is worse: the model is used on sessions it never saw.
+            if any(a > b for a, b in zip(per_group[j], per_group[j - 1], strict=True)):
+                keep = j - 1
+                break
+    dropped = [s.effect for s in det[keep:]]
+    for r in rows:  # the reported columns: extended = the kept chain
+        for d in (r.position_rms, r.final_error):
+            d["extended"] = d[f"chain{keep}"]
+            for j in range(len(chain_folds)):
+                d.pop(f"chain{j}")
+    why = ", ".join(f"{1e3 * m:.1f} mm" for m in means)
+    return rows, {"rule": "segments fitted: a named effect is kept only while the mean whole-run held-out position "
+                          "RMS of no session grows (checked in the order named)" if gate else
+                          "whole runs fitted: the fit's held-out score already includes whole-run drift",
+                  "chain": [first.kind] + [s.effect for s in det], "mean_position_rms": means,
+                  "sessions": groups, "session_mean_position_rms": per_group,
+                  "dropped": dropped, "why": f"mean whole-run held-out position RMS along the chain: {why}"}
 
 
 def _chain_why(steps: list[Step]) -> str:

@@ -387,7 +387,7 @@ def convert_run(raw: RawRun, meta: Metadata, name: str | None = None) -> Run:
             k = int(outside[0]) + 1
             raise InputError(f"{path}: line {raw.lines[k]}: the counts give a {what} outside "
                              f"{bound.within()} ({np.max(np.abs(values[k - 1])):.4g})")
-    return Run(name=name or run_name(path), t=t, cmd=cmd, pose=pose, enc=enc)
+    return Run(name=name or run_name(path), t=t, cmd=cmd, pose=pose, enc=enc, session=meta.session)
 
 
 def find_session(folder: str | Path) -> tuple[Path, list[Path]]:
