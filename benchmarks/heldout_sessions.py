@@ -24,8 +24,8 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from real_optiodom import plot_growth  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
 
 from omni_gym.discrepancy.dataset import Run  # noqa: E402
 from omni_gym.discrepancy.importers.optiodom import nominal_model, read_sessions  # noqa: E402
@@ -132,26 +132,9 @@ def markdown(rec: dict) -> str:
 
 
 def plot(rec: dict, out: Path) -> Path:
-    """Mean position error against time, one panel per held-out session."""
-    n = len(rec["growth"])
-    fig, axes = plt.subplots(1, n, figsize=(3.6 * n, 3.2), squeeze=False)
-    style = {"nominal": ("tab:red", ":"), "kinematic": ("tab:blue", "--"), "extended": ("tab:green", "-")}
-    for ax, (name, curves) in zip(axes[0], rec["growth"].items(), strict=True):
-        for m, pts in curves.items():
-            a = np.array(pts)
-            ax.plot(a[:, 0], 1e3 * a[:, 1], style[m][1], color=style[m][0], label=m)
-        ax.set_title(name, fontsize=9)
-        ax.set_xlabel("time since start [s]")
-        ax.grid(alpha=0.3)
-    axes[0][0].set_ylabel("mean position error [mm]")
-    axes[0][0].legend(fontsize=8)
-    fig.suptitle(f"{rec['robot']}: held-out sessions, whole runs open loop (models fitted on the training runs)",
-                 fontsize=10)
-    fig.tight_layout()
-    path = out / f"heldout_sessions_{rec['robot']}.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    """Mean position error against time, one panel per held-out session (``real_optiodom.plot_growth``)."""
+    return plot_growth(rec["growth"], f"{rec['robot']}: held-out sessions, whole runs open loop (models fitted on "
+                       "the training runs)", out / f"heldout_sessions_{rec['robot']}.png")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -557,22 +557,30 @@ def error_growth(sessions: list[Session], pred: dict) -> dict:
 
 def growth_plot(out: Path, stem: str, robot: Robot, growth: dict) -> Path:
     """``{stem}_growth.png``: mean position error against time, one panel per held-out session."""
+    return plot_growth(growth, f"{robot.title}: error growth on the held-out sessions, whole runs open loop",
+                       out / f"{stem}_growth.png")
+
+
+GROWTH_STYLE = {"nominal": ("tab:gray", ":"), "kinematic": ("tab:blue", "--"), "kinematic_sim": ("tab:cyan", "-."),
+                "extended": ("tab:green", "-")}  # model -> (colour, line style)
+
+
+def plot_growth(growth: dict, title: str, path: Path) -> Path:
+    """Mean position error [mm] against time since each run's start [s], one panel per held-out session:
+    ``growth`` maps session -> model -> [(t, error [m]), ...] (also used by ``heldout_sessions.py``)."""
     n = len(growth)
     fig, axes = plt.subplots(1, n, figsize=(3.6 * n, 3.2), squeeze=False)
-    style = {"nominal": ("tab:gray", ":"), "kinematic": ("tab:blue", "--"), "kinematic_sim": ("tab:cyan", "-."),
-             "extended": ("tab:green", "-")}
     for ax, (name, curves) in zip(axes[0], growth.items(), strict=True):
         for m, pts in curves.items():
             a = np.array(pts)
-            ax.plot(a[:, 0], 1e3 * a[:, 1], style[m][1], color=style[m][0], label=m)
+            ax.plot(a[:, 0], 1e3 * a[:, 1], GROWTH_STYLE[m][1], color=GROWTH_STYLE[m][0], label=m)
         ax.set_title(name, fontsize=9)
         ax.set_xlabel("time since start [s]")
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("mean position error [mm]")
     axes[0][0].legend(fontsize=8)
-    fig.suptitle(f"{robot.title}: error growth on the held-out sessions, whole runs open loop", fontsize=10)
+    fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    path = out / f"{stem}_growth.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path

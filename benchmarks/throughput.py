@@ -39,6 +39,9 @@ from omni_gym.outputs import write_text_atomic
 
 ENV_ID = "OmniPathFollow-WilliamsPaper-v0"
 SENSORS_ID = "OmniPathFollow-Phunopas-v0"
+# Four omni wheels (roller-gap friction) against four mecanum wheels, each with random lift-off: the mecanum
+# id is to step at least as fast as the Phunopas id, in the same run.
+FOUR_WHEEL_IDS = ("OmniPathFollow-Phunopas-v0", "OmniPathFollow-Mecanum-v0")
 ACTION_POOL = 4096  # random actions drawn before timing and cycled
 
 
@@ -123,6 +126,14 @@ def main() -> None:
     for n in (64, 256):
         rate, eps = best(vector_rate, args.repeats, SENSORS_ID, n, args.seconds, "sensors")
         rows.append((f"{SENSORS_ID} vector_entry_point, obs_mode=sensors", n, rate, eps))
+    four = {}
+    for env_id in FOUR_WHEEL_IDS:
+        four[env_id] = best(single_rate, args.repeats, env_id, args.seconds)
+        rows.append((f"{env_id} (gym.make)", 1, *four[env_id]))
+        rate, eps = best(vector_rate, args.repeats, env_id, 1024, args.seconds, "state", 1)
+        four[env_id, 1024] = rate
+        rows.append((f"{env_id} vector_entry_point, 1 thread", 1024, rate, eps))
+    omni, mecanum = FOUR_WHEEL_IDS
     lines = [
         "# Throughput: environment steps per second, ratio to LunarLander-v3 in the same run",
         "",
@@ -133,7 +144,10 @@ def main() -> None:
         "20 per 10 ms control step). Load average (1 min) of the machine, other jobs included: "
         f"{load_before:.1f} at the start, {os.getloadavg()[0]:.1f} at the end of the run ({os.cpu_count()} cores: "
         "a higher load slows every row, the threaded N = 1024 row most). N = 1024 on all "
-        f"{numba.config.NUMBA_NUM_THREADS} numba threads ÷ on one thread: {all_cores / one:.2f}× (target ≥ 1.8×).",
+        f"{numba.config.NUMBA_NUM_THREADS} numba threads ÷ on one thread: {all_cores / one:.2f}× (target ≥ 1.8×). "
+        f"Mecanum ÷ Phunopas (four mecanum against four omni wheels, both with lift-off; target ≥ 1): "
+        f"{four[mecanum][0] / four[omni][0]:.2f}× through gym.make, "
+        f"{four[mecanum, 1024] / four[omni, 1024]:.2f}× at N = 1024 on one thread.",
         "",
         "| environment | N | env steps/s | × LunarLander-v3 | episodes ended | target |",
         "|---|---|---|---|---|---|",
