@@ -3,8 +3,8 @@
 The dataset's own omni4 dead reckoning is written here from the data README alone: the run file read
 with numpy, wheel travel per cycle π·D_i·odo_i/(ngear·encRes), the README's forward kinematics
 dx = (Δ1 − Δ2 + Δ3 − Δ4)/4, dy = (−Δ1 − Δ2 + Δ3 + Δ4)/4, dθ = −(Δ1 + Δ2 + Δ3 + Δ4)/(2(l1 + l2)), and the
-displacement applied along the mid-cycle heading (an arc when dθ ≠ 0). Tests that replay the imported
-commands need mecanum wheels in the physics and are skipped where it has none.
+displacement applied along the mid-cycle heading (an arc when dθ ≠ 0). The replay tests check the mecanum
+physics against it.
 """
 
 from __future__ import annotations
@@ -23,7 +23,6 @@ from omni_gym.cli import main
 from omni_gym.discrepancy.importers.optiodom import (
     import_optiodom,
     kinematic_geometry,
-    mecanum_supported,
     nominal_model_json,
     omni4_wheel_layout,
     read_metadata,
@@ -38,9 +37,6 @@ SQUARE = DATA / "square" / "080920201715"  # 8 runs of 58 s (held out by the ben
 OMNI3 = ROOT / "data" / "optiodom-omni3" / "circular" / "221220201730"
 D, L12 = 0.06, 0.4  # the README: Di 0.06 m, l1 = l2 = 0.2 m; ngear = encRes = 1 (a count is one revolution)
 
-needs_mecanum = pytest.mark.skipif(not mecanum_supported(),
-                                   reason="the physics has no mecanum wheels yet (Wheel.roller_angle): the "
-                                          "omni4 nominal model cannot be simulated")
 
 
 def read_raw(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -194,15 +190,6 @@ def test_a_run_in_both_forms_and_a_short_row_are_refused(tmp_path):
 # --- with the physics: replay and score --------------------------------------------------------------------
 
 
-@pytest.mark.skipif(mecanum_supported(), reason="the physics has mecanum wheels: omni4 imports work")
-def test_without_mecanum_physics_the_import_is_refused_in_one_line(tmp_path, capsys):
-    folder = copy_session(SQUARE, tmp_path / "s", rows=50)
-    assert main(["import", "optiodom", str(folder), "--out", str(tmp_path / "ds")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "mecanum" in err and str(folder / "080920201715_metadata.csv") in err
-    assert not (tmp_path / "ds").exists()
-
-
 @pytest.fixture(scope="module")
 def omni4_dataset(tmp_path_factory):
     """Runs 1 and 2 of square/080920201715 (58 s each) imported."""
@@ -214,7 +201,6 @@ def omni4_dataset(tmp_path_factory):
     return folder, root / "ds", load_dataset(root / "ds")
 
 
-@needs_mecanum
 def test_nominal_model_is_the_readme_kinematics(omni4_dataset):
     """The imported model's r·W is the README's inverse kinematics, and the importer's own layout table
     (which the physics-free calibration geometry uses) is the physics preset's."""
@@ -232,7 +218,6 @@ def test_nominal_model_is_the_readme_kinematics(omni4_dataset):
         assert (list(w.position), list(w.drive), w.roller_angle) == (t["position"], t["drive"], t["roller_angle"])
 
 
-@needs_mecanum
 def test_replay_reproduces_the_readme_dead_reckoning_within_1mm_on_a_stiff_floor(omni4_dataset):
     """The simulator replaying the imported commands (nominal model, μ_drive 10 and free rollers, 0.1 ms
     substep as the omni3 check) against the README recursion over two whole 58 s runs.
@@ -253,7 +238,6 @@ def test_replay_reproduces_the_readme_dead_reckoning_within_1mm_on_a_stiff_floor
         assert np.max(np.abs(pose[:, 2] - readme[:, 2])) < 1e-3
 
 
-@needs_mecanum
 def test_score_and_calibrate_work_on_an_omni4_dataset(omni4_dataset, tmp_path, capsys):
     """``score`` replays the omni4 runs (nominal 80–200 mm RMS as the README's dead reckoning, wider band
     [60, 250] mm for the simulated friction); ``calibrate`` fits D1–D4 and l1 + l2 and the calibrated model

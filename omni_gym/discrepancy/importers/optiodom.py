@@ -488,25 +488,13 @@ def _zero(v: float, scale: float) -> float:
     return 0.0 if abs(v) < 1e-12 * scale else v
 
 
-def mecanum_supported() -> bool:
-    """Whether the physics has mecanum wheels (``Wheel.roller_angle``), which an omni4 model needs."""
-    from dataclasses import fields
-
-    from omni_gym.physics.robot import Wheel
-
-    return any(f.name == "roller_angle" for f in fields(Wheel))
-
-
 def _omni4_preset(meta: Metadata):
-    """The physics' OptiOdom omni4 preset at this session's l1, l2 and mean diameter, or None where the
-    physics has none yet (its assumptions, inertia and body radius are then this module's)."""
-    from omni_gym.physics import robot
+    """The physics' OptiOdom omni4 preset at this session's l1, l2 and mean diameter (its wheels, inertia,
+    rollers and body radius are the nominal model's)."""
+    from omni_gym.physics.robot import optiodom_omni4
 
-    preset = getattr(robot, "optiodom_omni4", None)
-    if preset is None:
-        return None
     mean = float(np.mean(meta.D))
-    return preset(meta.Li[0], meta.Li[1], (mean,) * 4)
+    return optiodom_omni4(meta.Li[0], meta.Li[1], (mean,) * 4)
 
 
 def nominal_model_json(meta: Metadata, mass: float | None = None, inertia: float | None = None,
@@ -518,7 +506,7 @@ def nominal_model_json(meta: Metadata, mass: float | None = None, inertia: float
     of the wheel circle; omni4 the physics preset ``optiodom_omni4``'s, a plate the size of the footprint,
     scaled to ``mass``); ``surface``: a preset name. If the Di differ, ``wheel_radius`` is mean(Di)/2 and a
     ``wheel_radius`` effect carries the scales Di/mean. omni4 wheels, rollers and body radius come from the
-    preset where the physics has it (this module's table and constants otherwise: the same layout).
+    physics preset ``optiodom_omni4`` (the same layout as this module's kinematic table ``OMNI4_WHEELS``).
     """
     mass = default_mass(meta.kind) if mass is None else mass
     MODEL_BOUNDS["mass"].check(mass, "--mass")
@@ -559,14 +547,7 @@ def nominal_model_json(meta: Metadata, mass: float | None = None, inertia: float
 
 def nominal_model(meta: Metadata, mass: float | None = None, inertia: float | None = None,
                   surface: str = SURFACE) -> SimModel:
-    """The nominal :class:`SimModel` of a session (:func:`nominal_model_json`).
-
-    An omni4 session needs mecanum wheels in the physics (``Wheel.roller_angle``): InputError naming the
-    metadata file if this version of the physics has none (a model without them would be silently wrong).
-    """
-    if meta.kind == "omni4" and not mecanum_supported():
-        raise InputError(f"{meta.path}: type omni4 has mecanum wheels, which this version of the physics does "
-                         "not model (no Wheel.roller_angle)")
+    """The nominal :class:`SimModel` of a session (:func:`nominal_model_json`)."""
     data = nominal_model_json(meta, mass, inertia, surface)
     try:
         return SimModel.from_json(data, where="nominal model")
