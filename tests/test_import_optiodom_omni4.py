@@ -28,7 +28,7 @@ from omni_gym.discrepancy.importers.optiodom import (
     read_metadata,
     read_sessions,
 )
-from omni_gym.discrepancy.kinematic_calibration import dead_reckon
+from omni_gym.discrepancy.kinematic_calibration import dead_reckon, layout_geometry
 from omni_gym.io import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -202,20 +202,20 @@ def omni4_dataset(tmp_path_factory):
 
 
 def test_nominal_model_is_the_readme_kinematics(omni4_dataset):
-    """The imported model's r·W is the README's inverse kinematics, and the importer's own layout table
-    (which the physics-free calibration geometry uses) is the physics preset's."""
-    from omni_gym.physics.robot import optiodom_omni4
-
+    """The imported model's r·W is the README's inverse kinematics, and so is that of the layout the
+    calibration geometry uses, at a session's own l1, l2."""
     _, _, ds = omni4_dataset
     r = ds.model.robot
     c = L12 / 2
     readme = np.array([[1, -1, -c], [-1, -1, -c], [1, 1, -c], [-1, 1, -c]])
     assert np.allclose(r.wheel_radius * r.wheel_matrix(), readme, atol=1e-12)
     assert r.mass == 4.0 and ds.model.surface.name == "grip"
-    preset = optiodom_omni4(0.205, 0.215)
     table = omni4_wheel_layout(0.205, 0.215)
-    for w, t in zip(preset.wheels, table, strict=True):
-        assert (list(w.position), list(w.drive), w.roller_angle) == (t["position"], t["drive"], t["roller_angle"])
+    geometry = layout_geometry([w["position"] for w in table], [w["drive"] for w in table],
+                               [w["roller_angle"] for w in table], np.full(4, 2.0))
+    c = (0.205 + 0.215) / 2
+    readme = np.array([[1, -1, -c], [-1, -1, -c], [1, 1, -c], [-1, 1, -c]])
+    assert np.allclose(geometry.wheel_matrix(), readme, atol=1e-12)  # diameters 2 m: r = 1
 
 
 def test_replay_reproduces_the_readme_dead_reckoning_within_1mm_on_a_stiff_floor(omni4_dataset):

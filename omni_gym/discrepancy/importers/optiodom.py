@@ -94,13 +94,6 @@ TYPES: dict[str, RobotType] = {
 # (0, 1). Equal positive ticks then turn the robot clockwise (yaw rate −r·w/Li), as the README states.
 WHEEL_ANGLES_DEG = (-60.0, 60.0, 180.0)
 
-# omni4: wheel i at (sx·l1/2, sy·l2/2) with drive direction (dx, 0) and roller angle γ [rad]. With the
-# physics' mecanum rolling constraint (rim speed = (d + tan γ · z×d) · wheel-centre velocity) these rows
-# are the data README's inverse kinematics, Δ1 = dx − dy − c·dθ, Δ2 = −dx − dy − c·dθ,
-# Δ3 = dx + dy − c·dθ, Δ4 = −dx + dy − c·dθ with c = (l1 + l2)/2 (OptiOdom's simulateRobot_omni4.m).
-OMNI4_WHEELS = ((1.0, 1.0, 1.0, -math.pi / 4), (1.0, -1.0, -1.0, math.pi / 4),
-                (-1.0, 1.0, 1.0, math.pi / 4), (-1.0, -1.0, -1.0, -math.pi / 4))
-
 # Not published with the data. omni3 is a three-wheeled base about 0.45 m across (wheels at 0.195 m,
 # 102 mm wheels, geared DC motors, battery and computer on board): 8 kg is an assumed, typical mass for
 # such a base. omni4 is a smaller four-wheeled base (wheel centres 0.2 m apart each way, 60 mm wheels):
@@ -473,10 +466,13 @@ def wheel_layout(L: float) -> list[dict]:
 
 
 def omni4_wheel_layout(l1: float, l2: float) -> list[dict]:
-    """omni4: the four mecanum wheels at (±l1/2, ±l2/2) [m] with drive directions and roller angles [rad]
-    (``OMNI4_WHEELS``; model JSON ``wheels[i].roller_angle``)."""
-    return [{"position": [sx * l1 / 2, sy * l2 / 2], "drive": [dx, 0.0], "roller_angle": gamma}
-            for sx, sy, dx, gamma in OMNI4_WHEELS]
+    """omni4: the four mecanum wheels of the physics preset ``optiodom_omni4`` at (±l1/2, ±l2/2) [m], with
+    drive directions and roller angles [rad] (model JSON ``wheels[i].roller_angle``); its wheel matrix is
+    the data README's inverse kinematics (OptiOdom's simulateRobot_omni4.m)."""
+    from omni_gym.physics.robot import optiodom_omni4
+
+    return [{"position": list(w.position), "drive": list(w.drive), "roller_angle": w.roller_angle}
+            for w in optiodom_omni4(l1, l2).wheels]
 
 
 def layout(meta: Metadata) -> list[dict]:
@@ -506,7 +502,7 @@ def nominal_model_json(meta: Metadata, mass: float | None = None, inertia: float
     of the wheel circle; omni4 the physics preset ``optiodom_omni4``'s, a plate the size of the footprint,
     scaled to ``mass``); ``surface``: a preset name. If the Di differ, ``wheel_radius`` is mean(Di)/2 and a
     ``wheel_radius`` effect carries the scales Di/mean. omni4 wheels, rollers and body radius come from the
-    physics preset ``optiodom_omni4`` (the same layout as this module's kinematic table ``OMNI4_WHEELS``).
+    physics preset ``optiodom_omni4``.
     """
     mass = default_mass(meta.kind) if mass is None else mass
     MODEL_BOUNDS["mass"].check(mass, "--mass")
@@ -516,9 +512,7 @@ def nominal_model_json(meta: Metadata, mass: float | None = None, inertia: float
     rollers = ROLLERS_OMNI4 if meta.kind == "omni4" else ROLLERS
     default_inertia = INERTIA_DISC_FACTOR * mass * rho**2
     preset = _omni4_preset(meta) if meta.kind == "omni4" else None
-    if preset is not None:
-        wheels = [{"position": list(w.position), "drive": list(w.drive), "roller_angle": w.roller_angle}
-                  for w in preset.wheels]
+    if preset is not None:  # the wheels are already the preset's (layout)
         default_inertia = preset.inertia * mass / preset.mass
         body_radius, rollers = preset.body_radius, preset.rollers
     inertia = default_inertia if inertia is None else inertia
