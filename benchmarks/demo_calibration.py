@@ -26,15 +26,16 @@ import argparse
 import os
 import sys
 import time
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from real_optiodom import cut  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
 
-from omni_gym.discrepancy.dataset import Dataset, Run  # noqa: E402
+from omni_gym.discrepancy.dataset import Dataset  # noqa: E402
 from omni_gym.discrepancy.importers.optiodom import nominal_model, read_sessions  # noqa: E402
 from omni_gym.discrepancy.kinematic_calibration import calibrate  # noqa: E402
 from omni_gym.discrepancy.score import score_models  # noqa: E402
@@ -62,15 +63,6 @@ CASES = (
               "circular/231220200502", "four mecanum wheels; held out: circles recorded on another day"),
 )
 QUICK_HELDOUT = 20.0  # s, --quick replay length
-
-
-def cut(run: Run, seconds: float) -> Run:
-    """The first ``seconds`` of a run: every per-row array (times, commands, poses, encoders) sliced alike."""
-    k = int(np.searchsorted(run.t, seconds, side="right"))
-    rows = run.t.shape
-    changes = {f.name: getattr(run, f.name)[:k] for f in fields(run)
-               if isinstance(getattr(run, f.name), np.ndarray) and getattr(run, f.name).shape[:1] == rows}
-    return replace(run, **changes)
 
 
 @dataclass
