@@ -59,6 +59,7 @@ from omni_gym.io import InputError, read_text
 from omni_gym.outputs import Output
 from omni_gym.physics.friction import surface_preset
 from omni_gym.physics.model import SimModel
+from omni_gym.physics.robot import OPTIODOM_MASS, optiodom_omni4, robot_preset
 
 # --- the nominal models: geometry from the data's READMEs, assumptions where nothing is published -------
 
@@ -96,11 +97,10 @@ WHEEL_ANGLES_DEG = (-60.0, 60.0, 180.0)
 
 # Not published with the data. omni3 is a three-wheeled base about 0.45 m across (wheels at 0.195 m,
 # 102 mm wheels, geared DC motors, battery and computer on board): 8 kg is an assumed, typical mass for
-# such a base. omni4 is a smaller four-wheeled base (wheel centres 0.2 m apart each way, 60 mm wheels):
-# 4 kg assumed. On the default floor (SURFACE) the replay hardly depends on either (the wheels do not
-# slip); ``--mass`` changes it.
+# such a base. omni4's mass, inertia, rollers and body radius are the physics preset ``optiodom_omni4``'s
+# (omni_gym.physics.robot, with the reasons for each assumed value). On the default floor (SURFACE) the replay
+# hardly depends on either mass (the wheels do not slip); ``--mass`` changes it.
 MASS = 8.0  # kg, omni3
-MASS_OMNI4 = 4.0  # kg
 # Yaw inertia [kg·m²] default: 0.5·m·ρ², a uniform disc of the radius ρ of the wheel centres (the
 # convention of the project's presets, omni_gym.physics.robot.regular); ``--inertia`` changes it.
 INERTIA_DISC_FACTOR = 0.5
@@ -109,7 +109,6 @@ INERTIA_DISC_FACTOR = 0.5
 # Either way a roller always touches the floor, so no rigid material does: roller_fraction 1.0 and the
 # ``initial`` friction model (no roller-gap switching).
 ROLLERS = 18
-ROLLERS_OMNI4 = 9
 ROLLER_FRACTION = 1.0
 FRICTION = "initial"
 # The floor is not characterised. OptiOdom (like every kinematic odometry calibration) assumes the
@@ -129,7 +128,7 @@ _NAN = re.compile(r"[+-]?nan", re.IGNORECASE)
 
 def default_mass(kind: str) -> float:
     """The assumed mass [kg] of a robot type's nominal model (not published with the data)."""
-    return MASS_OMNI4 if kind == "omni4" else MASS
+    return OPTIODOM_MASS if kind == "omni4" else MASS
 
 
 @dataclass(frozen=True)
@@ -469,8 +468,6 @@ def omni4_wheel_layout(l1: float, l2: float) -> list[dict]:
     """omni4: the four mecanum wheels of the physics preset ``optiodom_omni4`` at (±l1/2, ±l2/2) [m], with
     drive directions and roller angles [rad] (model JSON ``wheels[i].roller_angle``); its wheel matrix is
     the data README's inverse kinematics (OptiOdom's simulateRobot_omni4.m)."""
-    from omni_gym.physics.robot import optiodom_omni4
-
     return [{"position": list(w.position), "drive": list(w.drive), "roller_angle": w.roller_angle}
             for w in optiodom_omni4(l1, l2).wheels]
 
@@ -487,7 +484,6 @@ def _zero(v: float, scale: float) -> float:
 def _omni4_preset(meta: Metadata):
     """The physics' OptiOdom omni4 preset at this session's l1, l2 and mean diameter (its wheels, inertia,
     rollers and body radius are the nominal model's)."""
-    from omni_gym.physics.robot import optiodom_omni4
 
     mean = float(np.mean(meta.D))
     return optiodom_omni4(meta.Li[0], meta.Li[1], (mean,) * 4)
@@ -509,7 +505,7 @@ def nominal_model_json(meta: Metadata, mass: float | None = None, inertia: float
     wheels = layout(meta)
     rho = max(math.hypot(*w["position"]) for w in wheels)
     body_radius = rho + BODY_MARGIN
-    rollers = ROLLERS_OMNI4 if meta.kind == "omni4" else ROLLERS
+    rollers = ROLLERS
     default_inertia = INERTIA_DISC_FACTOR * mass * rho**2
     preset = _omni4_preset(meta) if meta.kind == "omni4" else None
     if preset is not None:  # the wheels are already the preset's (layout)
@@ -554,7 +550,7 @@ def describe(metas: list[Metadata], n_runs: int, mass: float, inertia: float, su
     ids = ", ".join(m.session for m in metas)
     kind = metas[0].kind
     counts = "wheel revolutions per 10 ms" if kind == "omni4" else "encoder ticks per 40 ms"
-    rollers = ROLLERS_OMNI4 if kind == "omni4" else ROLLERS
+    rollers = robot_preset("optiodom_omni4").rollers if kind == "omni4" else ROLLERS
     return (f"OptiOdom {kind} sessions {ids} ({n_runs} runs; {counts} and motion capture, public OptiOdom "
             f"dataset, MIT licence), imported by omni-gym import optiodom. Geometry and wheel diameters from the "
             f"metadata; assumed (not published): mass {mass:g} kg, inertia {inertia:.4g} kg·m², {rollers} rollers, "
