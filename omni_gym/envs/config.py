@@ -26,9 +26,10 @@ import numpy as np
 
 from omni_gym.bounds import RATE_MAX, Bound, wheel_count
 from omni_gym.checks import is_number, unknown_key
+from omni_gym.io import read_json
 from omni_gym.physics import effects as effect_library
 from omni_gym.physics.friction import FRICTION_MODELS, SURFACES, Surface
-from omni_gym.physics.model import ACTUATIONS, SimModel, read_json
+from omni_gym.physics.model import ACTUATIONS, SimModel
 from omni_gym.physics.robot import PRESETS, robot_preset
 from omni_gym.sensors import SensorConfig
 
@@ -271,7 +272,7 @@ def _read_model_file(value) -> SimModel:
     path = Path(os.fsdecode(value))
     label = f"model={str(path)!r}"  # the whole path (repr of a str is one line)
     try:
-        data = read_json(path)  # the one JSON file reader (omni_gym.physics.model)
+        data = read_json(path)  # the one JSON file reader (omni_gym.io)
     except ValueError as exc:
         raise ValueError(f"invalid {label}: {str(exc).removeprefix(f'{path}: ')}") from None
     return _model_from_json(data, label)
