@@ -214,7 +214,7 @@ def _shown(value) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-@pytest.mark.parametrize("source", ["OmniPathEnv", "OmniPathVectorEnv", "docs/environments.md"])
+@pytest.mark.parametrize("source", ["OmniPathEnv", "docs/environments.md"])
 def test_every_keyword_is_documented_with_each_ids_default(source):
     """Every keyword make_config accepts has a row, and its default column names, for every registered id,
     the value that id's environment actually runs with."""

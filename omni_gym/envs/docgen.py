@@ -3,9 +3,9 @@
 The keyword table comes from the :class:`~omni_gym.envs.config.EnvConfig` declarations
 (:class:`~omni_gym.envs.config.Option`: default, kind, bound or choices, unit, meaning) and the
 registered ids' own values (:data:`omni_gym.envs.ENV_IDS`); the observation tables from
-:mod:`omni_gym.envs.observations`. The same tables stand in the docstrings of ``OmniPathEnv`` and
-``OmniPathVectorEnv`` and in ``docs/environments.md``; the bounds with their reasons (from the same
-declarations) in ``docs/bounds.md``::
+:mod:`omni_gym.envs.observations`. The keyword table stands in the docstring of ``OmniPathEnv`` and in
+``docs/environments.md``, the observation tables there and in ``OmniPathVectorEnv``'s docstring, the
+bounds with their reasons (from the same declarations) in ``docs/bounds.md``::
 
     python -m omni_gym.envs.docgen --check   # exit 1 naming every stale file (tests/test_env_docs.py)
     python -m omni_gym.envs.docgen --write   # rewrite them
@@ -117,10 +117,10 @@ def targets() -> list[Target]:
     """Every generated table in every file that shows one."""
     obs = {mode: build_layout(mode, 3, 3).table() for mode in OBS_MODES}
     out = []
-    for path, options_anchor in (("omni_gym/envs/omni_env.py", r"\s*## Arguments$"),
-                                 ("omni_gym/envs/vector.py", r"\s*## Arguments$"),
-                                 ("docs/environments.md", r"## Keyword arguments$")):
-        out.append(Target(path, options_anchor, options_table()))
+    keywords = {"omni_gym/envs/omni_env.py": r"\s*## Arguments$", "docs/environments.md": r"## Keyword arguments$"}
+    for path in ("omni_gym/envs/omni_env.py", "omni_gym/envs/vector.py", "docs/environments.md"):
+        if path in keywords:  # the vector docstring refers to OmniPathEnv's table for the keywords
+            out.append(Target(path, keywords[path], options_table()))
         for mode in OBS_MODES:
             out.append(Target(path, rf'\s*`{{1,2}}obs_mode="{mode}"`{{1,2}} \(', obs[mode]))
     out.append(Target("docs/bounds.md", r"## Environment keywords", bounds_table()))
