@@ -54,8 +54,8 @@ WHEEL_COUNT = wheel_count()  # (3, 16): the one wheel-count bound (omni_gym.boun
 MIN_OBSTACLE_RADIUS = 0.001  # m
 WALL_RADIUS = 0.01  # m, thickness of the wall segments (omni_gym.physics.world)
 
-
-KINDS = ("robot", "choice", "model", "flag", "number", "range", "obstacles")
+# How a keyword is checked (Option.kind); the last three have checks of their own.
+KINDS = ("choice", "number", "range", "flag", "robot", "model", "obstacles")
 
 
 @dataclass(frozen=True)
@@ -310,7 +310,7 @@ class EnvConfig:
 
 
 OPTIONS: dict[str, Option] = {f.name: replace(f.metadata["option"], name=f.name) for f in fields(EnvConfig)}
-# The numeric bounds; their reasons: docs/bounds.md, "Environment keywords".
+# The numeric bounds (with their reasons, shown in docs/bounds.md, "Environment keywords").
 BOUNDS: dict[str, Bound] = {name: o.bound() for name, o in OPTIONS.items() if o.kind == "number"}
 RANDOM_BOUNDS: dict[str, tuple[float, float]] = {name: (o.lo, o.hi) for name, o in OPTIONS.items()
                                                  if o.kind == "range"}
