@@ -74,7 +74,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from agents.slip_detector import DetectorConfig, SlipDetector
-from omni_gym.checks import wrap_angle
+from omni_gym.angles import wrap_angle
 from omni_gym.physics.robot import RobotSpec
 
 X, Y, TH, VX, VY, OM, BG = range(7)

@@ -52,7 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from omni_gym.checks import wrap_angle
+from omni_gym.angles import wrap_angle
 
 
 @dataclass(frozen=True)

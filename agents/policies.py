@@ -1,6 +1,6 @@
 """Scripted baseline policies for the omni-gym environments with ``obs_mode="sensors"``.
 
-Every policy reads only the sensor observation (decoded by :class:`~omni_gym.envs.decode.SensorObsDecoder`),
+Every policy reads only the sensor observation (decoded by :class:`~omni_gym.envs.observations.SensorObsDecoder`),
 never ``info``, and is deterministic given the observations:
 
     policy = make_policy("ekf-pid", env)
@@ -45,7 +45,7 @@ import math
 import numpy as np
 
 from agents.pid import PathPID, PIDGains
-from omni_gym.envs.decode import SensorObs, SensorObsDecoder
+from omni_gym.envs.observations import SensorObs, SensorObsDecoder
 
 POLICY_NAMES = ("open-loop", "odometry-pid", "ekf-pid", "ekf-pid-traction")
 

@@ -62,7 +62,7 @@ from agents.rewards import (
     step_headings,
     tracking_reward,
 )
-from omni_gym.checks import wrap_angle
+from omni_gym.angles import wrap_angle
 
 WRAPPERS = ("none", "residual-ekf-pid", "ekf-features", "feedforward")
 POS_SCALE = 0.05  # m: tracking errors of a few cm are what the agent must act on

@@ -49,7 +49,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 from PIL import Image, ImageDraw  # noqa: E402
 
 import omni_gym  # noqa: E402, F401  (registers the environments)
-from omni_gym.checks import wrap_angle  # noqa: E402
+from omni_gym.angles import wrap_angle  # noqa: E402
 from omni_gym.envs import ENV_IDS, render  # noqa: E402
 
 iio = render.require("imageio.v3", "writing the demo GIFs")  # clear message without the render extra

@@ -31,7 +31,8 @@ from omni_gym.discrepancy.dataset import Run  # noqa: E402
 from omni_gym.discrepancy.importers.optiodom import nominal_model, read_sessions  # noqa: E402
 from omni_gym.discrepancy.kinematic_calibration import calibrate, position_rms  # noqa: E402
 from omni_gym.discrepancy.simulate import FIT_DT, Job, simulate_poses  # noqa: E402
-from omni_gym.physics.model import SimModel, read_json  # noqa: E402
+from omni_gym.io import read_json  # noqa: E402
+from omni_gym.physics.model import SimModel  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 ROBOTS = {

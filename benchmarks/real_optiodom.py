@@ -55,7 +55,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from omni_gym.checks import wrap_angle  # noqa: E402
+from omni_gym.angles import wrap_angle  # noqa: E402
 from omni_gym.discrepancy.dataset import Run, write_dataset  # noqa: E402
 from omni_gym.discrepancy.importers.optiodom import describe, nominal_model, read_sessions  # noqa: E402
 from omni_gym.discrepancy.kinematic_calibration import (  # noqa: E402
@@ -66,7 +66,8 @@ from omni_gym.discrepancy.kinematic_calibration import (  # noqa: E402
 )
 from omni_gym.discrepancy.segments import FIT_BUDGET  # noqa: E402
 from omni_gym.discrepancy.simulate import FIT_DT, Job, simulate_poses  # noqa: E402
-from omni_gym.physics.model import SimModel, read_json  # noqa: E402
+from omni_gym.io import read_json  # noqa: E402
+from omni_gym.physics.model import SimModel  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

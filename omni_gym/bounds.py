@@ -28,8 +28,8 @@ class Bound:
     """Closed interval [lo, hi] (open at lo if ``lo_open``) of one input, with its unit and reason.
 
     ``name`` is how the user writes the input (JSON key, CSV column, command-line option or
-    environment keyword); ``reason`` is the table's last column (empty for the environment keywords,
-    whose reasons are written in ``docs/bounds.md``); ``integer`` requires a whole number;
+    environment keyword); ``reason`` is the table's last column (the environment keywords' reasons are
+    declared with them, :class:`omni_gym.envs.config.EnvConfig`); ``integer`` requires a whole number;
     ``or_zero`` also allows exactly 0 below ``lo``. The one bound class of the package: model, file
     and command-line bounds here, the environment keywords (:data:`omni_gym.envs.config.BOUNDS`) and
     the train/evaluate options (:mod:`agents.options`).

@@ -7,10 +7,7 @@ import math
 import numbers
 from collections.abc import Iterable
 
-import numba
 import numpy as np
-
-TWO_PI = 2.0 * math.pi
 
 
 def is_number(value) -> bool:
@@ -97,29 +94,3 @@ def finite_array(name: str, value: np.ndarray, shape: tuple[int | None, ...]) ->
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite (no NaN/inf), got {arr}")
     return arr
-
-
-def _wrap_scalar(angle: float) -> float:
-    """One angle [rad] wrapped to (−π, π]: the single definition of the interval (see :func:`wrap_angle`)."""
-    wrapped = (angle + math.pi) % TWO_PI - math.pi
-    return math.pi if wrapped == -math.pi else wrapped
-
-
-# The same function compiled for the numba kernels (omni_gym.envs.core): one expression, one interval.
-wrap_angle_nb = numba.njit(cache=True, inline="always")(_wrap_scalar)
-
-
-def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
-    """Angle(s) [rad] wrapped to the half-open interval (−π, π]; works element-wise on arrays.
-
-    Computed as (a + π) mod 2π − π, with −π mapped to π. An angle already inside the interval may
-    move by one rounding step of π (about 4e-16 rad) through the +π/−π; the copies this function
-    replaced used the same arithmetic, so results stay bit-identical to theirs (an exact −π, where
-    the old copies returned −π, is the only value that differs).
-    """
-    if isinstance(angle, (float, int)) and not isinstance(angle, bool):  # fast path: no array round trip
-        return _wrap_scalar(float(angle))
-    a = np.asarray(angle, dtype=float)
-    wrapped = (a + math.pi) % TWO_PI - math.pi
-    wrapped = np.where(wrapped == -math.pi, math.pi, wrapped)
-    return float(wrapped) if wrapped.ndim == 0 else wrapped

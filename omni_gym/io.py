@@ -1,4 +1,4 @@
-"""Reading and writing the CSV formats of the command line (``docs/formats.md``).
+"""Reading and writing the file formats of the command line (``docs/formats.md``): CSV and JSON.
 
 Every reader error is a :class:`InputError` whose one-line message names the file and the row
 (1-based, counting the header as row 1).
@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import gzip
 import io
+import json
 import re
 import zlib
 from pathlib import Path
@@ -88,6 +89,17 @@ def read_text(path: str | Path) -> str:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise InputError(f"{path}: not a UTF-8 text file (byte 0x{raw[exc.start]:02x} at offset {exc.start})") from None
+
+
+def read_json(path: str | Path):
+    """A JSON file's content (UTF-8, optional byte-order mark); ValueError naming the file."""
+    text = read_text(path)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    except RecursionError:
+        raise InputError(f"{path}: not valid JSON (nested too deeply)") from None
 
 
 # Separators other than ',' that spreadsheets and loggers write: named when a header has only one cell.

@@ -22,8 +22,8 @@ import math
 import numba
 import numpy as np
 
+from omni_gym.angles import wrap_angle_nb as _wrap  # (−π, π], compiled
 from omni_gym.checks import nonnegative
-from omni_gym.checks import wrap_angle_nb as _wrap  # (−π, π], compiled
 from omni_gym.sensors import SensorConfig
 
 SLOT_NAMES = ("gyro_bias_walk", "gyro", "compass", "accel_x", "accel_y", "camera_x", "camera_y", "camera_heading")

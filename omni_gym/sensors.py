@@ -22,7 +22,8 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from omni_gym.checks import finite_array, finite_scalar, nonnegative, positive, wrap_angle
+from omni_gym.angles import wrap_angle
+from omni_gym.checks import finite_array, finite_scalar, nonnegative, positive
 
 TWO_PI = 2.0 * math.pi
 

@@ -23,7 +23,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from omni_gym.checks import finite_array, finite_scalar, positive, wrap_angle
+from omni_gym.angles import wrap_angle
+from omni_gym.checks import finite_array, finite_scalar, positive
 from omni_gym.physics.kinematics import forward, inverse, world_to_body
 from omni_gym.physics.robot import RobotSpec
 

@@ -3,13 +3,15 @@
 Every module of ``omni_gym/`` and ``agents/`` is parsed with ``ast``; every import counts, at module
 level and inside functions (a function-level import runs too, it only runs later), relative imports
 resolved. ``from pkg import name`` is an edge to the module ``pkg.name`` when it is one, else to ``pkg``.
-Imports in the body of ``if TYPE_CHECKING:`` do not count: they never run, they only name types for
-annotations (an effect's hooks take the model they change as an argument, typed by such an import).
+Imports in the body of ``if TYPE_CHECKING:`` count too: they never run, but a type named across layers
+or around a circle ties the modules together all the same (the effects type the model they read by a
+narrow protocol of their own, ``omni_gym.physics.effects.base.ModelView``, not by importing it).
 
 Layers (a module belongs to the longest prefix in :data:`LAYERS` that names it), bottom up:
 
-* utilities: ``omni_gym.checks``, ``omni_gym.bounds``, ``omni_gym.io``, ``omni_gym.outputs`` (argument
-  checks, input bounds, file reading, atomic writing), on nothing else of the package;
+* utilities: ``omni_gym.checks``, ``omni_gym.angles``, ``omni_gym.bounds``, ``omni_gym.io``,
+  ``omni_gym.outputs`` (argument checks, the angle wrap, input bounds, file reading, atomic writing), on
+  nothing else of the package;
 * ``omni_gym.physics``: robot, model, kernel, world, replay, ..., on the utilities only;
 * ``omni_gym.analysis``: the validation integrator and the max-force analysis, on the physics;
 * core: the other ``omni_gym`` modules (sensors, trajectories, the package ``__init__``), on the physics;
@@ -31,7 +33,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("omni_gym", "agents")
-UTILITIES = {"omni_gym.checks", "omni_gym.bounds", "omni_gym.io", "omni_gym.outputs"}
+UTILITIES = {"omni_gym.checks", "omni_gym.angles", "omni_gym.bounds", "omni_gym.io", "omni_gym.outputs"}
 PHYSICS = UTILITIES | {"omni_gym.physics"}
 CORE = PHYSICS | {"omni_gym"}
 # layer (module-name prefix) -> the layers its modules may import (their own included)
@@ -76,27 +78,13 @@ def _known(name: str, modules: dict) -> str | None:
     return name or None
 
 
-def _is_type_checking(test: ast.expr) -> bool:
-    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
-        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
-
-
-def runtime_nodes(tree: ast.AST) -> list[ast.AST]:
-    """Every node of ``tree`` except those in the body of an ``if TYPE_CHECKING:`` block."""
-    skip: set[int] = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.If) and _is_type_checking(node.test):
-            skip |= {id(n) for child in node.body for n in ast.walk(child)}
-    return [n for n in ast.walk(tree) if id(n) not in skip]
-
-
 def import_graph() -> dict[str, set[str]]:
     """Module -> the package modules it imports (anywhere in its body)."""
     modules = _modules()
     graph = {}
     for mod, (path, is_pkg) in modules.items():
         targets: set[str] = set()
-        for node in runtime_nodes(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
             if isinstance(node, ast.Import):
                 targets |= {_known(a.name, modules) for a in node.names}
             elif isinstance(node, ast.ImportFrom):
@@ -151,13 +139,6 @@ def upward_imports(graph: dict[str, set[str]]) -> list[str]:
     return bad
 
 
-def test_type_checking_imports_are_skipped_and_only_those():
-    src = ("from typing import TYPE_CHECKING\nimport a\nif TYPE_CHECKING:\n    import b\nelse:\n    import c\n"
-           "def f():\n    import d\n")
-    names = {a.name for n in runtime_nodes(ast.parse(src)) if isinstance(n, ast.Import) for a in n.names}
-    assert names == {"a", "c", "d"}
-
-
 def test_no_import_cycle():
     assert find_cycle(import_graph()) is None, " -> ".join(find_cycle(import_graph()))
 
@@ -192,8 +173,9 @@ def test_the_checks_catch_a_cycle_and_an_upward_import():
     ("from . import b\n", "p.b"),  # relative, from a module of package p
     ("from .b import f\n", "p.b"),
     ("def g():\n    from p.b import f\n", "p.b"),  # function level
+    ("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from p.b import f\n", "p.b"),  # type only
 ])
-def test_the_parser_resolves_relative_and_function_level_imports(tmp_path, monkeypatch, source, expect):
+def test_the_parser_resolves_relative_function_level_and_type_only_imports(tmp_path, monkeypatch, source, expect):
     (tmp_path / "p").mkdir()
     (tmp_path / "p" / "__init__.py").write_text("")
     (tmp_path / "p" / "a.py").write_text(source)

@@ -33,7 +33,7 @@ from agents.pid import PathPID
 from agents.policies import make_policy
 from agents.slip_detector import SlipDetector
 from agents.wrappers import EKFFeatures, VectorEKFFeatures
-from omni_gym.envs.decode import BatchSensorObsDecoder, SensorObsDecoder
+from omni_gym.envs.observations import BatchSensorObsDecoder, SensorObsDecoder
 
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"  # 4 wheels, slip and lift-off
 WILLIAMS = "OmniPathFollow-WilliamsPaper-v0"  # 3 wheels, slip

@@ -18,8 +18,8 @@ from scipy.stats import chi2
 import omni_gym  # noqa: F401  (registers the environments)
 from agents.ekf import BG, OM, TH, VX, VY, EKFConfig, OmniEKF, accel_model, motion_model, process_noise
 from agents.slip_detector import SlipDetector
-from omni_gym.checks import wrap_angle as wrap
-from omni_gym.envs.decode import SensorObs, SensorObsDecoder
+from omni_gym.angles import wrap_angle as wrap
+from omni_gym.envs.observations import SensorObs, SensorObsDecoder
 from omni_gym.physics.robot import phunopas2018
 
 DT = 0.01

@@ -4,7 +4,9 @@ The observation tables in the environment docstrings (``OmniPathEnv``, ``OmniPat
 ``docs/environments.md`` are parsed here independently (symbolic index ranges in n wheels and A action
 values) and evaluated for every registered id, both observation modes and both action modes; they must
 tile exactly the observation space. The named slices of ``omni_gym.envs.observations`` are then checked
-against ground truth the environment reports in ``info`` (not against the encoder itself).
+against ground truth the environment reports in ``info`` (not against the encoder itself). The keyword
+tables (written from the declarations in ``EnvConfig`` by ``omni_gym.envs.docgen``) must be current and
+name, for every registered id, the value its environment runs with.
 """
 
 from __future__ import annotations
@@ -19,7 +21,8 @@ import numpy as np
 import pytest
 
 import omni_gym  # noqa: F401  (registers the ids)
-from omni_gym.envs import ENV_IDS
+from omni_gym.envs import ENV_IDS, docgen
+from omni_gym.envs.config import EnvConfig
 from omni_gym.envs.observations import POS_SCALE, SensorObsDecoder, StateObsDecoder, build_layout
 from omni_gym.envs.omni_env import OmniPathEnv
 from omni_gym.envs.vector import OmniPathVectorEnv
@@ -165,3 +168,66 @@ def test_named_sensor_slices_hold_the_ground_truth():
         assert 0.0 <= s.fix_age <= 1.0
         if term or trunc:
             break
+
+
+# --- the keyword tables, written from the declarations in EnvConfig (omni_gym.envs.docgen) -----------
+
+
+def test_generated_tables_are_current():
+    """The keyword and observation tables in the docstrings and docs/environments.md are what docgen writes."""
+    assert docgen.stale() == [], "stale generated tables: run python -m omni_gym.envs.docgen --write"
+
+
+def test_docgen_finds_a_stale_table_and_rewrites_only_it(tmp_path):
+    for t in docgen.targets():
+        dest = tmp_path / t.path
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        dest.write_text((docgen.ROOT / t.path).read_text(encoding="utf-8"), encoding="utf-8")
+    md = tmp_path / "docs" / "environments.md"
+    text = md.read_text(encoding="utf-8")
+    row = next(line for line in text.splitlines() if line.startswith("| `control_hz` |"))
+    md.write_text(text.replace(row, row.replace("| 100 |", "| 50 |")), encoding="utf-8")
+    assert docgen.stale(tmp_path) == ["docs/environments.md"]
+    _, new = docgen.rendered(tmp_path)["docs/environments.md"]
+    assert new == text  # only the table changed back; the prose around it is untouched
+    with pytest.raises(ValueError, match="no table after the anchor"):
+        docgen.replace_table("## Arguments\n\ntext\n", r"## Arguments$", "| a |", "x.md")
+
+
+def _keyword_rows(text: str) -> dict[str, list[str]]:
+    """keyword -> its cells, from the table whose header starts ``| keyword | default |``."""
+    lines = [line.strip() for line in text.splitlines()]
+    start = lines.index("| keyword | default | allowed | unit | meaning |")
+    rows = {}
+    for line in lines[start + 2:]:
+        if not line.startswith("|"):
+            break
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        rows[cells[0].strip("`")] = cells
+    return rows
+
+
+def _shown(value) -> str:
+    """A configuration value as the tables show it (names in backticks, numbers in short form)."""
+    if isinstance(value, str):
+        return f"`{value}`"
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+@pytest.mark.parametrize("source", ["OmniPathEnv", "docs/environments.md"])
+def test_every_keyword_is_documented_with_each_ids_default(source):
+    """Every keyword make_config accepts has a row, and its default column names, for every registered id,
+    the value that id's environment actually runs with."""
+    rows = _keyword_rows(_sources()[source])
+    assert set(rows) == set(inspect.signature(EnvConfig).parameters)
+    for env_id in ENV_IDS:
+        cfg = gym.make(env_id).unwrapped.cfg
+        short = env_id.removeprefix("OmniPathFollow-").removeprefix("Omni")
+        for name, cells in rows.items():
+            default, *per_id = cells[1].split("; ")
+            documented = default
+            for part in per_id:
+                ids, _, value = part.partition(": ")
+                if short in ids.split(", "):
+                    documented = value
+            assert documented == _shown(getattr(cfg, name)), f"{source}: {name} on {env_id}"

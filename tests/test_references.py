@@ -52,7 +52,7 @@ def test_sensor_observation_decodes_to_physical_units():
     import gymnasium as gym
 
     import omni_gym  # noqa: F401
-    from omni_gym.envs.decode import SensorObsDecoder
+    from omni_gym.envs.observations import SensorObsDecoder
 
     env = gym.make("OmniPathFollow-Phunopas-v0", obs_mode="sensors", sensor_noise=0.0, lift_rate=0.0)
     decode = SensorObsDecoder.for_env(env)

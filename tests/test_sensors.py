@@ -14,6 +14,7 @@ import math
 import numpy as np
 import pytest
 
+from omni_gym.angles import wrap_angle
 from omni_gym.physics.kinematics import rotation
 from omni_gym.sensors import (
     Accelerometer,
@@ -24,7 +25,6 @@ from omni_gym.sensors import (
     SensorSuite,
     WheelEncoders,
     specific_force_body,
-    wrap_angle,
 )
 
 N = 20_000  # samples for noise statistics

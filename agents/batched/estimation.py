@@ -25,7 +25,7 @@ import numpy as np
 from agents.batched import kernels as k
 from agents.ekf import NX, EKFConfig
 from agents.slip_detector import DetectorConfig
-from omni_gym.checks import wrap_angle
+from omni_gym.angles import wrap_angle
 from omni_gym.envs.observations import BatchSensorObs
 from omni_gym.physics.robot import RobotSpec
 

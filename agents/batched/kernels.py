@@ -26,7 +26,7 @@ import math
 import numba
 import numpy as np
 
-from omni_gym.checks import wrap_angle_nb as _wrap
+from omni_gym.angles import wrap_angle_nb as _wrap
 
 NX = 7
 X, Y, TH, VX, VY, OM, BG = range(7)

@@ -12,7 +12,7 @@ import numpy as np
 
 from agents.batched.estimation import robot_mask
 from agents.pid import PIDGains, configure_pid
-from omni_gym.checks import wrap_angle
+from omni_gym.angles import wrap_angle
 
 
 class BatchPathPID:

@@ -37,7 +37,7 @@ import numpy as np
 from agents.batched.estimation import BatchEKF, robot_mask
 from agents.batched.pid import BatchPathPID
 from agents.pid import PIDGains
-from omni_gym.envs.decode import BatchSensorObs, BatchSensorObsDecoder
+from omni_gym.envs.observations import BatchSensorObs, BatchSensorObsDecoder
 
 VECTOR_POLICY_NAMES = ("open-loop", "odometry-pid", "ekf-pid", "ekf-pid-traction")
 

@@ -27,8 +27,8 @@ import numpy as np
 from omni_gym import outputs
 from omni_gym.checks import known_keys
 from omni_gym.discrepancy.units import check_run_units
-from omni_gym.io import InputError, check_times, parse_cell, read_csv_rows
-from omni_gym.physics.model import SimModel, read_json
+from omni_gym.io import InputError, check_times, parse_cell, read_csv_rows, read_json
+from omni_gym.physics.model import SimModel
 
 DATASET_KEYS = ("model", "description", "sessions")  # dataset.json: any other key is refused (a typo, not data)
 

@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from omni_gym.checks import wrap_angle
+from omni_gym.angles import wrap_angle
 from omni_gym.discrepancy.dataset import Dataset, Run
 from omni_gym.discrepancy.simulate import FIT_DT, Job, pose_residual, simulate_jobs
 from omni_gym.physics.model import SimModel

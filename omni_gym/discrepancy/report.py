@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from omni_gym import outputs
-from omni_gym.checks import wrap_angle
+from omni_gym.angles import wrap_angle
 from omni_gym.discrepancy.dataset import Dataset
 from omni_gym.discrepancy.finite import dumps_strict
 from omni_gym.discrepancy.localise import WINDOW

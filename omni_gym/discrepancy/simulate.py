@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from omni_gym.checks import wrap_angle
+from omni_gym.angles import wrap_angle
 from omni_gym.discrepancy.dataset import Run
 from omni_gym.discrepancy.measurement import align_start, centre_start, has_tracker_effects, measured
 from omni_gym.physics.liftoff import ScheduledContactProcess

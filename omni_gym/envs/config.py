@@ -1,8 +1,11 @@
 """Keyword arguments of the environments: defaults, validation, bounds and domain randomisation.
 
-Every physical option of the environments is a keyword argument to ``gym.make`` (see the table in
-``docs/environments.md``; the bounds and their reasons are in ``docs/bounds.md``). :func:`make_config`
-checks each one and raises a one-line ValueError that names the argument and its allowed values.
+Every physical option of the environments is a keyword argument to ``gym.make``, declared once as a
+field of :class:`EnvConfig` with its :class:`Option` (default, kind, bound or choices, unit, meaning,
+the bound's reason). :func:`make_config` checks each one by its declaration and raises a one-line
+ValueError that names the argument and its allowed values; :mod:`omni_gym.envs.docgen` writes the
+tables of the environment docstrings, ``docs/environments.md`` and ``docs/bounds.md`` from the same
+declarations.
 numpy scalars (``np.float32(0.6)``, ``np.int64(100)``, ``np.bool_(True)``) are accepted and stored as
 Python numbers; strings, complex numbers and booleans are never taken for numbers.
 
@@ -19,16 +22,17 @@ import math
 import numbers
 import os
 import re
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
 
 from omni_gym.bounds import RATE_MAX, Bound, wheel_count
 from omni_gym.checks import is_number, unknown_key
+from omni_gym.io import read_json
 from omni_gym.physics import effects as effect_library
 from omni_gym.physics.friction import FRICTION_MODELS, SURFACES, Surface
-from omni_gym.physics.model import ACTUATIONS, SimModel, read_json
+from omni_gym.physics.model import ACTUATIONS, SimModel
 from omni_gym.physics.robot import PRESETS, robot_preset
 from omni_gym.sensors import SensorConfig
 
@@ -50,62 +54,228 @@ WHEEL_COUNT = wheel_count()  # (3, 16): the one wheel-count bound (omni_gym.boun
 MIN_OBSTACLE_RADIUS = 0.001  # m
 WALL_RADIUS = 0.01  # m, thickness of the wall segments (omni_gym.physics.world)
 
+# How a keyword is checked (Option.kind); the last three have checks of their own.
+KINDS = ("choice", "number", "range", "flag", "robot", "model", "obstacles")
 
-# Reasons: docs/bounds.md, "Environment keywords" (the bound class is omni_gym.bounds.Bound).
-BOUNDS: dict[str, Bound] = {b.name: b for b in (
-    Bound("control_hz", 1.0, 10000.0, "Hz"),
-    Bound("physics_dt", 1e-5, 0.002, "s"),
-    Bound("episode_seconds", 0.0, 3600.0, "s", lo_open=True),
-    Bound("lift_rate", 0.0, MAX_RATE, "1/s"),  # 0: never lifts; any tiny rate schedules safely (liftoff.py)
-    Bound("recover_rate", 0.0, MAX_RATE, "1/s"),  # 0: a lifted wheel stays up until reset
-    Bound("sensor_noise", 0.0, 100.0, ""),
-    Bound("arena_half_size", 0.1, 1000.0, "m"),
-    Bound("ref_speed", 0.001, 10.0, "m/s"),
-    Bound("max_speed", 0.001, 10.0, "m/s"),
-    Bound("max_yaw_rate", 0.001, 100.0, "rad/s"),
-    Bound("lost_distance", 0.001, 10000.0, "m"),
-    Bound("success_distance", 0.0, 10000.0, "m", lo_open=True),
-    Bound("success_heading", 0.0, math.pi, "rad", lo_open=True),
-)}
-RANDOM_BOUNDS = {"randomize_friction": (0.0, 10.0), "randomize_mass": (0.05, 20.0),
-                 "randomize_lift_rate": (0.0, MAX_RATE), "randomize_sensor_noise": (0.0, 10.0)}
+
+@dataclass(frozen=True)
+class Option:
+    """The declaration of one environment keyword: everything about it that is written down anywhere.
+
+    :func:`make_config` checks the keyword by ``kind``; :mod:`omni_gym.envs.docgen` writes the keyword
+    tables of the environment docstrings and ``docs/environments.md`` from it (the default beside each
+    registered id's own value, ``omni_gym.envs.ENV_IDS``), and the bounds table of ``docs/bounds.md``.
+
+    ``kind``: ``choice`` (one of ``choices``), ``number`` (finite, in [``lo``, ``hi``] ``unit``, open
+    at ``lo`` if ``lo_open``), ``range`` (None or a (low, high) pair inside [``lo``, ``hi``]), ``flag``
+    (True/False), or one of the keywords with their own check: ``robot``, ``model``, ``obstacles``.
+    ``doc``: one line of meaning; ``also``: a condition across keywords (:func:`_check_combination`);
+    ``reason``: why the bound is where it is (the keywords with one are the rows of ``docs/bounds.md``).
+    """
+
+    kind: str
+    doc: str
+    unit: str = ""
+    choices: tuple = ()
+    lo: float = -math.inf
+    hi: float = math.inf
+    lo_open: bool = False
+    also: str = ""
+    reason: str = ""
+    name: str = ""  # the field's name, filled in by OPTIONS
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"option kind must be one of {KINDS}, got {self.kind!r}")
+
+    def bound(self) -> Bound:
+        """The numeric bound of a ``number`` keyword (the package's one bound class)."""
+        return Bound(self.name, self.lo, self.hi, self.unit, self.reason, lo_open=self.lo_open)
+
+
+def option(default, kind: str, doc: str, **spec):
+    """An :class:`EnvConfig` field with its default and its :class:`Option` declaration."""
+    return field(default=default, metadata={"option": Option(kind, doc, **spec)})
 
 
 @dataclass(frozen=True)
 class EnvConfig:
-    """All options of a path-following or go-to-pose environment (SI units)."""
+    """All options of a path-following or go-to-pose environment (SI units).
 
-    robot: str = "williams2002"  # ignored when ``model`` is given
-    surface: str = "carpet"  # ignored when ``model`` is given
-    friction: str = "roller_gap"  # ignored when ``model`` is given
-    model: SimModel | None = None  # a calibrated model: robot, surface, friction and effects
-    task: str = "path"
-    trajectory: str = "waypoints"
-    ref_heading: str = "forward"  # reference heading along the path: forward (+y along it), tangent, random
-    ref_turn: str = "during"  # waypoints: heading turns during each segment, or in place "before" it
-    obs_mode: str = "state"
-    action_mode: str = "twist"
-    actuation: str = "ideal"
-    control_hz: float = 100.0
-    physics_dt: float = 0.0005
-    episode_seconds: float = 20.0
-    lift_rate: float = 0.0  # 1/s, rate of losing contact with a wheel (0: never)
-    recover_rate: float = 5.0  # 1/s, rate of regaining it
-    sensor_noise: float = 1.0  # scale on every sensor noise of SensorConfig (0: noiseless)
-    arena_half_size: float = 2.0  # m
-    walls: bool = False
-    obstacles: tuple[tuple[float, float, float], ...] = ()
-    ref_speed: float = 0.25  # m/s, typical reference speed
-    max_speed: float = 0.6  # m/s, |vx|, |vy| at action ±1 (twist mode)
-    max_yaw_rate: float = 3.0  # rad/s, |ω| at action ±1 (twist mode)
-    lost_distance: float = 0.5  # m, tracking error that ends the episode
-    success_distance: float = 0.05  # m, final position error counted as success
-    success_heading: float = 0.1  # rad
-    randomize_friction: tuple[float, float] | None = None  # scale range on every friction coefficient
-    randomize_mass: tuple[float, float] | None = None  # scale range on mass and inertia
-    randomize_lift_rate: tuple[float, float] | None = None  # range [1/s] of lift_rate
-    randomize_sensor_noise: tuple[float, float] | None = None  # scale range on every sensor noise std
-    render_mode: str | None = None
+    Each field is one ``gym.make`` keyword, declared once here (:func:`option`): default, kind,
+    bound or choices, unit and meaning. The validators, :data:`BOUNDS` and the documentation tables
+    (``python -m omni_gym.envs.docgen``) are derived from these declarations.
+    """
+
+    robot: str = option(
+        "williams2002", "robot",
+        doc="robot preset (`optiodom_omni4` has mecanum wheels: needs `friction=\"initial\"`); ignored when `model` "
+            "is given",
+        reason="a planar omni robot needs 3 wheels; more than 16 is not a wheel layout of this kind",
+    )
+    surface: str = option(
+        "carpet", "choice", choices=tuple(SURFACES),
+        doc="floor, `omni_gym.physics.friction.SURFACES`; ignored when `model` is given",
+    )
+    friction: str = option(
+        "roller_gap", "choice", choices=FRICTION_MODELS,
+        doc="friction model (`roller_gap`: omni wheels only); ignored when `model` is given",
+    )
+    model: SimModel | None = option(
+        None, "model",
+        doc="a calibrated model; it defines the robot, surface, friction model and effects",
+        also=f"the model JSON bounds (`docs/bounds.md`), {WHEEL_COUNT[0]} to {WHEEL_COUNT[1]} wheels, a "
+             "`wheel_liftoff` effect's rates within the `lift_rate`, `recover_rate` bounds (`recover_rate` only "
+             "when `lift_rate` > 0)",
+        reason="the same physics as the keywords it replaces",
+    )
+    task: str = option(
+        "path", "choice", choices=TASKS,
+        doc="follow a moving reference (`path`) or reach a goal pose (`goto`)",
+    )
+    trajectory: str = option(
+        "waypoints", "choice", choices=TRAJECTORIES,
+        doc="the reference: `path` takes `waypoints`, `circle`, `figure_eight`, `line`; `goto` takes `goto`",
+    )
+    ref_heading: str = option(
+        "forward", "choice", choices=REF_HEADINGS,
+        doc="heading along the path: body +y along it (`forward`), body +x (`tangent`), or `random`",
+    )
+    ref_turn: str = option(
+        "during", "choice", choices=REF_TURNS,
+        doc="`waypoints` only: the heading turns while translating (`during`) or in place before each translation "
+            "(`before`)",
+    )
+    obs_mode: str = option(
+        "state", "choice", choices=OBS_MODES,
+        doc="observation: privileged `state` or what a real robot has (`sensors`)",
+    )
+    action_mode: str = option(
+        "twist", "choice", choices=ACTION_MODES,
+        doc="action: body twist (`twist`) or wheel speeds (`wheels`)",
+    )
+    actuation: str = option(
+        "ideal", "choice", choices=ACTUATIONS,
+        doc="wheel drive: velocity source (`ideal`) or PI speed loop with torque limit and wheel inertia (`servo`)",
+    )
+    control_hz: float = option(
+        100.0, "number", unit="Hz", lo=1.0, hi=10000.0,
+        doc="control rate: one step is 1/control_hz",
+        reason="below 1 Hz a control period is longer than any reference feature (`0.001` used to index past the "
+               "reference table); above 10 kHz the period is shorter than 10 physics steps of the finest "
+               "`physics_dt`; the bound also keeps `1/control_hz` finite (`1e-300` used to hang the first step)",
+    )
+    physics_dt: float = option(
+        0.0005, "number", unit="s", lo=1e-5, hi=0.002,
+        doc="physics substep",
+        also="1/control_hz a whole number of substeps",
+        reason="≤ 2 ms for accuracy (`benchmarks/convergence.py`: 0.5 ms meets 1 mm / 2 mrad); ≥ 10 µs, 50× finer "
+               "than needed, keeps a step at 1 Hz to 10⁵ substeps",
+    )
+    episode_seconds: float = option(
+        20.0, "number", unit="s", lo=0.0, hi=3600.0, lo_open=True,
+        doc="reference length; truncation at its end",
+        also=f"1 to {MAX_EPISODE_STEPS:,} control steps",
+        reason="one hour is beyond any episode of these tasks; the step bound caps the reference tables at 48 MB "
+               "per robot (`1e308` used to raise `OverflowError`)",
+    )
+    lift_rate: float = option(
+        0.0, "number", unit="1/s", lo=0.0, hi=MAX_RATE,
+        doc="rate of losing contact with a wheel (0: never); a model's `wheel_liftoff` effect replaces it",
+        reason="0 disables lift-off; any tiny rate is safe (a switch beyond the episode is never scheduled, "
+               "docs/model.md); above 1000 /s a wheel would lift within 2 default substeps, faster than the contact"
+               " model resolves",
+    )
+    recover_rate: float = option(
+        5.0, "number", unit="1/s", lo=0.0, hi=MAX_RATE,
+        doc="rate of regaining it; a model's `wheel_liftoff` effect replaces it",
+        reason="as `lift_rate`; 0 keeps a lifted wheel up until the next reset",
+    )
+    sensor_noise: float = option(
+        1.0, "number", lo=0.0, hi=100.0,
+        doc="scale on every sensor noise level of `SensorConfig` (0: noiseless, quantisation stays)",
+        reason="a scale on the nominal noise levels; 100× already gives a 0.5 m camera and 5 rad compass noise",
+    )
+    arena_half_size: float = option(
+        2.0, "number", unit="m", lo=0.1, hi=1000.0,
+        doc="half the side of the square arena",
+        reason="a 2 km square exceeds any lab; arenas share one pymunk space laid out along x (2²⁰ m from the "
+               "origin, `omni_gym.physics.world`), so the size also sets how many robots a vector holds (≥ 255 at "
+               "1000 m) (`1e308` used to raise `OverflowError`)",
+    )
+    walls: bool = option(
+        False, "flag",
+        doc="walls at the arena's edge",
+        also=f"`arena_half_size` > body radius + {WALL_RADIUS:g} m",
+        reason="the robot starts at the centre; smaller, it would touch the walls at once",
+    )
+    obstacles: tuple[tuple[float, float, float], ...] = option(
+        (), "obstacles", unit="m",
+        doc="disc obstacles: a sequence of (x, y, radius) triples, arena frame",
+        also="each disc inside the arena (max(abs(x), abs(y)) + radius ≤ `arena_half_size`) and clear of the "
+             "robot at the start pose (0, 0)",
+        reason="each disc is a pymunk shape in every robot's arena; a disc outside the arena could reach a "
+               "neighbouring robot's arena in the vector's shared space (`1e308` gave NaN); a disc on the start "
+               "pose ends every episode on step 1",
+    )
+    ref_speed: float = option(
+        0.25, "number", unit="m/s", lo=0.001, hi=10.0,
+        doc="typical reference speed",
+        reason="1 mm/s is standing still; no robot of this kind drives at 10 m/s",
+    )
+    max_speed: float = option(
+        0.6, "number", unit="m/s", lo=0.001, hi=10.0,
+        doc="the body speeds vx, vy at action ±1 (`twist`)",
+        reason="the twist at action ±1 sets wheel commands: 10 m/s is 200–330 rad/s on the preset wheels (r = 3–5 "
+               "cm); beyond, forces overflow (`1e308` gave NaN observations)",
+    )
+    max_yaw_rate: float = option(
+        3.0, "number", unit="rad/s", lo=0.001, hi=100.0,
+        doc="the body yaw rate ω at action ±1 (`twist`)",
+        reason="100 rad/s is 16 rev/s, far beyond any such robot; beyond, the wheel commands overflow (`1e308` gave"
+               " NaN)",
+    )
+    lost_distance: float = option(
+        0.5, "number", unit="m", lo=0.001, hi=10000.0,
+        doc="tracking error that terminates the episode",
+        reason="errors below 1 mm are sensor noise; 10 km exceeds the largest arena's diagonal",
+    )
+    success_distance: float = option(
+        0.05, "number", unit="m", lo=0.0, hi=10000.0, lo_open=True,
+        doc="final position error counted as success (`info[\"is_success\"]`)",
+        reason="as `lost_distance`; any positive threshold is meaningful",
+    )
+    success_heading: float = option(
+        0.1, "number", unit="rad", lo=0.0, hi=math.pi, lo_open=True,
+        doc="final heading error counted as success",
+        reason="heading errors are wrapped to (−π, π]",
+    )
+    randomize_friction: tuple[float, float] | None = option(
+        None, "range", lo=0.0, hi=10.0,
+        doc="every friction coefficient scaled by U(lo, hi) at each reset",
+        reason="a scale of 0 (frictionless) to 10 covers any floor; coefficients stay finite",
+    )
+    randomize_mass: tuple[float, float] | None = option(
+        None, "range", lo=0.05, hi=20.0,
+        doc="mass and inertia scaled by U(lo, hi) at each reset",
+        reason="mass and inertia stay positive and within 20× of the model",
+    )
+    randomize_lift_rate: tuple[float, float] | None = option(
+        None, "range", unit="1/s", lo=0.0, hi=MAX_RATE,
+        doc="`lift_rate` drawn from U(lo, hi) at each reset",
+        reason="as `lift_rate`",
+    )
+    randomize_sensor_noise: tuple[float, float] | None = option(
+        None, "range", lo=0.0, hi=10.0,
+        doc="every sensor noise and bias std (on top of `sensor_noise`) scaled by one U(lo, hi) per robot at each "
+            "reset",
+        reason="0 is noiseless; 10× the default levels (5 cm camera, 0.5 rad compass) is far beyond any usable "
+               "sensor; the range of the SB3-side `SensorNoiseRandomizer`",
+    )
+    render_mode: str | None = option(
+        None, "choice", choices=RENDER_MODES,
+        doc="`rgb_array` (H×W×3 uint8) or `human` (pygame window); single environment only",
+    )
 
     @property
     def control_dt(self) -> float:
@@ -137,6 +307,17 @@ class EnvConfig:
         base = SensorConfig()
         scaled = {f.name: getattr(base, f.name) * self.sensor_noise for f in fields(base) if f.name.endswith("_std")}
         return replace(base, **scaled)
+
+
+OPTIONS: dict[str, Option] = {f.name: replace(f.metadata["option"], name=f.name) for f in fields(EnvConfig)}
+# The numeric bounds (with their reasons, shown in docs/bounds.md, "Environment keywords").
+BOUNDS: dict[str, Bound] = {name: o.bound() for name, o in OPTIONS.items() if o.kind == "number"}
+RANDOM_BOUNDS: dict[str, tuple[float, float]] = {name: (o.lo, o.hi) for name, o in OPTIONS.items()
+                                                 if o.kind == "range"}
+# The order of the checks, by kind (each kind in field order): the first bad keyword is the one named,
+# and obstacles are checked last, inside the arena already checked.
+CHECK_ORDER = (("robot", "choice", "model"), ("flag",), ("number",), ("range",), ("obstacles",))
+assert sorted(k for kinds in CHECK_ORDER for k in kinds) == sorted(KINDS)
 
 
 # --- value checks (each returns the value as a plain Python object or raises ValueError) ---------
@@ -271,7 +452,7 @@ def _read_model_file(value) -> SimModel:
     path = Path(os.fsdecode(value))
     label = f"model={str(path)!r}"  # the whole path (repr of a str is one line)
     try:
-        data = read_json(path)  # the one JSON file reader (omni_gym.physics.model)
+        data = read_json(path)  # the one JSON file reader (omni_gym.io)
     except ValueError as exc:
         raise ValueError(f"invalid {label}: {str(exc).removeprefix(f'{path}: ')}") from None
     return _model_from_json(data, label)
@@ -319,35 +500,38 @@ def parse_model(value) -> SimModel | None:
 
 def make_config(**kwargs) -> EnvConfig:
     """Validated :class:`EnvConfig` from ``gym.make`` keyword arguments (ValueError naming the keyword)."""
-    known = {f.name for f in fields(EnvConfig)}
     for key in kwargs:
-        if key not in known:
-            raise ValueError(unknown_key(key, sorted(known), what="keyword argument"))
+        if key not in OPTIONS:
+            raise ValueError(unknown_key(key, sorted(OPTIONS), what="keyword argument"))
     d = EnvConfig()
-    get = kwargs.get
-    values = {
-        "robot": _robot(get("robot", d.robot)),
-        "surface": _choice("surface", get("surface", d.surface), tuple(SURFACES)),
-        "friction": _choice("friction", get("friction", d.friction), FRICTION_MODELS),
-        "model": parse_model(get("model")),
-        "task": _choice("task", get("task", d.task), TASKS),
-        "trajectory": _choice("trajectory", get("trajectory", d.trajectory), TRAJECTORIES),
-        "ref_heading": _choice("ref_heading", get("ref_heading", d.ref_heading), REF_HEADINGS),
-        "ref_turn": _choice("ref_turn", get("ref_turn", d.ref_turn), REF_TURNS),
-        "obs_mode": _choice("obs_mode", get("obs_mode", d.obs_mode), OBS_MODES),
-        "action_mode": _choice("action_mode", get("action_mode", d.action_mode), ACTION_MODES),
-        "actuation": _choice("actuation", get("actuation", d.actuation), ACTUATIONS),
-        "render_mode": _choice("render_mode", get("render_mode", d.render_mode), RENDER_MODES),
-        "walls": _flag("walls", get("walls", d.walls)),
-    }
-    for name, bound in BOUNDS.items():
-        values[name] = _number(name, get(name, getattr(d, name)), bound)
-    for name, (lower, upper) in RANDOM_BOUNDS.items():
-        values[name] = _range(name, get(name), lower, upper)
-    values["obstacles"] = _obstacles(get("obstacles", d.obstacles), values["arena_half_size"])
+    values: dict = {}
+    for kinds in CHECK_ORDER:
+        for name, opt in OPTIONS.items():
+            if opt.kind in kinds:
+                values[name] = _check(opt, kwargs.get(name, getattr(d, name)), values)
     cfg = EnvConfig(**values)
     _check_combination(cfg)
     return cfg
+
+
+def _check(opt: Option, value, checked: dict):
+    """One keyword's value, checked by its declared kind (``checked``: the keywords checked before it)."""
+    kind, name = opt.kind, opt.name
+    if kind == "robot":
+        return _robot(value)
+    if kind == "choice":
+        return _choice(name, value, opt.choices)
+    if kind == "model":
+        return parse_model(value)
+    if kind == "flag":
+        return _flag(name, value)
+    if kind == "number":
+        return _number(name, value, BOUNDS[name])
+    if kind == "range":
+        return _range(name, value, opt.lo, opt.hi)
+    if kind == "obstacles":
+        return _obstacles(value, checked["arena_half_size"])
+    raise AssertionError(f"option {name!r}: unknown kind {kind!r}")  # a declaration error, not user input
 
 
 def _check_combination(cfg: EnvConfig) -> None:

@@ -18,7 +18,7 @@ import math
 import numba
 import numpy as np
 
-from omni_gym.checks import wrap_angle_nb as _wrap  # (−π, π], compiled for the njit kernels below
+from omni_gym.angles import wrap_angle_nb as _wrap  # (−π, π], compiled for the njit kernels below
 from omni_gym.envs.config import EnvConfig, randomized_model, sensor_noise_scale
 from omni_gym.envs.observations import (  # noqa: F401  (LOOKAHEAD_SECONDS, ACC_SCALE: re-exported)
     ACC_SCALE,

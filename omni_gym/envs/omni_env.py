@@ -92,20 +92,51 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
 
     ## Arguments
 
-    Every physical option is a keyword of ``gym.make`` (table with defaults in ``docs/environments.md``,
-    bounds in ``docs/bounds.md``; :class:`omni_gym.envs.config.EnvConfig`): ``obs_mode``
-    ("state" | "sensors"), ``action_mode`` ("twist" | "wheels"), ``robot``, ``surface``, ``friction``,
-    ``actuation``, ``lift_rate``, ``recover_rate``, ``sensor_noise``, ``control_hz``, ``physics_dt``,
-    ``episode_seconds``, ``task``, ``trajectory``, ``ref_heading``, ``ref_speed``,
-    ``arena_half_size``, ``walls``, ``obstacles``, ``max_speed``, ``max_yaw_rate``,
-    ``lost_distance``, ``success_distance``, ``success_heading``, ``randomize_friction``,
-    ``randomize_mass``, ``randomize_lift_rate``, ``randomize_sensor_noise`` (one factor U(lo, hi) per
-    episode on every sensor noise std, sensors mode), ``render_mode`` ("rgb_array" | "human"). A bad one
-    raises a one-line ValueError naming it. ``model=`` takes a calibrated model (a model JSON file
-    path or the dict ``omni-gym model show --json`` prints, effects included): it then defines the
-    robot, surface, friction model and effects, ``robot``/``surface``/``friction`` are ignored, and a
-    ``wheel_liftoff`` effect sets the contact process's rates in place of ``lift_rate``/``recover_rate``.
-    ``reset`` takes no options (any key is refused with ValueError).
+    Every physical option is a keyword of ``gym.make``, declared once in
+    :class:`omni_gym.envs.config.EnvConfig` (this table is written from it by
+    ``python -m omni_gym.envs.docgen``; the bounds' reasons are in ``docs/bounds.md``). "default" is the
+    keyword's own, then the ids that pass another value. A bad keyword raises a one-line ValueError
+    naming it.
+
+    | keyword | default | allowed | unit | meaning |
+    |---|---|---|---|---|
+    | `robot` | `williams2002`; Phunopas-v0, GoToPose-v0: `phunopas2018`; Mecanum-v0: `optiodom_omni4` | `williams2002`, `phunopas2018`, `optiodom_omni4`, `regularN` (3 ≤ N ≤ 16) | — | robot preset (`optiodom_omni4` has mecanum wheels: needs `friction="initial"`); ignored when `model` is given |
+    | `surface` | `carpet` | `paper`, `carpet`, `grip` | — | floor, `omni_gym.physics.friction.SURFACES`; ignored when `model` is given |
+    | `friction` | `roller_gap`; Mecanum-v0: `initial` | `initial`, `roller_gap` | — | friction model (`roller_gap`: omni wheels only); ignored when `model` is given |
+    | `model` | None | None, a model JSON file path (str or `os.PathLike`), its dict, a `SimModel`; the model JSON bounds (`docs/bounds.md`), 3 to 16 wheels, a `wheel_liftoff` effect's rates within the `lift_rate`, `recover_rate` bounds (`recover_rate` only when `lift_rate` > 0) | — | a calibrated model; it defines the robot, surface, friction model and effects |
+    | `task` | `path`; GoToPose-v0: `goto` | `path`, `goto` | — | follow a moving reference (`path`) or reach a goal pose (`goto`) |
+    | `trajectory` | `waypoints`; GoToPose-v0: `goto` | `waypoints`, `circle`, `figure_eight`, `line`, `goto` | — | the reference: `path` takes `waypoints`, `circle`, `figure_eight`, `line`; `goto` takes `goto` |
+    | `ref_heading` | `forward` | `forward`, `tangent`, `random` | — | heading along the path: body +y along it (`forward`), body +x (`tangent`), or `random` |
+    | `ref_turn` | `during`; Williams-v1: `before` | `during`, `before` | — | `waypoints` only: the heading turns while translating (`during`) or in place before each translation (`before`) |
+    | `obs_mode` | `state` | `state`, `sensors` | — | observation: privileged `state` or what a real robot has (`sensors`) |
+    | `action_mode` | `twist` | `wheels`, `twist` | — | action: body twist (`twist`) or wheel speeds (`wheels`) |
+    | `actuation` | `ideal` | `ideal`, `servo` | — | wheel drive: velocity source (`ideal`) or PI speed loop with torque limit and wheel inertia (`servo`) |
+    | `control_hz` | 100 | [1, 10000] | Hz | control rate: one step is 1/control_hz |
+    | `physics_dt` | 0.0005 | [1e-5, 0.002]; 1/control_hz a whole number of substeps | s | physics substep |
+    | `episode_seconds` | 20; GoToPose-v0: 8 | (0, 3600]; 1 to 1,000,000 control steps | s | reference length; truncation at its end |
+    | `lift_rate` | 0; Phunopas-v0, Mecanum-v0, GoToPose-v0: 0.5 | [0, 1000] | 1/s | rate of losing contact with a wheel (0: never); a model's `wheel_liftoff` effect replaces it |
+    | `recover_rate` | 5 | [0, 1000] | 1/s | rate of regaining it; a model's `wheel_liftoff` effect replaces it |
+    | `sensor_noise` | 1 | [0, 100] | — | scale on every sensor noise level of `SensorConfig` (0: noiseless, quantisation stays) |
+    | `arena_half_size` | 2 | [0.1, 1000] | m | half the side of the square arena |
+    | `walls` | False | True, False; `arena_half_size` > body radius + 0.01 m | — | walls at the arena's edge |
+    | `obstacles` | () | at most 1000 discs, radius ≥ 0.001; each disc inside the arena (max(abs(x), abs(y)) + radius ≤ `arena_half_size`) and clear of the robot at the start pose (0, 0) | m | disc obstacles: a sequence of (x, y, radius) triples, arena frame |
+    | `ref_speed` | 0.25 | [0.001, 10] | m/s | typical reference speed |
+    | `max_speed` | 0.6 | [0.001, 10] | m/s | the body speeds vx, vy at action ±1 (`twist`) |
+    | `max_yaw_rate` | 3 | [0.001, 100] | rad/s | the body yaw rate ω at action ±1 (`twist`) |
+    | `lost_distance` | 0.5 | [0.001, 10000] | m | tracking error that terminates the episode |
+    | `success_distance` | 0.05 | (0, 10000] | m | final position error counted as success (`info["is_success"]`) |
+    | `success_heading` | 0.1 | (0, π] | rad | final heading error counted as success |
+    | `randomize_friction` | None | None or (lo, hi) with 0 ≤ lo ≤ hi ≤ 10 | — | every friction coefficient scaled by U(lo, hi) at each reset |
+    | `randomize_mass` | None | None or (lo, hi) with 0.05 ≤ lo ≤ hi ≤ 20 | — | mass and inertia scaled by U(lo, hi) at each reset |
+    | `randomize_lift_rate` | None | None or (lo, hi) with 0 ≤ lo ≤ hi ≤ 1000 | 1/s | `lift_rate` drawn from U(lo, hi) at each reset |
+    | `randomize_sensor_noise` | None | None or (lo, hi) with 0 ≤ lo ≤ hi ≤ 10 | — | every sensor noise and bias std (on top of `sensor_noise`) scaled by one U(lo, hi) per robot at each reset |
+    | `render_mode` | None | None, `rgb_array`, `human` | — | `rgb_array` (H×W×3 uint8) or `human` (pygame window); single environment only |
+
+    ``model=`` takes a calibrated model (a model JSON file path or the dict ``omni-gym model show --json``
+    prints, effects included): it then defines the robot, surface, friction model and effects,
+    ``robot``/``surface``/``friction`` are ignored, and a ``wheel_liftoff`` effect sets the contact
+    process's rates in place of ``lift_rate``/``recover_rate``. ``reset`` takes no options (any key is
+    refused with ValueError).
 
     Public attributes for controllers (read through ``env.unwrapped``): ``robot``, ``wheel_matrix``,
     ``wheel_scale``, ``observation_layout``, ``obs_scales``, ``sensor_config`` (settable; used at the

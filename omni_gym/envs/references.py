@@ -22,7 +22,7 @@ import math
 import numba
 import numpy as np
 
-from omni_gym.checks import wrap_angle
+from omni_gym.angles import wrap_angle
 from omni_gym.envs.config import EnvConfig
 from omni_gym.trajectories import Circle, FigureEight, Quintic, StraightLine, Trajectory
 

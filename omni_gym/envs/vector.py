@@ -132,9 +132,11 @@ class OmniPathVectorEnv(RobotEnvAttributes, VectorEnv):
     :func:`max_robots` allows for the arena size), ``max_episode_steps`` (a positive integer, capped
     at the reference's length), ``autoreset_mode`` ("next_step" or "same_step", or the
     ``gymnasium.vector.AutoresetMode`` member; sets ``metadata["autoreset_mode"]``), ``render_mode``
-    (only None), and every keyword of the single
-    environment (``model=`` included: every robot is built from the same model). The public
-    attributes of the single environment (``robot``, ``wheel_matrix``, ``wheel_scale``,
+    (only None), and every keyword of the single environment (``model=`` included: every robot is
+    built from the same model; the table of keywords, defaults and bounds is in the Arguments of
+    :class:`~omni_gym.envs.omni_env.OmniPathEnv` and ``docs/environments.md``, both written from
+    :class:`omni_gym.envs.config.EnvConfig`).
+    The public attributes of the single environment (``robot``, ``wheel_matrix``, ``wheel_scale``,
     ``observation_layout``, ``obs_scales``, ``sensor_config``) are available here too.
 
     ## Version History

@@ -20,7 +20,6 @@ the environments, ``omni_gym.discrepancy.simulate``), or both. Tracker effects (
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -29,7 +28,7 @@ import numpy as np
 
 from omni_gym import bounds
 from omni_gym.checks import json_number, known_keys
-from omni_gym.io import InputError, read_text
+from omni_gym.io import read_json
 from omni_gym.physics import effects as effect_library
 from omni_gym.physics.friction import DEFAULT_K, Surface, check_friction_model, surface_preset
 from omni_gym.physics.layout import (
@@ -379,14 +378,3 @@ def _is_file(path: Path) -> bool:
         return path.is_file()
     except OSError:
         return False
-
-
-def read_json(path: str | Path):
-    """A JSON file's content (UTF-8, optional byte-order mark); ValueError naming the file."""
-    text = read_text(path)
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-    except RecursionError:
-        raise InputError(f"{path}: not valid JSON (nested too deeply)") from None

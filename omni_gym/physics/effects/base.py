@@ -21,16 +21,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import ClassVar, Protocol
 
 import numpy as np
 
 from omni_gym.bounds import Bound
 from omni_gym.checks import json_number, unknown_key
-
-if TYPE_CHECKING:
-    from omni_gym.physics.liftoff import ContactProcess
-    from omni_gym.physics.model import SimModel
+from omni_gym.physics.friction import Surface
+from omni_gym.physics.liftoff import ContactProcess
+from omni_gym.physics.robot import RobotSpec
 
 SHAPES = ("scalar", "per_wheel", "xy")
 
@@ -121,6 +120,45 @@ class Flag:
         return f"{self.param} = {self.value:.4g} outside the plausible [{self.lo:.4g}, {self.hi:.4g}]"
 
 
+class ModelView(Protocol):
+    """What an effect reads from the model it changes, fits or judges: the attributes of
+    :class:`omni_gym.physics.model.SimModel` that the hooks below use, and nothing more.
+
+    The effects are typed by this narrow view, not by ``SimModel``, so the effect library does not
+    import the model module that imports it (no circle, not even a type-only one).
+    """
+
+    @property
+    def robot(self) -> RobotSpec:
+        """The nominal robot: wheel layout, radius, rollers, mass (body frame, SI units)."""
+        ...
+
+    @property
+    def surface(self) -> Surface:
+        """The floor's friction coefficients."""
+        ...
+
+    @property
+    def gravity(self) -> float:
+        """Gravitational acceleration [m/s²]."""
+        ...
+
+    @property
+    def effects(self) -> dict[str, dict]:
+        """The model's effects so far, name → parameters (an effect's current value as the fit's start)."""
+        ...
+
+    @property
+    def n_wheels(self) -> int:
+        """Number of wheels."""
+        ...
+
+    @property
+    def com(self) -> np.ndarray:
+        """Centre of mass [m], body frame, after the model's effects."""
+        ...
+
+
 class Effect:
     """Base class of the model effects; one subclass (one instance in the registry) per effect.
 
@@ -194,7 +232,7 @@ class Effect:
 
     # --- simulation ----------------------------------------------------------------------------
 
-    def write_kernel(self, params: dict, sp: np.ndarray, wp: np.ndarray, model: SimModel) -> None:
+    def write_kernel(self, params: dict, sp: np.ndarray, wp: np.ndarray, model: ModelView) -> None:
         """Change the force kernel's scalars ``sp`` (N_SP,) and wheel rows ``wp`` (n, N_WP) in place.
 
         Called by :meth:`omni_gym.physics.model.SimModel.kernel_params` after the nominal values are
@@ -224,30 +262,30 @@ class Effect:
 
     # --- fitting (read by omni_gym.discrepancy) ------------------------------------------------
 
-    def fit_dims(self, model: SimModel) -> tuple[Dim, ...]:
+    def fit_dims(self, model: ModelView) -> tuple[Dim, ...]:
         """The fitted dimensions for ``model``, bounds wide enough for real robots."""
         raise NotImplementedError
 
-    def from_fit(self, values: list[float], model: SimModel) -> dict:
+    def from_fit(self, values: list[float], model: ModelView) -> dict:
         """Effect parameters from one value per fitted dimension."""
         raise NotImplementedError
 
-    def null_fit(self, model: SimModel) -> dict[str, float] | None:
+    def null_fit(self, model: ModelView) -> dict[str, float] | None:
         """Fitted-dimension values at which the effect changes nothing (dimensions left out do not
         matter there and sit mid-range); None when the effect has no such point."""
         return None
 
-    def prior_fit(self, model: SimModel) -> dict[str, float] | None:
+    def prior_fit(self, model: ModelView) -> dict[str, float] | None:
         """An extra design point the fit should try (e.g. the nominal model's own values), or None."""
         return None
 
     # --- synthetic data and recovery -----------------------------------------------------------
 
-    def synth_default(self, model: SimModel, rng: np.random.Generator) -> dict:
+    def synth_default(self, model: ModelView, rng: np.random.Generator) -> dict:
         """Moderate default parameters when ``omni-gym synth`` hides this effect."""
         raise NotImplementedError
 
-    def param_error(self, truth: dict, fitted: dict, model: SimModel) -> dict[str, float]:
+    def param_error(self, truth: dict, fitted: dict, model: ModelView) -> dict[str, float]:
         """Per key of :attr:`tolerances`, the error of ``fitted`` against ``truth``."""
         raise NotImplementedError
 
@@ -260,11 +298,11 @@ class Effect:
         """Ranges of derived quantities that :meth:`extra_flags` checks (default: none)."""
         return {}
 
-    def extra_flags(self, params: dict, model: SimModel) -> list[Flag]:
+    def extra_flags(self, params: dict, model: ModelView) -> list[Flag]:
         """Flags on derived quantities, before the per-parameter ranges (default: none)."""
         return []
 
-    def flags(self, params: dict, model: SimModel) -> list[Flag]:
+    def flags(self, params: dict, model: ModelView) -> list[Flag]:
         """Fitted values outside their plausible ranges (empty: all plausible)."""
         flags = self.extra_flags(params, model)
         for key, rng in self.plausible_ranges().items():

@@ -1,4 +1,4 @@
-"""The one angle wrap (omni_gym.checks.wrap_angle) and its numba twin."""
+"""The one angle wrap (omni_gym.angles.wrap_angle) and its numba twin."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from omni_gym.checks import wrap_angle, wrap_angle_nb
+from omni_gym.angles import wrap_angle, wrap_angle_nb
 
 
 @pytest.mark.parametrize(("angle", "expected"), [
