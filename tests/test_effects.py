@@ -19,15 +19,18 @@ from omni_gym.discrepancy.dataset import Dataset
 from omni_gym.discrepancy.fitting import Evaluator, fit_candidate, make_folds
 from omni_gym.discrepancy.measurement import measured
 from omni_gym.physics.effects import REGISTRY, Effect, get
-from omni_gym.physics.model import MODEL_BOUNDS, SimModel, load_model
+from omni_gym.physics.model import MODEL_BOUNDS, SimModel
 from omni_gym.physics.replay import simulate_commands
 
 NAMES = list(REGISTRY)
 
 
-@pytest.fixture(scope="module")
-def nominal() -> SimModel:
-    return recovery.nominal_model()  # Williams robot, carpet, initial friction: the study's nominal model
+@pytest.fixture
+def nominal(request) -> SimModel:
+    """The study's nominal model (Williams robot, carpet, initial friction), or its mecanum robot for an
+    effect that applies to mecanum wheels only (the test's ``name``)."""
+    name = getattr(request.node, "callspec", None) and request.node.callspec.params.get("name")
+    return recovery.nominal_model(name)
 
 
 def _defaults(effect: Effect, model: SimModel) -> dict:
@@ -99,7 +102,7 @@ def test_effect_changes_the_simulation(name, nominal):
     assert np.max(np.hypot(*(p1[:, :2] - p0[:, :2]).T)) > 1e-3
 
 
-@pytest.mark.parametrize("name", [n for n in NAMES if REGISTRY[n].null_fit(load_model("williams2002")) is not None])
+@pytest.mark.parametrize("name", [n for n in NAMES if REGISTRY[n].null_fit(recovery.nominal_model(n)) is not None])
 def test_null_point_leaves_the_motion_nominal(name, nominal):
     """The fit's null point (where the search starts from 'no effect') simulates like the nominal model."""
     cand = next(c for c in candidates(nominal) if c.name == name)

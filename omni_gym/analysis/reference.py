@@ -45,8 +45,9 @@ from omni_gym.physics.loads import wheel_loads
 from omni_gym.physics.model import SimModel
 
 # Effects this integrator implements itself (written from the effects' documented equations, not their
-# kernel code): the centre of mass, per-wheel rolling radius and per-wheel placement and mounting yaw.
-SUPPORTED_EFFECTS = ("com_offset", "wheel_radius", "wheel_geometry")
+# kernel code): the centre of mass, per-wheel rolling radius, per-wheel placement and mounting yaw, and the
+# mecanum wheels' lateral / longitudinal radius ratio.
+SUPPORTED_EFFECTS = ("com_offset", "wheel_radius", "wheel_geometry", "mecanum_lateral")
 _TWO_OVER_PI = 2.0 / math.pi
 
 
@@ -150,6 +151,12 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
                                  np.sin(yaw) * drive[:, 0] + np.cos(yaw) * drive[:, 1]])
     p_rel = positions - c  # wheel centres relative to the centre of mass, body frame
     gamma = np.array([w.roller_angle for w in robot.wheels], dtype=float)
+    if "mecanum_lateral" in model.effects:
+        # docs/model.md: r_lon = r·2/(1 + ratio) and tan γ' = tan γ / ratio on every angled wheel
+        ratio = float(model.effects["mecanum_lateral"]["ratio"])
+        angled = gamma != 0.0
+        r = np.where(angled, r * 2.0 / (1.0 + ratio), r)
+        gamma = np.where(angled, np.arctan(np.tan(gamma) / ratio), gamma)
     axle = np.column_stack([-drive[:, 1], drive[:, 0]])
     d_b = np.cos(gamma)[:, None] * drive + np.sin(gamma)[:, None] * axle  # roller axis e_i (body frame)
     a_b = np.column_stack([-d_b[:, 1], d_b[:, 0]])  # free direction f_i = z × e_i

@@ -15,7 +15,8 @@ from omni_gym.discrepancy.workflow import gap
 from omni_gym.physics.effects import REGISTRY
 from omni_gym.physics.model import SimModel, load_model
 
-# Two sizes of every library effect on the Williams robot (carpet, initial friction), from the effect
+# Two sizes of every library effect on the Williams robot (the mecanum robot for a mecanum-only effect;
+# carpet, initial friction), from the effect
 # library (omni_gym.physics.effects): "large" is about the default of omni-gym synth, "small" about half.
 SIZES: dict[str, dict[str, dict]] = {name: e.recovery_sizes for name, e in REGISTRY.items()}
 NOISES = (0.001, 0.003)  # m: a motion-capture tracker, and a camera tracker
@@ -25,9 +26,14 @@ NOISES = (0.001, 0.003)  # m: a motion-capture tracker, and a camera tracker
 TOLERANCES = {name: e.tolerances for name, e in REGISTRY.items()}
 
 
-def nominal_model() -> SimModel:
-    """The nominal model of the study: the Williams robot on carpet with the paper's initial friction."""
-    return load_model("williams2002", surface="carpet", friction="initial")
+def nominal_model(effect: str | None = None) -> SimModel:
+    """The nominal model of the study: the Williams robot on carpet with the paper's initial friction; for
+    an ``effect`` that does not apply to it (``mecanum_lateral``: mecanum wheels only) the four-wheeled
+    mecanum robot of the OptiOdom logs (``optiodom_omni4``) on the same carpet and friction."""
+    model = load_model("williams2002", surface="carpet", friction="initial")
+    if effect in REGISTRY and not REGISTRY[effect].applies_to(model.robot):
+        return load_model("optiodom_omni4", surface="carpet", friction="initial")
+    return model
 
 
 def param_error(effect: str, truth: dict, fitted: dict, model: SimModel) -> dict[str, float]:
@@ -45,7 +51,7 @@ def run_case(hidden: str, params: dict | None, noise: float, seed: int, runs: in
     the search for further effects (``tests/test_discrepancy_multi.py`` covers that search)."""
     import json
 
-    model = nominal_model()
+    model = nominal_model(hidden)
     spec = hidden if params is None else f"{hidden}:{json.dumps(params)}"
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         folder = Path(tmp) / "data"

@@ -2,7 +2,8 @@
 
 * :mod:`.base`: the :class:`~.base.Effect` base class (schema, kernel/contact hooks, fit data).
 * :mod:`.roller_gap`, :mod:`.kinetic_friction`, :mod:`.com_offset`, :mod:`.wheel_radius`,
-  :mod:`.motor_lag`, :mod:`.wheel_liftoff`, :mod:`.wheel_geometry`: the physics effects;
+  :mod:`.motor_lag`, :mod:`.wheel_liftoff`, :mod:`.wheel_geometry`, :mod:`.mecanum_lateral` (mecanum
+  robots only): the physics effects;
   :mod:`.tracker_offset`, :mod:`.time_offset`: the tracker (measurement) effects (``Effect.kind``).
 
 :data:`REGISTRY` lists them in a fixed order: the order in which the discrepancy workflow fits its
@@ -17,6 +18,7 @@ from omni_gym.bounds import Bound
 from omni_gym.physics.effects.base import Dim, Effect, Flag, Param, Range
 from omni_gym.physics.effects.com_offset import ComOffset
 from omni_gym.physics.effects.kinetic_friction import KineticFriction
+from omni_gym.physics.effects.mecanum_lateral import MecanumLateral
 from omni_gym.physics.effects.motor_lag import MotorLag
 from omni_gym.physics.effects.roller_gap import RollerGap
 from omni_gym.physics.effects.time_offset import TimeOffset
@@ -28,7 +30,8 @@ from omni_gym.physics.effects.wheel_radius import WheelRadius
 REGISTRY: dict[str, Effect] = {e.name: e for e in (
     RollerGap(), KineticFriction(), ComOffset(), WheelRadius(), MotorLag(), WheelLiftoff(),
     WheelGeometry(),  # after the first six: their candidates keep their seeded designs
-    TrackerOffset(), TimeOffset(),  # measurement effects (kind "tracker"), last for the same reason
+    TrackerOffset(), TimeOffset(),  # measurement effects (kind "tracker"), after the physics for the same reason
+    MecanumLateral(),  # added after the tracker effects: mecanum robots only, the others' designs unchanged
 )}
 
 

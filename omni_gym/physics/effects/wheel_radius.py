@@ -21,7 +21,7 @@ class WheelRadius(Effect):
     tolerances = {"scale": 0.01}
 
     def write_kernel(self, params, sp, wp, model) -> None:
-        wp[:, WP_R] = model.robot.wheel_radius * np.asarray(params["scale"], dtype=float)
+        wp[:, WP_R] *= np.asarray(params["scale"], dtype=float)  # in place: mecanum_lateral scales it too
 
     def fit_dims(self, model) -> tuple[Dim, ...]:
         return tuple(Dim(f"scale{i + 1}", 0.85, 1.15) for i in range(model.n_wheels))
