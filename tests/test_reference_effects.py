@@ -1,10 +1,10 @@
 """The world against the independent reference for the effects the reference implements from their docs:
-``motor_lag``, ``kinetic_friction`` and ``wheel_liftoff`` (a fixed lift schedule, replayed in the world
+``motor_lag``, ``kinetic_friction``, ``roller_gap`` and ``wheel_liftoff`` (a fixed lift schedule, replayed in the world
 by :class:`~omni_gym.physics.liftoff.ScheduledContactProcess`).
 
 Tolerance: the validation bound of ``tests/test_validation.py``, 1 mm in position and 2 mrad in heading
 over a 2 s manoeuvre sampled every 10 ms. The reference's own error is ~1e-10 m (error-controlled stiff
-solver, restarted at every command change and lift event), so the difference is the world's: its
+solver, restarted at every command change, roller/gap switch and lift event), so the difference is the world's: its
 0.5 ms first-order step (0.16 mm / 1.5 mrad over 2 s in ``benchmarks/results/convergence.md``) and,
 for lift-off, switch times rounded up to the next 0.5 ms substep (a load change late by < 0.5 ms at
 < 0.5 m/s moves the pose by far less than 0.1 mm). Every test also checks that the effect moves the
@@ -92,6 +92,13 @@ def test_kinetic_friction_matches_the_world(robot):
 def test_kinetic_friction_with_the_gap_model_matches_the_world():
     model = load_model("williams2002", "paper", "roller_gap")
     _check(model, model.with_effect("kinetic_friction", {"ratio": 0.6, "v_s": 0.02}))
+
+
+@pytest.mark.parametrize("friction", ["initial", "roller_gap"])
+def test_roller_gap_effect_matches_the_world(friction):
+    """The effect's own μ'', roller share and per-wheel phases, on a nominal model without and with the gap model."""
+    model = load_model("williams2002", "carpet", friction)
+    _check(model, model.with_effect("roller_gap", {"mu_gap": 0.5, "roller_fraction": 0.8, "phase": [0.1, 0.9, 0.4]}))
 
 
 @pytest.mark.parametrize("robot", ["williams2002", "optiodom_omni4"])

@@ -37,7 +37,10 @@ times (the event times are interval boundaries, like the roller/gap switches).
 
 In the ``roller_gap`` friction model the wheel rests on rigid material while |(φ_i mod p) − p/2| <
 g/2 (p = 2π/rollers, g = (1 − roller_fraction) p) and then both coefficients are mu_gap; otherwise
-(and always in the ``initial`` model) they are mu_drive and mu_transverse.
+(and always in the ``initial`` model) they are mu_drive and mu_transverse. The ``roller_gap`` effect
+turns that model on with its own μ'' (``mu_gap``), roller share and a phase per wheel, as
+``docs/discrepancy.md`` states it: wheel i is on rigid material while |((φ_i + phase_i) mod p) − p/2| <
+(1 − roller_fraction)·p/2.
 
 The normal loads N_i come from :func:`omni_gym.physics.loads.wheel_loads`: equal shares
 m·g/n_contact with the centre of mass at the geometric centre (the paper's assumption), static
@@ -65,9 +68,10 @@ from omni_gym.physics.model import SimModel
 
 # Effects this integrator implements itself (written from the effects' documented equations, not their
 # kernel code): the centre of mass, per-wheel rolling radius, per-wheel placement and mounting yaw,
-# the first-order motor lag, the Stribeck drop of friction and lift-off (as a given event schedule).
+# the first-order motor lag, the Stribeck drop of friction, lift-off (as a given event schedule) and the
+# rigid material between the rollers with its own μ'', roller share and per-wheel phase.
 SUPPORTED_EFFECTS = ("com_offset", "wheel_radius", "wheel_geometry", "motor_lag", "kinetic_friction",
-                     "wheel_liftoff")
+                     "wheel_liftoff", "roller_gap")
 _TWO_OVER_PI = 2.0 / math.pi
 
 
@@ -120,8 +124,9 @@ class WheelMotion:
 
 
 def _switch_times(times: np.ndarray, commands: np.ndarray, t_end: float, pitch: float, gap: float,
-                  use_gap: bool) -> np.ndarray:
-    """Sorted times in (0, t_end) where a command changes or a wheel enters / leaves rigid material."""
+                  use_gap: bool, phase: np.ndarray | None = None) -> np.ndarray:
+    """Sorted times in (0, t_end) where a command changes or a wheel enters / leaves rigid material
+    (wheel i on it while |((φ_i + phase_i) mod pitch) − pitch/2| < gap/2; phase default 0)."""
     out = [t for t in times[1:] if 0.0 < t < t_end]
     if use_gap and gap > 0.0:
         starts = np.concatenate([times, [t_end]])
@@ -130,6 +135,8 @@ def _switch_times(times: np.ndarray, commands: np.ndarray, t_end: float, pitch: 
             if tb <= ta:
                 continue
             phi0 = _wheel_angles(ta, times, commands)
+            if phase is not None:
+                phi0 = phi0 + phase
             for i, w in enumerate(commands[j]):
                 if w == 0.0:
                     continue
@@ -163,8 +170,9 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
         model: the model; only the effects of :data:`SUPPORTED_EFFECTS` are supported (others raise
             NotImplementedError): ``com_offset`` moves c, ``wheel_radius`` scales r per wheel,
             ``wheel_geometry`` moves wheel i to distance_i·p_i and yaws d_i by mount_i, ``motor_lag``
-            lags the wheel speeds (not with the ``roller_gap`` friction model), ``kinetic_friction``
-            shapes every coefficient, ``wheel_liftoff`` needs ``lift_events`` (its realisation).
+            lags the wheel speeds (not with rigid material between the rollers), ``kinetic_friction``
+            shapes every coefficient, ``wheel_liftoff`` needs ``lift_events`` (its realisation),
+            ``roller_gap`` turns the gap model on with its mu_gap, roller_fraction and phases.
         times: (K,) command switch times [s], ``times[0] == 0``, increasing. Row j of ``commands``
             holds on [times[j], times[j+1]); the last row holds until ``t_eval[-1]``.
         commands: (K, n) commanded wheel speeds [rad/s].
@@ -197,9 +205,6 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
     if unsupported:
         raise NotImplementedError(f"reference: model effects {unsupported} are not supported")
     tau = float(model.effects.get("motor_lag", {"tau": 0.0})["tau"])
-    if tau > 0.0 and model.friction == "roller_gap":
-        raise NotImplementedError("reference: motor_lag with the roller_gap friction model is not supported "
-                                  "(the gap switching times of a lagged wheel are not piecewise linear)")
     if "wheel_liftoff" in model.effects and lift_events is None:
         raise ValueError("reference: the model has wheel_liftoff; give its realisation as lift_events")
     kin = model.effects.get("kinetic_friction")
@@ -250,11 +255,22 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
     pitch = 2.0 * math.pi / robot.rollers
     gap = (1.0 - robot.roller_fraction) * pitch
     use_gap = model.friction == "roller_gap"
+    mu_gap, phase = surf.mu_gap, None
+    if "roller_gap" in model.effects:
+        rg = model.effects["roller_gap"]
+        use_gap, mu_gap = True, float(rg["mu_gap"])
+        gap = (1.0 - float(rg["roller_fraction"])) * pitch
+        phase = np.asarray(rg["phase"], dtype=float)
+    if tau > 0.0 and use_gap:
+        raise NotImplementedError("reference: motor_lag with rigid material between the rollers (roller_gap) is "
+                                  "not supported (the gap switching times of a lagged wheel are not piecewise "
+                                  "linear)")
     wheels = WheelMotion(times, commands, tau, initial_wheel_speed)
 
     t_end = float(t_eval[-1])
     lift_times = [t for a, b, _ in events for t in (a, b) if 0.0 < t < t_end]
-    inner = np.unique(np.concatenate([_switch_times(times, commands, t_end, pitch, gap, use_gap), lift_times]))
+    inner = np.unique(np.concatenate([_switch_times(times, commands, t_end, pitch, gap, use_gap, phase),
+                                     lift_times]))
     bounds = np.concatenate([[0.0], inner, [t_end]])
 
     def frame(theta):
@@ -361,9 +377,11 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
         loads = wheel_loads(positions, c, m, model.gravity, contact_at(tm))
         if use_gap and gap > 0.0:
             phi = _wheel_angles(tm, times, commands)
+            if phase is not None:
+                phi = phi + phase
             on_rigid = np.abs(np.mod(phi, pitch) - 0.5 * pitch) < 0.5 * gap
-            mu_w = np.where(on_rigid, surf.mu_gap, surf.mu_drive)
-            mu_t = np.where(on_rigid, surf.mu_gap, surf.mu_transverse)
+            mu_w = np.where(on_rigid, mu_gap, surf.mu_drive)
+            mu_t = np.where(on_rigid, mu_gap, surf.mu_transverse)
         else:
             mu_w = np.full(n, surf.mu_drive)
             mu_t = np.full(n, surf.mu_transverse)
