@@ -290,11 +290,12 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
         return rho, dw, aw, q, ux, uy, v_w, v_t
 
     def law(v):
-        """(atan(k v)·g(v), its derivative in v): the friction shape times μ_s (2/π) gives the force."""
+        """(atan(k v)·g(v), its derivative in v; None without kinetic_friction): the shape the force is
+        N μ_s (2/π) times."""
         base = np.arctan(k * v)
-        dbase = k / (1.0 + (k * v) ** 2)
         if kin is None:
-            return base, dbase
+            return base, None
+        dbase = k / (1.0 + (k * v) ** 2)
         drop = (1.0 - ratio) * np.exp(-((v / v_s) ** 2))
         g = ratio + drop
         return base * g, dbase * g + base * drop * (-2.0 * v / v_s**2)
@@ -320,8 +321,12 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
             shape_t, dshape_t = law(v_t)
             fw = nw * shape_w
             ft = nt * shape_t
-            gw = nw * dshape_w  # d(N μ_W)/d v_W
-            gt = nt * dshape_t
+            if kin is None:  # the plain law's derivative, in the arithmetic order the reference always used
+                gw = nw * k / (1.0 + (k * v_w) ** 2)  # d(N μ_W)/d v_W
+                gt = nt * k / (1.0 + (k * v_t) ** 2)
+            else:
+                gw = nw * dshape_w
+                gt = nt * dshape_t
             # per-wheel derivatives of v_W, v_T w.r.t. (θ, Vx, Vy, ω)
             rho_x_dw = rho[:, 0] * dw[:, 1] - rho[:, 1] * dw[:, 0]
             rho_x_aw = rho[:, 0] * aw[:, 1] - rho[:, 1] * aw[:, 0]
@@ -406,6 +411,6 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
         *_, q, _ux, _uy, v_w, v_t = slips(st, speeds[j])
         velocity[j] = [st[3] + st[5] * q[1], st[4] - st[5] * q[0], st[5]]
         slip[j, :, 0], slip[j, :, 1] = v_w, v_t
-        angles[j] = wheels.angle(t)
+        angles[j] = wheels.angle(t) if tau > 0.0 else _wheel_angles(t, times, commands)
     return {"pose": pose, "velocity": velocity, "wheel_speed": speeds, "slip": slip, "wheel_angle": angles,
             "switch_times": bounds[1:-1]}
