@@ -241,7 +241,8 @@ def reference_trajectory(model: SimModel, times: np.ndarray, commands: np.ndarra
     m, inertia = robot.mass, robot.inertia
     k = surf.k
     base_contact = np.ones(n, dtype=bool) if contact is None else np.asarray(contact, dtype=bool)
-    events = sorted((float(a), float(b), np.asarray(msk, dtype=bool)) for a, b, msk in (lift_events or []))
+    events = sorted(((float(a), float(b), np.asarray(msk, dtype=bool)) for a, b, msk in (lift_events or [])),
+                    key=lambda ev: ev[:2])
     for (_a0, b0, _), (a1, _b1, _) in zip(events[:-1], events[1:], strict=True):
         if a1 < b0:
             raise ValueError(f"reference: lift events overlap at {a1} s")
