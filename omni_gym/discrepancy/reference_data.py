@@ -7,6 +7,10 @@ friction law) is invisible to the recovery tests. These runs come from
 handled exactly, written independently of the world and its kernel), as a user's data would come from
 a real robot: random twist steps, white tracker noise per channel, quantised encoders.
 
+Lift-off (``wheel_liftoff``) is a random process in the world; here each run's realisation is drawn
+by :func:`lift_schedule` from the run's seeded generator, with the process documented in
+``docs/model.md`` (Normal loads and lift-off), and handed to the reference as a fixed event list.
+
 Default data: 8 runs of about 5 s of random twist steps, white noise of 1 mm in x and y and 2 mrad in
 heading, the Williams robot on carpet with the initial friction. Hidden effects: the physics effects
 the reference integrator implements (:data:`~omni_gym.analysis.reference.SUPPORTED_EFFECTS`), the
@@ -22,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.analysis.reference import SUPPORTED_EFFECTS, reference_trajectory
+from omni_gym.analysis.reference import SUPPORTED_EFFECTS, WheelMotion, reference_trajectory
 from omni_gym.discrepancy.dataset import Run, write_dataset
 from omni_gym.discrepancy.synth import COUNTS_PER_REV, RATE
 from omni_gym.physics.model import SimModel
@@ -53,6 +57,35 @@ def twist_steps(model: SimModel, rng: np.random.Generator, duration: float, rate
     return t, twist @ model.robot.wheel_matrix().T
 
 
+def lift_cases(n: int) -> np.ndarray:
+    """Contact masks (rows, True = on the floor) a lift can produce, as documented (Phunopas & Inoue 2018,
+    Table 2, for any n): each single wheel up and, for even n ≥ 4, each diametrically opposite pair up."""
+    rows = [np.arange(n) != i for i in range(n)]
+    if n % 2 == 0 and n >= 4:
+        rows += [(np.arange(n) != i) & (np.arange(n) != i + n // 2) for i in range(n // 2)]
+    return np.array(rows)
+
+
+def lift_schedule(n: int, lift_rate: float, recover_rate: float, t_end: float,
+                  rng: np.random.Generator) -> list[tuple[float, float, np.ndarray]]:
+    """One realisation of the lift-off process on [0, t_end) [s]: (t_start, t_end, mask) per lift.
+
+    All wheels down for an exponential time of rate ``lift_rate`` [1/s], then one of :func:`lift_cases`
+    chosen uniformly for an exponential time of rate ``recover_rate`` [1/s], and so on (a rate of 0:
+    that switch never comes). Every draw from ``rng``.
+    """
+    cases, out, t = lift_cases(n), [], 0.0
+    while lift_rate > 0.0:
+        t += rng.exponential(1.0 / lift_rate)
+        if t >= t_end:
+            break
+        mask = cases[int(rng.integers(len(cases)))]
+        up = t + rng.exponential(1.0 / recover_rate) if recover_rate > 0.0 else math.inf
+        out.append((t, min(up, t_end), mask))
+        t = up
+    return out
+
+
 def reference_runs(model: SimModel, hidden: dict | None, runs: int, duration: float, seed: int,
                    noise_xy: float = NOISE_XY, noise_heading: float = NOISE_HEADING, noisy_start: bool = False,
                    **twist) -> list[Run]:
@@ -76,7 +109,9 @@ def reference_runs(model: SimModel, hidden: dict | None, runs: int, duration: fl
                              f"(supported: {[*SUPPORTED_EFFECTS, *TRACKER, 'drag']})")
         else:
             true_model = true_model.with_effect(name, params)
-    r_man, r_noise = np.random.default_rng(seed).spawn(2)
+    lift = true_model.effects.get("wheel_liftoff")
+    # The lift draws come from a third stream: the manoeuvres and the noise stay those of the same seed.
+    r_man, r_noise, r_lift = np.random.default_rng(seed).spawn(3)
     quantum = 2 * math.pi / COUNTS_PER_REV
     delay = float(tracker.get("time_offset", {"delay": 0.0})["delay"])
     out = []
@@ -84,7 +119,9 @@ def reference_runs(model: SimModel, hidden: dict | None, runs: int, duration: fl
         t, cmd = twist_steps(model, r_man, duration, **twist)
         # The tracker's row stamped t shows the robot at t - delay (at rest where it started before 0).
         t_seen = np.clip(t - delay, 0.0, t[-1])
-        ref = reference_trajectory(true_model, t, cmd, t_seen, drag=drag)  # the last row holds no time
+        events = None if lift is None else lift_schedule(cmd.shape[1], lift["lift_rate"], lift["recover_rate"],
+                                                           float(t[-1]), r_lift)
+        ref = reference_trajectory(true_model, t, cmd, t_seen, drag=drag, lift_events=events)  # last row: no time
         truth = ref["pose"]
         if "tracker_offset" in tracker:
             o, yaw = np.asarray(tracker["tracker_offset"]["offset"], dtype=float), tracker["tracker_offset"]["yaw"]
@@ -94,8 +131,13 @@ def reference_runs(model: SimModel, hidden: dict | None, runs: int, duration: fl
         pose = truth + r_noise.normal(0.0, 1.0, (len(t), 3)) * np.array([noise_xy, noise_xy, noise_heading])
         if not noisy_start:
             pose[0] = truth[0]  # every run starts at rest, its first pose known exactly
-        # Encoders on the robot's clock: the integral of the piecewise-constant commands.
-        angle = np.vstack([np.zeros(cmd.shape[1]), np.cumsum(cmd[:-1] * np.diff(t)[:, None], axis=0)])
+        # Encoders on the robot's clock: the wheel angles (the integral of the commands, lagged with motor_lag).
+        tau = float(true_model.effects.get("motor_lag", {"tau": 0.0})["tau"])
+        if tau > 0.0:
+            motion = WheelMotion(t, cmd, tau)
+            angle = np.array([motion.angle(tk) for tk in t])
+        else:
+            angle = np.vstack([np.zeros(cmd.shape[1]), np.cumsum(cmd[:-1] * np.diff(t)[:, None], axis=0)])
         enc = np.floor(angle / quantum) * quantum
         out.append(Run(name=f"run{i:03d}", t=t, cmd=cmd, pose=pose, enc=enc))
     return out
