@@ -19,7 +19,7 @@ speeds, with the per-wheel effective radii where the model has them; the EKF's e
 feed-forward both go through W) and **gains** tuned in that model's simulation. So every controller here
 commands wheel speeds (``action_mode="wheels"``): on the robot, nothing converts its twist with a model it did
 not choose. ``ekf-pid``'s gains are tuned by the same procedure and budget on each design model: a grid of
-multipliers on the proportional gains (kp_pos, kp_head: ×0.5 … ×3) and on the integral gains (ki_pos, ki_head:
+multipliers on the proportional gains (kp_pos, kp_head: ×0.25 … ×3) and on the integral gains (ki_pos, ki_head:
 ×0.25 … ×4) of :class:`agents.pid.PIDGains`, each cell scored by the mean tracking RMSE of ``--tune-episodes``
 episodes (seeds 0…, disjoint from the held-out seeds), the lowest mean kept. The factorial rows (nominal
 kinematics with the calibrated gains and the reverse) say which of the two carries the difference.
@@ -66,7 +66,7 @@ MODEL = ROOT / "benchmarks" / "inputs" / "omni4_calibrated_model.json"
 NOMINAL, CALIBRATED = "nominal", "calibrated"
 ENV_KINEMATICS = "env"  # the policy as omni-gym evaluate builds it: twist actions, the environment's own robot
 DESIGN_IDS = {NOMINAL: "OmniPathFollow-Mecanum-v0", CALIBRATED: "OmniPathFollow-Custom-v0"}
-P_GRID = (0.5, 0.75, 1.0, 1.5, 2.0, 3.0)  # multipliers of kp_pos, kp_head
+P_GRID = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0)  # multipliers of kp_pos, kp_head
 I_GRID = (0.25, 0.5, 1.0, 2.0, 4.0)  # multipliers of ki_pos, ki_head
 QUICK_P, QUICK_I = (1.0, 2.0), (1.0, 2.0)
 TUNE_SEED = 0  # tuning seeds 0…; held-out seeds from --seed (10 000)
