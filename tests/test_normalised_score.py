@@ -70,3 +70,29 @@ def test_evaluate_score_command(capsys):
     assert main(argv[:-1]) == 0  # the text form names the anchors
     text = capsys.readouterr().out
     assert "odometry-pid: normalised score" in text and "0 = open-loop" in text and "100 = ekf-pid" in text
+
+
+def test_benchmark_table_runs_the_mecanum_id_in_its_own_conditions():
+    """benchmarks/normalised_score.py: the mecanum id has no roller-gap friction model, so its three conditions
+    keep the floors and lift-off rates of the others with ``initial`` friction; the omni ids keep theirs."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    bench = Path(__file__).resolve().parents[1] / "benchmarks"
+    sys.path.insert(0, str(bench))  # the script imports baselines.py beside it
+    try:
+        spec = importlib.util.spec_from_file_location("normalised_score_bench", bench / "normalised_score.py")
+        ns = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = ns
+        spec.loader.exec_module(ns)
+    finally:
+        sys.path.remove(str(bench))
+    assert ns.MECANUM in ns.ENV_IDS
+    for cond in ("no slip", "slip", "slip + lift-off"):
+        mec = ns.Cell(ns.MECANUM, "ekf-pid", cond, (1,)).env_kwargs()
+        omni = ns.Cell(ENV, "ekf-pid", cond, (1,)).env_kwargs()
+        assert mec["friction"] == "initial"
+        assert (mec["surface"], mec["lift_rate"]) == (omni["surface"], omni["lift_rate"])
+    assert ns.Cell(ENV, "ekf-pid", "slip", (1,)).env_kwargs()["friction"] == "roller_gap"
+    assert ns.Cell(ns.MECANUM, "ekf-pid", "slip", (1,), 2.0).env_kwargs()["episode_seconds"] == 2.0
