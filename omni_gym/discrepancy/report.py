@@ -50,12 +50,7 @@ def markdown(result: dict, figures: list[str]) -> str:
     lines += [f"**Outcome: `{effect}`**: {result['why']}.", ""]
     if result.get("params"):
         lines += ["Fitted parameters:", ""] + _param_lines(effect, result["params"]) + [""]
-        loose = [f"{p['effect']}.{p['param']}" + (" (at its fit bound)" if p["at_bound"] else "")
-                 for p in (result.get("identifiability") or {}).get("params", [])
-                 if not p["identified"] or p["at_bound"]]
-        if loose:
-            lines += ["⚠ **Not identified by the data** (one point of a valley the data leave open, not a measured "
-                      "value; see \"What the data determine\"): " + ", ".join(loose) + ".", ""]
+        lines += _not_measured_lines(result.get("identifiability"))
     flags = result.get("plausibility", {}).get("flags", [])
     if flags:
         lines += ["**Implausible fitted values** (flagged, not changed; such a value usually means the effect "
@@ -179,11 +174,42 @@ def _identifiability_lines(ident: dict | None) -> list[str]:
              "A parameter that is not is one point of a valley the data leave open: do not read it as a measured "
              "physical value.", ""]
     lines += [f"* {line}" for line in ident["per_effect"].values()]
+    if ident.get("refit"):
+        lines += ["", "The fit was re-done in the identified subspace: directions the data do not determine are held "
+                      "at the start model's values and the determined combinations refitted (all runs, and each "
+                      "fold's training runs for the held-out scores); `model.json`, the parameters above and the "
+                      "held-out tables use these values. The search's values were: "
+                  + "; ".join(f"{e} `{_fmt(p)}`" for e, p in ident.get("search_params", {}).items()) + "."]
     if ident["confounded"]:
         lines += ["", "Confounded (|correlation| > 0.9): " + "; ".join(
             f"{c['a']} ~ {c['b']} ({c['correlation']:+.2f})" for c in ident["confounded"][:8]) + "."]
     lines += ["", f"Method: {ident['note']}.", ""]
     return lines
+
+
+def _not_measured_lines(ident: dict | None) -> list[str]:
+    """The warning under the fitted parameters: which of them the data did not determine, and what was done
+    with them (identified_fit.py: merged into a determined combination, fixed at the start model's value, or
+    left where the search put them)."""
+    status = (ident or {}).get("per_effect_status") or {}
+    merged = [f"{e}.{p}" for e, st in status.items() for p in st["merged"]]
+    fixed = [f"{e}.{p}" for e, st in status.items() for p in st["fixed"]]
+    kept = [f"{e}.{p}" for e, st in status.items() for p in st["kept"]]
+    bound = [f"{e}.{p}" for e, st in status.items() for p in st["at_bound"]]
+    parts = []
+    if merged:
+        parts.append("determined only in combination (their separate values are not measurements): "
+                     + ", ".join(merged))
+    if fixed:
+        parts.append("not determined, fixed at the start model's value: " + ", ".join(fixed))
+    if kept:
+        parts.append("not determined, left where the search put them (no start value): " + ", ".join(kept))
+    if bound:
+        parts.append("identified but at the fit bound (the fit wants a value beyond the range): " + ", ".join(bound))
+    if not parts:
+        return []
+    return ["⚠ **Not every parameter is a measurement** (see \"What the data determine\"): " + "; ".join(parts)
+            + ".", ""]
 
 
 def _param_lines(effect: str, params: dict) -> list[str]:

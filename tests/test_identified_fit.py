@@ -1,0 +1,95 @@
+"""The final fit restricted to what the data determine (omni_gym.discrepancy.identified_fit).
+
+A linear stand-in for the simulator, so the test runs in milliseconds and the truth is known exactly:
+residual = y − (a + b)·X − c·Z per run, with a fourth dimension d that changes nothing. The data
+determine a + b and c, not a − b and not d. The search is assumed to have left the fit at a point of the
+valley with a at its upper bound (what the real omni3 fit did with a wheel distance).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from omni_gym.discrepancy.candidates import Candidate
+from omni_gym.discrepancy.identifiability import Named, linearise, summary
+from omni_gym.discrepancy.identified_fit import refit, statuses
+from omni_gym.physics.effects import Dim
+
+SIGMA = 1e-3  # white noise per residual component [m]
+TRUTH = {"a": 0.5, "b": 0.5, "c": 0.7}  # a + b = 1 (only the sum shows), c
+START = {"a": 0.2, "b": 0.2, "c": 0.5, "d": 0.3}  # the start model's values (the candidate's null point)
+
+
+class _Model:
+    """Stand-in for SimModel: carries the effect's parameters (with_effect as SimModel's)."""
+
+    def __init__(self, params: dict | None = None) -> None:
+        self.params = params or {}
+
+    def with_effect(self, name: str, params: dict) -> _Model:
+        return _Model(dict(params))
+
+
+class _Evaluator:
+    """Stand-in for fitting.Evaluator: residuals (K, 3) [m] of each model on each run, linear in a + b and c."""
+
+    def __init__(self, runs: int = 4, rows: int = 200, seed: int = 0) -> None:
+        rng = np.random.default_rng(seed)
+        self.X = [rng.normal(0.0, 0.05, (rows, 3)) for _ in range(runs)]
+        self.Z = [rng.normal(0.0, 0.05, (rows, 3)) for _ in range(runs)]
+        self.y = [self._pred(TRUTH, x, z) + rng.normal(0.0, SIGMA, (rows, 3))
+                  for x, z in zip(self.X, self.Z, strict=True)]
+
+    @staticmethod
+    def _pred(p: dict, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        return (p["a"] + p["b"]) * x + p["c"] * z
+
+    def residuals(self, models: list[_Model]) -> list[list[np.ndarray]]:
+        runs = list(zip(self.y, self.X, self.Z, strict=True))
+        return [[y - self._pred(m.params, x, z) for y, x, z in runs] for m in models]
+
+
+def _candidate() -> Candidate:
+    dims = tuple(Dim(n, 0.0, 1.0) for n in ("a", "b", "c", "d"))
+    return Candidate("toy", dims, lambda v: dict(zip(("a", "b", "c", "d"), v, strict=True)), null=dict(START))
+
+
+def test_undetermined_directions_go_back_to_the_start_and_nothing_stays_at_a_bound():
+    cand = _candidate()
+    ev = _Evaluator()
+    # The search's point: on the valley floor (a + b = 1, c = 0.7), but a at its bound and d anywhere.
+    u_search = np.array([1.0, 0.0, 0.7, 0.9])
+    lin = linearise(ev, _Model(), [Named(cand, u_search)], SIGMA)
+    assert lin is not None
+    fit = refit(ev, _Model(), lin, np.array([0, 0, 1, 1]))
+    assert fit is not None  # a − b and d are not determined: the fit changes
+    a, b, c, d = (cand.dims[j].value(float(x)) for j, x in enumerate(fit.u_all[0]))
+    # What the data determine is kept: a + b and c, to the fit's precision (the 95 % half-width of a + b
+    # with 2400 components of 1 mm noise on regressors of 0.05 is about 0.002).
+    assert a + b == pytest.approx(1.0, abs=0.01) and c == pytest.approx(0.7, abs=0.01)
+    # What they do not is the start model's: a − b back to the start's 0 (the start has a = b), d at 0.3.
+    assert a - b == pytest.approx(START["a"] - START["b"], abs=0.01)
+    assert d == pytest.approx(START["d"], abs=1e-9)
+    st = fit.status["toy"]
+    assert st["identified"] == ["c"] and sorted(st["merged"]) == ["a", "b"]
+    assert st["fixed"] == {"d": pytest.approx(0.3)}
+    assert st["at_bound"] == []
+    # The report names the determined combination (a + b with equal weights), not a's value alone.
+    assert any(sorted(t[0] for t in cmb["terms"]) == ["a", "b"] for cmb in st["combinations"]), st["combinations"]
+    assert "determined only in combination: a, b" in st["line"] and "fixed at the start model's value: d" in st["line"]
+    # Held-out: each fold's fit saw only the other fold's runs; a + b predicted to noise on the runs it did not see.
+    assert fit.heldout.shape == (4,) and np.all(fit.heldout / (199 * 3) < 1.5 * SIGMA**2)
+    # The summary's per-effect line is the status line when given.
+    assert summary(lin, used=fit.status)["per_effect"]["toy"] == st["line"]
+
+
+def test_nothing_changes_when_every_combination_is_identified():
+    """Both sums and differences shown: a dimension per regressor, nothing confounded."""
+    cand = Candidate("toy", (Dim("c", 0.0, 1.0),), lambda v: {"a": 0.5, "b": 0.5, "c": v[0], "d": 0.0},
+                     null={"c": 0.5})
+    ev = _Evaluator()
+    lin = linearise(ev, _Model(), [Named(cand, np.array([0.7]))], SIGMA)
+    assert refit(ev, _Model(), lin, np.array([0, 0, 1, 1])) is None
+    assert statuses(lin)["toy"]["identified"] == ["c"]
+    assert "every parameter pinned down" in statuses(lin)["toy"]["line"]
