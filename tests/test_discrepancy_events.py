@@ -130,7 +130,7 @@ def test_events_must_beat_the_noise_level(monkeypatch):
     """An event is evidence only for what it explains above the decision's noise level (1.3 σ̂²), as a
     held-out score gives no effect credit for fitting noise. A 50 ms lift at a slow 0.08 scale of the move
     leaves the run at 1.10 σ̂² (measured): noise level, so no event may be inferred. Without the rule
-    (EVIDENCE_ROUNDS = 0: the per-run BIC keep test only) an event was inferred at 0.68 s, half a second
+    (check_evidence a no-op: the BIC keep test alone) an event was inferred at 0.68 s, half a second
     from the true lift, trimming the run to 0.95 σ̂²: fitted noise. A 100 ms lift at the same speed
     (1.46 σ̂²) beats the noise and is still found, at its time."""
     import omni_gym.discrepancy.events as events
@@ -139,7 +139,7 @@ def test_events_must_beat_the_noise_level(monkeypatch):
     fit, mse0 = _infer(ds, lever)
     assert mse0[0] < 1.0 + RULES["noise_margin"], mse0  # the case is what it is meant to be: noise level
     assert fit.events == [[], []], fit.events
-    monkeypatch.setattr(events, "EVIDENCE_ROUNDS", 0)
+    monkeypatch.setattr(events.EventInference, "check_evidence", lambda self: None)
     old, _ = _infer(ds, lever)
     assert old.n_events() >= 1  # control: the data do fool the BIC keep test alone
     monkeypatch.undo()
