@@ -2,35 +2,49 @@
 
 After the search, :mod:`.identifiability` linearises the final fit u* (every named deterministic effect's
 fitted dimensions, unit-cube coordinates) and splits the parameter space by the SVD of the scaled
-Jacobian J = U S Vᵀ into identified combinations (rows vₖ of Vᵀ with 95 % half-width 2σ_eff/sₖ within
-:data:`~.identifiability.IDENTIFIED` of the range) and the rest. Along an unidentified direction the
-data barely change the residual, so where the search left the fit there (often at a bound, where it
-compensates another error) is chance, not a measurement.
+Jacobian J = U S Vᵀ into combinations vₖ (rows of Vᵀ), each known to a 95 % half-width hₖ = 2σ_eff/sₖ.
+A combination is identified when hₖ is within :data:`~.identifiability.IDENTIFIED` of the range.
 
-**Choice: the fit is re-done in the identified subspace**, u = u₀ + B·c, B the identified combinations
-(columns), u₀ the start model's values (the candidate's null point: the nominal model's, or the
-kinematic calibration's when the search started from it), c fitted by Levenberg–Marquardt on all runs
-(and, for the held-out scores, on each fold's training runs, warm-started at the all-run fit, as the
-search's fold fits are). Fixing every parameter that is not identified *on its own* and re-fitting the
-others was the alternative; it throws away what the data do determine when parameters are only
-determined together: on the omni3 robot no single wheel distance or scale is identified, yet their
-ratios are (−scale1 + 0.94·scale2 − …, ±3 % of the range), and fixing them all would return the start
-model. The subspace fit keeps those ratios and holds only the undetermined directions at the start.
+**Choice: the fit is re-done in a subspace**, u = u₀ + B·c, u₀ the start model's values (the
+candidate's null point: the nominal model's, or the kinematic calibration's when the search started from
+it), B the combinations fitted, c by Levenberg–Marquardt on all runs and, for the held-out scores, on
+each fold's training runs (warm-started at the all-run fit, as the search's fold fits are). A combination
+is **held** at the start (left out of B) when it is not identified *and* the start lies inside its 95 %
+interval, |vₖ·(u* − u₀)| ≤ hₖ: the data neither pin it down nor ask to move away from the start, so where
+the search left it is chance. A combination that is not identified but whose interval excludes the start
+stays fitted: the data reject the start along it, if not precisely (holding every unidentified
+combination at the start cost the omni3 fit 5.2 → 9.8 mm RMS on its training segments).
+
+Fixing every parameter that is not identified *on its own* and re-fitting the others was the
+alternative; it throws away what the data determine when parameters are determined only together (per-
+wheel radius and distance enter the kinematics together: their ratios can be identified when neither
+is), and could return the start model where the data clearly say otherwise.
+
+**Bounds.** A value at its fit bound is never a measurement (the fit wants a value beyond the range, to
+compensate another error). A parameter the fit puts at a bound is held at the start value and the fit
+re-done (:data:`BOUND_PASSES`). That may cost prediction: when the refit's held-out MSE is more than
+:data:`HELD_OUT_TOLERANCE` above the search's, the data reject the start value there, the parameter keeps
+the search's value and the report says it sits at its bound, compensating another error, with the cost
+of holding it measured (``bound_cost``): on the omni3 robot a wheel distance at the 1.15 bound, held at 1,
+made four of five held-out sessions' whole-run position RMS worse (mean 54.5 → 68.0 mm; the kinematic
+calibration: 60.5 mm).
 
 Per parameter the outcome is one of (``status``):
 
-* ``identified``: its own 95 % half-width is within the threshold; fitted (in the subspace).
-* ``merged``: not identified alone, but in an identified combination (weight at least
-  :data:`~.identifiability.MERGE_WEIGHT` of the largest); it moves only along that combination, and the
+* ``identified``: its own 95 % half-width is within the threshold; fitted.
+* ``merged``: not identified alone, in an identified combination (weight at least
+  :data:`~.identifiability.MERGE_WEIGHT` of the largest): it moves only along that combination, and the
   report gives the combination, not the value, as what the data determined.
-* ``fixed``: in no identified combination (or at its fit bound after the subspace fit, which then is
-  re-done without it): held at the start model's value.
-* ``kept``: neither identified nor with a start value (a dimension the effect's null point leaves
-  open, e.g. a roller phase at μ'' = μ): it stays where the search left it and is reported as not
+* ``loose``: in a combination that is fitted but not identified: the data move it away from the start
+  but leave it uncertain (its 95 % half-width, share of the range, is given); not a measurement.
+* ``fixed``: in no fitted combination: held at the start model's value.
+* ``bound_fixed``: put at its fit bound by the search or the refit: held at the start model's value.
+* ``kept``: in no fitted combination and without a start value (a dimension the effect's null point
+  leaves open, e.g. a roller phase at μ'' = μ): it stays where the search left it, reported as not
   determined.
 
-When every combination is identified, nothing changes (no extra simulation). The refit costs a few LM
-iterations, each (combinations + 3) replays of every run per target (all runs and each fold).
+When nothing is held and nothing is at a bound, nothing changes (no extra simulation). The refit costs a
+few LM iterations, each (combinations + 3) replays of every run per target (all runs and each fold).
 """
 
 from __future__ import annotations
@@ -41,7 +55,7 @@ import numpy as np
 
 from omni_gym.discrepancy.candidates import to_cube
 from omni_gym.discrepancy.identifiability import BOUND, MERGE_WEIGHT, Linearisation, combination_text
-from omni_gym.discrepancy.residuals import run_sse
+from omni_gym.discrepancy.residuals import geo_mse, run_sse
 from omni_gym.physics.model import SimModel
 
 NOTE = ("parameters not determined by the data are held at the start model's values and the determined "
@@ -65,6 +79,8 @@ class IdentifiedFit:
     sse_all: np.ndarray
     heldout: np.ndarray
     status: dict
+    changed: bool = True  # False: the search's values stand (only the status says more)
+    bound_fixed: np.ndarray | None = None  # (p,) parameters held at the start because the fit put them at a bound
 
 
 def start_point(lin: Linearisation) -> tuple[np.ndarray, np.ndarray]:
@@ -105,33 +121,102 @@ def _stack(res: list[np.ndarray], mask: np.ndarray) -> np.ndarray:
                            for r, m in zip(res, mask, strict=True) if m] or [np.zeros(0)])
 
 
-def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray) -> IdentifiedFit | None:
-    """The fit in the identified subspace (module docstring); None when every combination is identified
-    (the search's fit stands as it is). ``ev``: the workflow's Evaluator; ``start``: the model the named
-    effects were fitted on top of; ``fold_of`` (R,): each run's fold."""
-    ident = lin.identified
-    if ident.all():
-        return None
+def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, search_heldout: np.ndarray | None = None,
+          n_comp: np.ndarray | None = None) -> IdentifiedFit | None:
+    """The fit with the undetermined directions and the parameters at a fit bound held at the start model
+    (module docstring); None when nothing is held (every combination identified or away from the start, no
+    parameter at a bound): the search's fit stands as it is. ``ev``: the workflow's Evaluator; ``start``:
+    the model the named effects were fitted on top of; ``fold_of`` (R,): each run's fold.
+
+    ``search_heldout`` (R,) [m²] and ``n_comp`` (R,): the search's per-run held-out SSE and residual
+    components. With them, holding the parameters at a bound must not cost more than
+    :data:`HELD_OUT_TOLERANCE` of the search's held-out MSE (row-weighted geometric mean, the decision's
+    metric); when it does, the data reject the start value there (the bound value compensates another
+    error that the model needs compensated): those parameters keep the search's values, reported as at
+    their bound with the cost measured (``bound_cost``)."""
     u_star = lin.u
     u0, has = start_point(lin)
+    u_ref = np.where(has, u0, u_star)
+    held_dir = held_directions(lin, u_ref)
+    bound = lin.at_bound() & has
+    if not held_dir.any() and not bound.any():
+        return None
+    out = _refit(ev, start, lin, fold_of, u_ref, has, held_dir)
+    bound = out.bound_fixed
+    if search_heldout is None or n_comp is None or not bound.any():
+        return out
+    cost = geo_mse(out.heldout, n_comp) / max(geo_mse(search_heldout, n_comp), 1e-30) - 1.0
+    if cost <= HELD_OUT_TOLERANCE:
+        return out
+    # The data reject the start value of the bound parameters: keep them where the search put them.
+    u_keep = np.where(bound, u_star, u_ref)
+    kept = _refit(ev, start, lin, fold_of, u_keep, has & ~bound, held_dir, keep=bound) if held_dir.any() else None
+    if kept is not None and geo_mse(kept.heldout, n_comp) > (1.0 + HELD_OUT_TOLERANCE) * geo_mse(search_heldout,
+                                                                                                      n_comp):
+        kept = None  # holding the undetermined directions costs too (not expected: the start is inside them)
+    status = kept.status if kept is not None else statuses(lin)
+    labels, dims = lin.labels, lin.dims
+    u_final = np.concatenate(kept.u_all) if kept is not None else u_star
+    for j in np.flatnonzero(bound):
+        if dims[j].periodic or BOUND < u_final[j] < 1.0 - BOUND:
+            continue  # kept at the search's value, which is inside the range: its status says the rest
+        eff, name = labels[j]
+        status[eff].setdefault("bound_cost", {})[name] = float(cost)
+        status[eff]["line"] = _line(eff, status[eff])
+    if kept is None:
+        return IdentifiedFit(u_all=list(lin.base), u_folds=[], sse_all=np.zeros(0), heldout=search_heldout.copy(),
+                             status=status, changed=False)
+    kept.status = status
+    return kept
+
+
+HELD_OUT_TOLERANCE = 0.05  # most held-out MSE increase (share) accepted for holding bound parameters at the start
+
+
+def _refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, u_ref: np.ndarray, has: np.ndarray,
+           held_dir: np.ndarray, keep: np.ndarray | None = None) -> IdentifiedFit:
+    """One refit: the combinations not in ``held_dir`` fitted from ``u_ref``; parameters in no fitted
+    combination held at ``u_ref`` (``has``: they have a start value; ``keep``: held at ``u_ref`` whatever
+    else, as the search's values); parameters the fit puts at a bound are held at the start and the fit
+    re-done (:data:`BOUND_PASSES`; ``bound_fixed`` of the result)."""
     own = lin.own_identified
-    V = lin.vt[ident]  # (m, p) identified combinations
-    weight = (np.max(np.abs(V) / np.max(np.abs(V), axis=1, keepdims=True), axis=0) if len(V)
-              else np.zeros(len(u_star)))
+    keep = np.zeros(len(u_ref), dtype=bool) if keep is None else keep
+    V = lin.vt[~held_dir]  # (m, p) the combinations fitted
+    weight = _weights(V, len(u_ref))
+    at_bound = np.zeros(len(u_ref), dtype=bool)
     fixed = has & (weight < MERGE_WEIGHT) & ~own
-    kept = ~has & (weight < MERGE_WEIGHT) & ~own
+    kept = ~has & ~keep & (weight < MERGE_WEIGHT) & ~own
     for _ in range(1 + BOUND_PASSES):
-        fit = _subspace_fit(ev, start, lin, V, fixed | kept, np.where(has, u0, u_star), fold_of)
+        fit = _subspace_fit(ev, start, lin, V, fixed | kept | keep, u_ref, fold_of)
         u = np.concatenate(fit[0])
         dims = lin.dims
         at = np.array([not d.periodic and (x <= BOUND or x >= 1.0 - BOUND) for d, x in zip(dims, u, strict=True)])
-        newly = at & has & ~own & ~fixed
+        newly = at & has & ~fixed & ~keep
         if not newly.any():
             break
-        fixed = fixed | newly  # never a named value at a bound: the data did not determine it there
+        # Never a named value at a bound: there the fit wants a value beyond the range, to compensate
+        # another error; the parameter is held at the start model's value and the rest refitted.
+        fixed, at_bound = fixed | newly, at_bound | newly
     u_all, u_folds, sse_all, heldout = fit
-    status = statuses(lin, u, fixed, kept)
-    return IdentifiedFit(u_all=u_all, u_folds=u_folds, sse_all=sse_all, heldout=heldout, status=status)
+    status = statuses(lin, u, fixed, kept, held_dir, at_bound)
+    return IdentifiedFit(u_all=u_all, u_folds=u_folds, sse_all=sse_all, heldout=heldout, status=status,
+                         bound_fixed=at_bound)
+
+
+def held_directions(lin: Linearisation, u_ref: np.ndarray) -> np.ndarray:
+    """(combinations,) True for a combination that is not identified and along which the start point
+    ``u_ref`` lies inside the search fit's 95 % interval: the data neither pin it down nor ask to move away
+    from the start (along a combination that is not identified but whose interval excludes the start, the
+    data do reject the start: holding it there cost the omni3 fit 5.2 → 9.8 mm RMS, so it stays fitted)."""
+    delta = lin.vt @ (lin.u - u_ref)
+    return ~lin.identified & (np.abs(delta) <= lin.half)
+
+
+def _weights(V: np.ndarray, p: int) -> np.ndarray:
+    """(p,) each dimension's largest weight in the rows of ``V`` (each row scaled to largest weight 1)."""
+    if not len(V):
+        return np.zeros(p)
+    return np.max(np.abs(V) / np.max(np.abs(V), axis=1, keepdims=True), axis=0)
 
 
 def _subspace_fit(ev, start: SimModel, lin: Linearisation, V: np.ndarray, held: np.ndarray, u_ref: np.ndarray,
@@ -198,34 +283,43 @@ def _subspace_fit(ev, start: SimModel, lin: Linearisation, V: np.ndarray, held: 
 
 
 def statuses(lin: Linearisation, u: np.ndarray | None = None, fixed: np.ndarray | None = None,
-             kept: np.ndarray | None = None) -> dict:
+             kept: np.ndarray | None = None, held_dir: np.ndarray | None = None,
+             bound_fixed: np.ndarray | None = None) -> dict:
     """Per named effect (JSON): each parameter's outcome (module docstring: ``identified``, ``merged``,
-    ``fixed`` and ``kept`` with the values used), ``at_bound`` (identified parameters the fit put at a bound:
-    the fit wants a value beyond the range), the identified combinations that involve the merged ones, and
-    the report's one ``line``. Defaults: the search's fit u* with nothing fixed (every combination
-    identified, :func:`refit` changed nothing)."""
+    ``loose``, ``fixed`` and ``kept`` with the values used), ``at_bound`` (identified parameters the fit put
+    at a bound: the fit wants a value beyond the range), the identified combinations that involve the merged
+    ones, and the report's one ``line``. Defaults: the search's fit u* with nothing fixed or held
+    (:func:`refit` changed nothing)."""
     u = lin.u if u is None else u
     p = len(u)
     fixed = np.zeros(p, dtype=bool) if fixed is None else fixed
     kept = np.zeros(p, dtype=bool) if kept is None else kept
+    held_dir = np.zeros(len(lin.s), dtype=bool) if held_dir is None else held_dir
     own = lin.own_identified
+    bound_fixed = np.zeros(p, dtype=bool) if bound_fixed is None else bound_fixed
     labels, dims = lin.labels, lin.dims
     ident_rows = np.flatnonzero(lin.identified)
+    w_loose = _weights(lin.vt[~lin.identified & ~held_dir], p)
     out: dict = {}
     for n in lin.named:
         name = n.candidate.name
         idx = [j for j, (e, _) in enumerate(labels) if e == name]
-        entry: dict = {"identified": [], "merged": [], "fixed": {}, "kept": {}, "at_bound": [], "combinations": []}
+        entry: dict = {"identified": [], "merged": [], "loose": {}, "fixed": {}, "bound_fixed": {}, "kept": {},
+                       "at_bound": [], "combinations": []}
         for j in idx:
             pname, value = labels[j][1], dims[j].value(float(u[j]))
-            if own[j]:
+            if bound_fixed[j]:  # the search (or the refit) put it at its fit bound: held at the start
+                entry["bound_fixed"][pname] = {"value": value, "search_value": dims[j].value(float(lin.u[j]))}
+            elif fixed[j]:
+                entry["fixed"][pname] = value
+            elif own[j]:
                 entry["identified"].append(pname)
                 if not dims[j].periodic and (u[j] <= BOUND or u[j] >= 1.0 - BOUND):
                     entry["at_bound"].append(pname)
-            elif fixed[j]:
-                entry["fixed"][pname] = value
             elif kept[j]:
                 entry["kept"][pname] = value
+            elif w_loose[j] >= MERGE_WEIGHT:
+                entry["loose"][pname] = float(2.0 * lin.sd[j])  # 95 % half-width, share of the fit range
             else:
                 entry["merged"].append(pname)
         for k in ident_rows:
@@ -241,17 +335,34 @@ def statuses(lin: Linearisation, u: np.ndarray | None = None, fixed: np.ndarray 
 
 def _line(effect: str, e: dict) -> str:
     """One line: what the data pinned down of this effect and what they did not (and what was done)."""
-    if e["identified"] and not (e["merged"] or e["fixed"] or e["kept"]):
-        parts = [f"every parameter pinned down ({', '.join(e['identified'])})"]
+    cost = e.get("bound_cost", {})
+    bound = [k for k in e["at_bound"] if k not in cost]
+    pinned = [k for k in e["identified"] if k not in e["at_bound"] and k not in cost]
+    if pinned and not (e["merged"] or e["loose"] or e["fixed"] or e["bound_fixed"] or e["kept"] or e["at_bound"]
+                       or cost):
+        parts = [f"every parameter pinned down ({', '.join(pinned)})"]
     else:
-        parts = [f"pinned down {', '.join(e['identified'])}" if e["identified"] else "pinned down no single parameter"]
-    if e["at_bound"]:
+        parts = [f"pinned down {', '.join(pinned)}" if pinned else "pinned down no single parameter"]
+    if bound:
         parts.append("at its fit bound (the fit wants a value beyond the range: it compensates another error, not a "
-                     f"measurement): {', '.join(e['at_bound'])}")
+                     f"measurement): {', '.join(bound)}")
+    if cost:
+        parts.append("at its fit bound (the fit wants a value beyond the range, compensating another error: not a "
+                     "measurement), kept there because holding it at the start model's value predicts the held-out "
+                     "runs worse (held-out MSE " + ", ".join(f"{k} +{100 * v:.0f} %" for k, v in cost.items()) + ")")
     if e["merged"]:
         combos = "; ".join(c["combination"] for c in e["combinations"][:3])
         parts.append(f"determined only in combination: {', '.join(e['merged'])} (fitted along {combos}; "
                      "their separate values are not measurements)")
+    if e["loose"]:
+        parts.append("only loosely determined (the data move it away from the start model but leave it uncertain; "
+                     "not a measurement): " + ", ".join(f"{k} (±{100 * v:.0f} % of its range)"
+                                                       for k, v in e["loose"].items()))
+    if e["bound_fixed"]:
+        parts.append("at its fit bound in the search (the fit wanted a value beyond the range, compensating another "
+                     "error: not a measurement), held at the start model's value: "
+                     + ", ".join(f"{k} = {v['value']:.4g} (search: {v['search_value']:.4g})"
+                                 for k, v in e["bound_fixed"].items()))
     if e["fixed"]:
         parts.append("not determined, fixed at the start model's value: "
                      + ", ".join(f"{k} = {v:.4g}" for k, v in e["fixed"].items()))

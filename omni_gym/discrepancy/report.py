@@ -195,8 +195,15 @@ def _not_measured_lines(ident: dict | None) -> list[str]:
     merged = [f"{e}.{p}" for e, st in status.items() for p in st["merged"]]
     fixed = [f"{e}.{p}" for e, st in status.items() for p in st["fixed"]]
     kept = [f"{e}.{p}" for e, st in status.items() for p in st["kept"]]
-    bound = [f"{e}.{p}" for e, st in status.items() for p in st["at_bound"]]
+    loose = [f"{e}.{p}" for e, st in status.items() for p in st.get("loose", {})]
+    held = [f"{e}.{p}" for e, st in status.items() for p in st.get("bound_fixed", {})]
+    bound = sorted({f"{e}.{p}" for e, st in status.items() for p in [*st["at_bound"], *st.get("bound_cost", {})]})
     parts = []
+    if held:
+        parts.append("at their fit bound in the search (compensating another error), held at the start model's "
+                     "value: " + ", ".join(held))
+    if loose:
+        parts.append("only loosely determined (not measurements): " + ", ".join(loose))
     if merged:
         parts.append("determined only in combination (their separate values are not measurements): "
                      + ", ".join(merged))
@@ -205,7 +212,8 @@ def _not_measured_lines(ident: dict | None) -> list[str]:
     if kept:
         parts.append("not determined, left where the search put them (no start value): " + ", ".join(kept))
     if bound:
-        parts.append("identified but at the fit bound (the fit wants a value beyond the range): " + ", ".join(bound))
+        parts.append("at the fit bound (the fit wants a value beyond the range, compensating another error; holding "
+                     "it at the start model's value predicts held-out runs worse): " + ", ".join(bound))
     if not parts:
         return []
     return ["⚠ **Not every parameter is a measurement** (see \"What the data determine\"): " + "; ".join(parts)

@@ -304,16 +304,18 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     say("identifiability of the named effects")
     lin = identifiability.linearise(ev, nominal, [identifiability.Named(s.fit.candidate, s.fit.u_all)
                                                   for s in steps], sigma)
-    refit = identified_fit.refit(ev, nominal, lin, fold_of) if lin is not None else None
+    det = [s for s in steps if not s.fit.candidate.stochastic]
+    refit = (identified_fit.refit(ev, nominal, lin, fold_of, det[-1].fit.heldout, n_comp)
+             if lin is not None else None)
     ident_json = None
     if lin is not None:
         status = refit.status if refit is not None else identified_fit.statuses(lin)
         ident_json = {**identifiability.summary(lin, used=status), "per_effect_status": status,
-                      "refit": refit is not None,
+                      "refit": refit is not None and refit.changed,
                       "search_params": {s.effect: s.fit.params_all for s in steps},
                       "refit_note": identified_fit.NOTE}
-    if refit is not None:
-        say("refitting in the identified subspace")
+    if refit is not None and refit.changed:
+        say("refitted in the identified subspace")
         steps = _with_refit(steps, lin, refit)
         model = nominal
         for s in steps:
