@@ -134,3 +134,20 @@ def test_a_bound_value_the_data_need_is_kept_and_said_to_be_at_its_bound():
     held = refit(ev, _Model(), lin, np.array([0, 0, 1, 1]))
     assert held.changed and held.u_all[0][4] == pytest.approx(START["e"])
     assert "e" in held.status["toy"]["bound_fixed"]
+
+
+def test_report_never_shows_a_bound_value_as_a_measurement():
+    """report.md's fitted parameters: a value at its fit bound, or one the data determine only together with
+    others, carries what it is; an identified one stands alone."""
+    from omni_gym.discrepancy.report import _not_measured_lines, _param_lines
+
+    status = {"identified": ["distance1"], "merged": [], "loose": {"mount1": 0.12}, "fixed": {"mount2": 0.0},
+              "bound_fixed": {}, "kept": {}, "at_bound": [], "combinations": [], "bound_cost": {"distance2": 8.4},
+              "line": "…"}
+    lines = _param_lines("wheel_geometry", {"distance": [1.01, 1.15], "mount": [0.03, 0.0]}, status)
+    assert lines[0].startswith("* `distance` = [1.01, 1.15 = its fit bound (the fit wants a value beyond it: not a")
+    assert "1.01 (" not in lines[0]  # identified: the value alone
+    assert "0.03 (not determined alone: not a measurement)" in lines[1]
+    assert "0 (start value: not determined by the data)" in lines[1]
+    warn = _not_measured_lines({"per_effect_status": {"wheel_geometry": status}})[0]
+    assert "wheel_geometry.distance2" in warn and "wheel_geometry.mount1" in warn and "wheel_geometry.mount2" in warn

@@ -161,8 +161,14 @@ def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, search_h
         if dims[j].periodic or BOUND < u_final[j] < 1.0 - BOUND:
             continue  # kept at the search's value, which is inside the range: its status says the rest
         eff, name = labels[j]
-        status[eff].setdefault("bound_cost", {})[name] = float(cost)
-        status[eff]["line"] = _line(eff, status[eff])
+        st = status[eff]
+        st.setdefault("bound_cost", {})[name] = float(cost)
+        # one outcome per parameter: at its bound, not also loose, merged or identified
+        st["loose"].pop(name, None)
+        st["merged"] = [k for k in st["merged"] if k != name]
+        st["identified"] = [k for k in st["identified"] if k != name]
+        st["at_bound"] = [k for k in st["at_bound"] if k != name]
+        st["line"] = _line(eff, st)
     if kept is None:
         return IdentifiedFit(u_all=list(lin.base), u_folds=[], sse_all=np.zeros(0), heldout=search_heldout.copy(),
                              status=status, changed=False)

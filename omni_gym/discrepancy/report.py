@@ -49,7 +49,9 @@ def markdown(result: dict, figures: list[str]) -> str:
     lines += _fitted_lines(result)
     lines += [f"**Outcome: `{effect}`**: {result['why']}.", ""]
     if result.get("params"):
-        lines += ["Fitted parameters:", ""] + _param_lines(effect, result["params"]) + [""]
+        first = (result.get("effects") or [effect])[0]
+        status = ((result.get("identifiability") or {}).get("per_effect_status") or {}).get(first)
+        lines += ["Fitted parameters:", ""] + _param_lines(effect, result["params"], status) + [""]
         lines += _not_measured_lines(result.get("identifiability"))
     flags = result.get("plausibility", {}).get("flags", [])
     if flags:
@@ -220,14 +222,34 @@ def _not_measured_lines(ident: dict | None) -> list[str]:
             + ".", ""]
 
 
-def _param_lines(effect: str, params: dict) -> list[str]:
-    """One bullet per fitted parameter, with its unit."""
+def _param_lines(effect: str, params: dict, status: dict | None = None) -> list[str]:
+    """One bullet per fitted parameter, with its unit; with the effect's identifiability ``status``
+    (identified_fit.py), a value that is not a measurement says so: at its fit bound (no value: the fit
+    wanted one beyond the range), or determined only in combination / loosely."""
     units = UNITS.get(effect, {})
     out = []
     for k, v in params.items():
-        val = ", ".join(_num(x) for x in v) if isinstance(v, list) else _num(v)
-        out.append(f"* `{k}` = {'[' + val + ']' if isinstance(v, list) else val} {units.get(k, '')}".rstrip())
+        if isinstance(v, list):
+            val = "[" + ", ".join(_num(x) + _not_measured(status, f"{k}{i + 1}") for i, x in enumerate(v)) + "]"
+        else:
+            val = _num(v) + _not_measured(status, k)
+        out.append(f"* `{k}` = {val} {units.get(k, '')}".rstrip())
     return out
+
+
+def _not_measured(status: dict | None, dim: str) -> str:
+    """The note after a parameter value that is not a measurement (empty for an identified one)."""
+    if not status:
+        return ""
+    if dim in status.get("bound_cost", {}) or dim in status.get("at_bound", []):
+        return " = its fit bound (the fit wants a value beyond it: not a measurement)"
+    if dim in status.get("bound_fixed", {}):
+        return " (start value: the fit put it at its bound)"
+    if dim in status.get("fixed", {}):
+        return " (start value: not determined by the data)"
+    if dim in status.get("loose", {}) or dim in status.get("merged", []) or dim in status.get("kept", {}):
+        return " (not determined alone: not a measurement)"
+    return ""
 
 
 def _fitted_lines(result: dict) -> list[str]:
