@@ -117,8 +117,10 @@ def test_gap_cli_flags_a_3m_outlier_keeps_the_effect_and_reports_stages(lag_data
     assert all(s.startswith(e) for s, e in zip(stages, expected, strict=False)), stages
     # Then, if the search goes on after the first effect, its later steps; last, the report.
     later = stages[len(expected):-1]
-    # ... and the whole-run held-out replay after the search (and what its drift check dropped, if anything).
-    assert all(s.startswith(("gap: named", "gap: kept", "gap: step ", "gap: scoring whole runs", "gap: dropped"))
+    # ... and the whole-run held-out replay after the search (and what its drift check dropped, if anything),
+    # then the identifiability of the named effects (and the refit restricted to it, if anything changed).
+    assert all(s.startswith(("gap: named", "gap: kept", "gap: step ", "gap: scoring whole runs", "gap: dropped",
+                             "gap: identifiability", "gap: refitted"))
                for s in later), later
     assert stages[-1].startswith("gap: writing report")
     assert "\r" not in proc.stderr  # no progress bar redraws in a log

@@ -36,6 +36,8 @@ from omni_gym.physics.model import SimModel
 IDENTIFIED = 0.05  # largest 95 % half-width (share of the fit range) of an identified combination
 CONFOUNDED = 0.9  # |correlation| above which two parameters are reported as confounded
 STEP = 3e-3  # forward-difference step in the unit cube (the fits' own LM step)
+BOUND = 1e-3  # unit-cube distance from a bound within which a value counts as at its fit bound
+MERGE_WEIGHT = 0.1  # least |weight| (largest weight 1) of a parameter that a combination is said to involve
 
 
 @dataclass(frozen=True)
@@ -58,9 +60,64 @@ def _stack(res: list[np.ndarray]) -> np.ndarray:
     return np.concatenate([r[1:][np.all(np.isfinite(r[1:]), axis=1)].ravel() for r in res])
 
 
-def analyse(ev, nominal: SimModel, named: list[Named], sigma: float | None) -> dict | None:
-    """The identifiability of the named effects' parameters (module docstring), or None when there is
-    nothing to analyse (no deterministic named effect or no noise estimate).
+@dataclass(frozen=True)
+class Linearisation:
+    """The final fit linearised in every named deterministic effect's fitted dimensions.
+
+    ``base``: per named effect its unit-cube point u*; ``r0``: the stacked residual there [m]
+    (:func:`_stack`); ``J`` = d r / d u (rows of ``r0`` × dimensions); ``s``, ``vt``: its SVD;
+    ``half``: 95 % half-width of each combination (row of ``vt``) and ``sd``: standard error of each
+    dimension, both in unit-cube coordinates; ``sigma``: the noise floor [m]; ``sigma_eff`` [m], ``rms``
+    [m] and ``tau`` [rows]: the inflated noise (module docstring)."""
+
+    named: list[Named]
+    base: list[np.ndarray]
+    r0: np.ndarray
+    J: np.ndarray
+    s: np.ndarray
+    vt: np.ndarray
+    half: np.ndarray
+    sd: np.ndarray
+    corr: np.ndarray
+    sigma: float
+    sigma_eff: float
+    rms: float
+    tau: float
+
+    @property
+    def labels(self) -> list[tuple[str, str]]:
+        """(effect, dimension name) of every column of ``J``."""
+        return [(n.candidate.name, d.name) for n in self.named for d in n.candidate.dims]
+
+    @property
+    def dims(self) -> list:
+        return [d for n in self.named for d in n.candidate.dims]
+
+    @property
+    def u(self) -> np.ndarray:
+        """u* of all named effects, concatenated."""
+        return np.concatenate(self.base)
+
+    @property
+    def own_identified(self) -> np.ndarray:
+        """(dimensions,) True where the parameter's own 95 % half-width (2 sd) is within :data:`IDENTIFIED`."""
+        return 2.0 * self.sd <= IDENTIFIED
+
+    @property
+    def identified(self) -> np.ndarray:
+        """(combinations,) True where the combination's 95 % half-width is within :data:`IDENTIFIED`."""
+        return self.half <= IDENTIFIED
+
+    def at_bound(self) -> np.ndarray:
+        """(dimensions,) True where u* sits at its fit bound (never for a periodic dimension)."""
+        u = self.u
+        return np.array([not d.periodic and bool(x <= BOUND or x >= 1.0 - BOUND) for d, x in zip(self.dims, u,
+                                                                                                   strict=True)])
+
+
+def linearise(ev, nominal: SimModel, named: list[Named], sigma: float | None) -> Linearisation | None:
+    """Linearise the final fit (module docstring); None when there is nothing to analyse (no
+    deterministic named effect or no noise estimate).
 
     ``ev``: the workflow's :class:`~omni_gym.discrepancy.fitting.Evaluator`; ``sigma`` [m]: the noise
     floor per residual component. Costs one batch of 1 + (fitted dimensions) simulations of every run.
@@ -69,7 +126,6 @@ def analyse(ev, nominal: SimModel, named: list[Named], sigma: float | None) -> d
     if not named or sigma is None or sigma <= 0:
         return None
     base = [n.u.copy() for n in named]
-    labels = [(n.candidate.name, d.name) for n in named for d in n.candidate.dims]
     models = [_model(nominal, named, base)]
     for i, n in enumerate(named):
         for j in range(n.candidate.n_params):
@@ -90,42 +146,72 @@ def analyse(ev, nominal: SimModel, named: list[Named], sigma: float | None) -> d
     signs = np.array([1.0 if u[j] + STEP <= 1.0 else -1.0 for u in base for j in range(len(u))])
     J = np.column_stack([(_stack(r) - r0) / (STEP * s) for r, s in zip(res[1:], signs, strict=True)])
     _, s, vt = np.linalg.svd(J, full_matrices=False)
-    s_safe = np.maximum(s, 1e-300)
+    # An exactly flat direction (a dimension that changes nothing) would give 1/0: floor s far below the
+    # largest, so the covariance stays finite (that direction's interval is then simply huge).
+    s_safe = np.maximum(s, max(1e-9 * float(s[0]) if s.size else 0.0, 1e-300))
     half = 2.0 * sigma_eff / s_safe  # 95 % half-width of each combination, unit-cube coordinates
     cov = (vt.T / s_safe**2) @ vt * sigma_eff**2
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     corr = cov / np.maximum(np.outer(sd, sd), 1e-300)
-    dims = [d for n in named for d in n.candidate.dims]
+    return Linearisation(named=named, base=base, r0=r0, J=J, s=s, vt=vt, half=half, sd=sd, corr=corr, sigma=sigma,
+                         sigma_eff=sigma_eff, rms=rms, tau=tau)
+
+
+def analyse(ev, nominal: SimModel, named: list[Named], sigma: float | None) -> dict | None:
+    """The identifiability of the named effects' parameters (module docstring) as JSON, or None when there
+    is nothing to analyse: :func:`summary` of :func:`linearise`."""
+    lin = linearise(ev, nominal, named, sigma)
+    return None if lin is None else summary(lin)
+
+
+def combination_text(lin: Linearisation, k: int) -> tuple[str, list[tuple[str, float]]]:
+    """Combination k (row of ``vt``, largest weight 1) as text and its [name, weight] terms (|weight| >= 0.1)."""
+    labels = lin.labels
+    alone = len(lin.named) == 1
+    v = lin.vt[k] / np.max(np.abs(lin.vt[k]))
+    terms = [(f"{labels[j][1]}" if alone else f"{labels[j][0]}.{labels[j][1]}", float(v[j]))
+             for j in np.argsort(-np.abs(v)) if abs(v[j]) >= MERGE_WEIGHT]
+    return _combo_text(terms), terms
+
+
+def summary(lin: Linearisation, used: dict | None = None) -> dict:
+    """The JSON of ``result.json``'s ``identifiability``: per parameter, combinations, confounded pairs and
+    one line per effect. ``used``: what the identified refit did (:func:`omni_gym.discrepancy.identified_fit.
+    refit`'s per-effect status); the lines then say which parameters were fixed or merged."""
+    labels, dims, sd, half = lin.labels, lin.dims, lin.sd, lin.half
+    u_all = lin.u
+    bound = lin.at_bound()
     params = []
     for k, ((eff, name), d) in enumerate(zip(labels, dims, strict=True)):
-        u = float(np.concatenate(base)[k])
-        params.append({"effect": eff, "param": name, "value": d.value(u),
+        params.append({"effect": eff, "param": name, "value": d.value(float(u_all[k])),
                        "half_width_95": 2.0 * sd[k] * (d.hi - d.lo) if not d.log else None,
                        "half_width_95_range_share": float(2.0 * sd[k]),
-                       "at_bound": bool(u <= 1e-3 or u >= 1.0 - 1e-3),
+                       "at_bound": bool(bound[k]),
                        "identified": bool(2.0 * sd[k] <= IDENTIFIED)})
     combos = []
-    for k in range(len(s)):
-        v = vt[k] / np.max(np.abs(vt[k]))  # largest weight 1
-        terms = [(f"{labels[j][1]}" if len(named) == 1 else f"{labels[j][0]}.{labels[j][1]}", float(v[j]))
-                 for j in np.argsort(-np.abs(v)) if abs(v[j]) >= 0.1]
-        combos.append({"combination": _combo_text(terms), "terms": terms,
+    for k in range(len(lin.s)):
+        text, terms = combination_text(lin, k)
+        combos.append({"combination": text, "terms": terms,
                        "half_width_95_range_share": float(half[k]), "identified": bool(half[k] <= IDENTIFIED)})
+    corr = lin.corr
     pairs = [{"a": f"{labels[i][0]}.{labels[i][1]}", "b": f"{labels[j][0]}.{labels[j][1]}",
               "correlation": float(corr[i, j])}
              for i in range(len(labels)) for j in range(i + 1, len(labels)) if abs(corr[i, j]) > CONFOUNDED]
     per_effect = {}
-    for n in named:
+    for n in lin.named:
         own = [p for p in params if p["effect"] == n.candidate.name]
-        per_effect[n.candidate.name] = _effect_line(n.candidate.name, own, combos, len(named) == 1)
+        status = None if used is None else used.get(n.candidate.name)
+        per_effect[n.candidate.name] = (_effect_line(n.candidate.name, own, combos, len(lin.named) == 1)
+                                        if status is None else status["line"])
+    sigma, rms, tau = lin.sigma, lin.rms, lin.tau
     return {"params": params, "combinations": combos, "confounded": pairs, "per_effect": per_effect,
             "n_identified": int(sum(c["identified"] for c in combos)), "n_params": len(labels),
-            "sigma_eff": sigma_eff, "rms_left": rms, "autocorrelation_rows": tau,
+            "sigma_eff": lin.sigma_eff, "rms_left": rms, "autocorrelation_rows": tau,
             "note": (f"Gauss-Newton at the final fit: J = d(residual)/d(unit coordinate of each fitted dimension), "
                      f"SVD; a combination or parameter is identified when its 95 % half-width (2 sigma_eff/s) is "
                      f"at most {IDENTIFIED:g} of its fit range; sigma_eff = max(noise floor {1e3 * sigma:.3g} mm, "
                      f"RMS left {1e3 * rms:.3g} mm) x sqrt(autocorrelation time {tau:.3g} rows) = "
-                     f"{1e3 * sigma_eff:.3g} mm; |correlation| > {CONFOUNDED:g}: confounded; a value at its fit "
+                     f"{1e3 * lin.sigma_eff:.3g} mm; |correlation| > {CONFOUNDED:g}: confounded; a value at its fit "
                      "bound is never a measurement")}
 
 

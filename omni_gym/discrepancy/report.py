@@ -49,13 +49,10 @@ def markdown(result: dict, figures: list[str]) -> str:
     lines += _fitted_lines(result)
     lines += [f"**Outcome: `{effect}`**: {result['why']}.", ""]
     if result.get("params"):
-        lines += ["Fitted parameters:", ""] + _param_lines(effect, result["params"]) + [""]
-        loose = [f"{p['effect']}.{p['param']}" + (" (at its fit bound)" if p["at_bound"] else "")
-                 for p in (result.get("identifiability") or {}).get("params", [])
-                 if not p["identified"] or p["at_bound"]]
-        if loose:
-            lines += ["⚠ **Not identified by the data** (one point of a valley the data leave open, not a measured "
-                      "value; see \"What the data determine\"): " + ", ".join(loose) + ".", ""]
+        first = (result.get("effects") or [effect])[0]
+        status = ((result.get("identifiability") or {}).get("per_effect_status") or {}).get(first)
+        lines += ["Fitted parameters:", ""] + _param_lines(effect, result["params"], status) + [""]
+        lines += _not_measured_lines(result.get("identifiability"))
     flags = result.get("plausibility", {}).get("flags", [])
     if flags:
         lines += ["**Implausible fitted values** (flagged, not changed; such a value usually means the effect "
@@ -179,6 +176,12 @@ def _identifiability_lines(ident: dict | None) -> list[str]:
              "A parameter that is not is one point of a valley the data leave open: do not read it as a measured "
              "physical value.", ""]
     lines += [f"* {line}" for line in ident["per_effect"].values()]
+    if ident.get("refit"):
+        lines += ["", "The fit was re-done in the identified subspace: directions the data do not determine are held "
+                      "at the start model's values and the determined combinations refitted (all runs, and each "
+                      "fold's training runs for the held-out scores); `model.json`, the parameters above and the "
+                      "held-out tables use these values. The search's values were: "
+                  + "; ".join(f"{e} `{_fmt(p)}`" for e, p in ident.get("search_params", {}).items()) + "."]
     if ident["confounded"]:
         lines += ["", "Confounded (|correlation| > 0.9): " + "; ".join(
             f"{c['a']} ~ {c['b']} ({c['correlation']:+.2f})" for c in ident["confounded"][:8]) + "."]
@@ -186,14 +189,67 @@ def _identifiability_lines(ident: dict | None) -> list[str]:
     return lines
 
 
-def _param_lines(effect: str, params: dict) -> list[str]:
-    """One bullet per fitted parameter, with its unit."""
+def _not_measured_lines(ident: dict | None) -> list[str]:
+    """The warning under the fitted parameters: which of them the data did not determine, and what was done
+    with them (identified_fit.py: merged into a determined combination, fixed at the start model's value, or
+    left where the search put them)."""
+    status = (ident or {}).get("per_effect_status") or {}
+    merged = [f"{e}.{p}" for e, st in status.items() for p in st["merged"]]
+    fixed = [f"{e}.{p}" for e, st in status.items() for p in st["fixed"]]
+    kept = [f"{e}.{p}" for e, st in status.items() for p in st["kept"]]
+    loose = [f"{e}.{p}" for e, st in status.items() for p in st.get("loose", {})]
+    held = [f"{e}.{p}" for e, st in status.items() for p in st.get("bound_fixed", {})]
+    bound = sorted({f"{e}.{p}" for e, st in status.items() for p in [*st["at_bound"], *st.get("bound_cost", {})]})
+    parts = []
+    if held:
+        parts.append("at their fit bound in the search (compensating another error), held at the start model's "
+                     "value: " + ", ".join(held))
+    if loose:
+        parts.append("only loosely determined (not measurements): " + ", ".join(loose))
+    if merged:
+        parts.append("determined only in combination (their separate values are not measurements): "
+                     + ", ".join(merged))
+    if fixed:
+        parts.append("not determined, fixed at the start model's value: " + ", ".join(fixed))
+    if kept:
+        parts.append("not determined, left where the search put them (no start value): " + ", ".join(kept))
+    if bound:
+        parts.append("at the fit bound (the fit wants a value beyond the range, compensating another error; holding "
+                     "it at the start model's value predicts held-out runs worse): " + ", ".join(bound))
+    if not parts:
+        return []
+    return ["⚠ **Not every parameter is a measurement** (see \"What the data determine\"): " + "; ".join(parts)
+            + ".", ""]
+
+
+def _param_lines(effect: str, params: dict, status: dict | None = None) -> list[str]:
+    """One bullet per fitted parameter, with its unit; with the effect's identifiability ``status``
+    (identified_fit.py), a value that is not a measurement says so: at its fit bound (no value: the fit
+    wanted one beyond the range), or determined only in combination / loosely."""
     units = UNITS.get(effect, {})
     out = []
     for k, v in params.items():
-        val = ", ".join(_num(x) for x in v) if isinstance(v, list) else _num(v)
-        out.append(f"* `{k}` = {'[' + val + ']' if isinstance(v, list) else val} {units.get(k, '')}".rstrip())
+        if isinstance(v, list):
+            val = "[" + ", ".join(_num(x) + _not_measured(status, f"{k}{i + 1}") for i, x in enumerate(v)) + "]"
+        else:
+            val = _num(v) + _not_measured(status, k)
+        out.append(f"* `{k}` = {val} {units.get(k, '')}".rstrip())
     return out
+
+
+def _not_measured(status: dict | None, dim: str) -> str:
+    """The note after a parameter value that is not a measurement (empty for an identified one)."""
+    if not status:
+        return ""
+    if dim in status.get("bound_cost", {}) or dim in status.get("at_bound", []):
+        return " = its fit bound (the fit wants a value beyond it: not a measurement)"
+    if dim in status.get("bound_fixed", {}):
+        return " (start value: the fit put it at its bound)"
+    if dim in status.get("fixed", {}):
+        return " (start value: not determined by the data)"
+    if dim in status.get("loose", {}) or dim in status.get("merged", []) or dim in status.get("kept", {}):
+        return " (not determined alone: not a measurement)"
+    return ""
 
 
 def _fitted_lines(result: dict) -> list[str]:

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.discrepancy import identifiability, plausible
+from omni_gym.discrepancy import identifiability, identified_fit, plausible
 from omni_gym.discrepancy.candidates import Candidate, candidates, not_applicable
 from omni_gym.discrepancy.dataset import Dataset, load_dataset, sessions_of
 from omni_gym.discrepancy.decision import RULES, decide
@@ -298,6 +298,31 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         for s in steps:
             model = model.with_effect(s.effect, s.fit.params_all)
         step = steps[-1] if steps else step
+    # What the data determine of the named effects' parameters (identifiability.py: one batch for the
+    # Jacobian), and the final fit restricted to it (identified_fit.py: undetermined directions held at
+    # the start model, a few LM batches); model.json, params and the held-out scores use the refit.
+    say("identifiability of the named effects")
+    lin = identifiability.linearise(ev, nominal, [identifiability.Named(s.fit.candidate, s.fit.u_all)
+                                                  for s in steps], sigma)
+    det = [s for s in steps if not s.fit.candidate.stochastic]
+    refit = (identified_fit.refit(ev, nominal, lin, fold_of, det[-1].fit.heldout, n_comp)
+             if lin is not None else None)
+    ident_json = None
+    if lin is not None:
+        status = refit.status if refit is not None else identified_fit.statuses(lin)
+        ident_json = {**identifiability.summary(lin, used=status), "per_effect_status": status,
+                      "refit": refit is not None and refit.changed,
+                      "search_params": {s.effect: s.fit.params_all for s in steps},
+                      "refit_note": identified_fit.NOTE}
+    if refit is not None and refit.changed:
+        say("refitted in the identified subspace")
+        steps = _with_refit(steps, lin, refit)
+        model = nominal
+        for s in steps:
+            model = model.with_effect(s.effect, s.fit.params_all)
+        step = steps[-1] if step.fit is not None else step
+        rows, _ = _drift_check(whole, fold_src, first, steps, dt, gate=False)  # the models actually reported
+        drift["rows"] = "per_run and per_session: the identified refit's models (the check itself: the search's)"
     first_step = searched[0] if searched else step
     final = step if step.fit is None else None  # the none/unexplained answer that ended the search, if one did
     if drift["dropped"]:
@@ -336,9 +361,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     result["effects"] = [s.effect for s in steps]
     result["not_applicable"] = skipped
     result["steps"] = _steps_json(steps, uncertainties, final, sse0, n_comp, noise_var)
-    # What the data determine of the named effects' parameters (identifiability.py): one more batch.
-    result["identifiability"] = identifiability.analyse(
-        ev, nominal, [identifiability.Named(s.fit.candidate, s.fit.u_all) for s in steps], sigma)
+    result["identifiability"] = ident_json
     if sigma is None:
         result.setdefault("uncertainty", {})["noise"] = (
             "tracker noise cannot be estimated (too few consecutive observed rows): gap values include noise, "
@@ -597,6 +620,29 @@ def _drift_check(whole: Dataset, fold_src: np.ndarray, first: StartModel, steps:
                   "chain": [first.kind] + [s.effect for s in det], "mean_position_rms": means,
                   "sessions": groups, "session_mean_position_rms": per_group,
                   "dropped": dropped, "why": f"mean whole-run held-out position RMS along the chain: {why}"}
+
+
+def _with_refit(steps: list[Step], lin: identifiability.Linearisation, refit: identified_fit.IdentifiedFit
+                ) -> list[Step]:
+    """``steps`` with each deterministic effect's fit replaced by the identified refit's values (all-run and
+    per fold); the last deterministic step also takes the refit's per-run SSE and held-out SSE (the model
+    with every refitted effect). Earlier steps keep the search's SSE (the staircase is the search's record)."""
+    index = {n.candidate.name: i for i, n in enumerate(lin.named)}
+    last = max((i for i, s in enumerate(steps) if s.effect in index), default=-1)
+    out = []
+    for i, s in enumerate(steps):
+        f = s.fit
+        if s.effect not in index:
+            out.append(s)
+            continue
+        j = index[s.effect]
+        cand = f.candidate
+        new = replace(f, u_all=refit.u_all[j], params_all=cand.params(refit.u_all[j]),
+                      fold_params=[cand.params(us[j]) for us in refit.u_folds])
+        if i == last:
+            new = replace(new, sse_all=refit.sse_all.copy(), heldout=refit.heldout.copy())
+        out.append(Step(fits=[new if g is f else g for g in s.fits], decision=s.decision))
+    return out
 
 
 def _chain_why(steps: list[Step]) -> str:
