@@ -24,7 +24,7 @@ from omni_gym.discrepancy.recovery import nominal_model
 from omni_gym.discrepancy.synth import pose_lever, write_synthetic
 from omni_gym.parallel import Backend
 
-# Three candidates: a plain LM fit, a valley search, and the stochastic one (lift events: one whole task).
+# Three candidates: a plain LM fit, a valley search, and the stochastic one (lift events: its own jobs).
 FITTED = ("motor_lag", "com_offset", "wheel_liftoff")
 
 
@@ -106,9 +106,7 @@ def test_work_record_is_consistent(runs) -> None:
                 assert 1 <= f["rounds"] <= f["tasks"]
                 assert f["max_task_s"] <= f["critical_path_s"] - f["driver_s"] + 1e-12 <= f["work_s"] + 1e-12
                 assert f["total_s"] == pytest.approx(f["work_s"] + f["driver_s"], rel=1e-9)
-                if f["candidate"] == "wheel_liftoff":
-                    assert f["tasks"] == f["rounds"] == 1  # lift-event inference: one whole task
-                elif name == "serial":
+                if name == "serial":
                     assert f["tasks"] == f["rounds"]  # in this process a round is one batch
         assert work["total_work_s"] == pytest.approx(work["serial_s"] + sum(s["total_work_s"] for s in steps),
                                                      rel=1e-9)

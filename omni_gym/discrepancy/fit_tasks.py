@@ -8,7 +8,8 @@ robot time (contiguous parts of the round's job list, :meth:`Evaluator.jobs`), m
 A job's simulation does not depend on the other robots of its world, and the driver puts the chunks
 back together in job order (:meth:`Evaluator.assemble`), so every fit sees the same numbers, bit for
 bit, whatever the backend, the worker count, the chunking and the order tasks finish in. The
-stochastic candidate (``wheel_liftoff``: lift-event inference) is one whole task (:func:`fit_task`).
+stochastic candidate (``wheel_liftoff``: lift-event inference, :mod:`.events`) builds its own jobs
+(scheduled lift events); its batches are cut the same way (:meth:`TaskEvaluator.simulate`).
 In this process (the serial backend) the fits run one after another and a round is one batch, one
 world shared by numba's threads.
 
@@ -32,6 +33,7 @@ import numpy as np
 
 from omni_gym.discrepancy.candidates import Candidate
 from omni_gym.discrepancy.fitting import Evaluator, FitResult, fit_candidate
+from omni_gym.discrepancy.simulate import Job, simulate_poses
 from omni_gym.parallel import Executor
 from omni_gym.physics.model import SimModel
 
@@ -74,11 +76,76 @@ class Chunk:
 
 @dataclass
 class ChunkResult:
-    """A chunk task's residuals (per job, :meth:`Evaluator.job_residuals`), jobs simulated, CPU seconds."""
+    """A chunk task's residuals (per job, :meth:`Evaluator.job_residuals`; or poses, :class:`JobsChunk`),
+    jobs simulated, CPU seconds."""
 
     residuals: list[np.ndarray]
     simulated: int
     seconds: float
+
+
+@dataclass(frozen=True)
+class JobsChunk:
+    """A chunk task of any jobs (the lift-event inference's): each job as its model's index in ``models``,
+    its run's index in the shared dataset and the rest of its fields, or as the :class:`Job` itself when
+    its run is not one of the dataset's."""
+
+    models: tuple[SimModel, ...]
+    jobs: tuple[tuple | Job, ...]
+    dt: float
+    max_batch: int
+
+
+def jobs_task(shared: FitShared, chunk: JobsChunk) -> ChunkResult:
+    """Simulate one chunk of jobs (a backend task): their poses."""
+    t0 = time.process_time()
+    runs = shared.ev.ds.runs
+    jobs = [j if isinstance(j, Job) else Job(chunk.models[j[0]], runs[j[1]], *j[2:]) for j in chunk.jobs]
+    poses = simulate_poses(jobs, chunk.dt, chunk.max_batch)
+    return ChunkResult(poses, len(jobs), time.process_time() - t0)
+
+
+def job_chunks(jobs: list[Job], runs: list, dt: float, max_batch: int,
+               robot_s: float = CHUNK_ROBOT_S) -> list[JobsChunk]:
+    """``jobs`` cut into contiguous :class:`JobsChunk` of at most ``robot_s`` of robot time each (a longer job
+    is a chunk of its own); ``runs``: the shared dataset's runs, which the chunks name by index."""
+    index = {id(r): i for i, r in enumerate(runs)}
+    out: list[JobsChunk] = []
+    for lo, hi in _cuts([_duration(j) for j in jobs], robot_s):
+        models: list[SimModel] = []
+        refs: list[tuple | Job] = []
+        for j in jobs[lo:hi]:
+            ri = index.get(id(j.run))
+            if ri is None:
+                refs.append(j)
+                continue
+            mi = next((i for i, m in enumerate(models) if m is j.model), None)
+            if mi is None:
+                models.append(j.model)
+                mi = len(models) - 1
+            refs.append((mi, ri, j.k0, j.k1, j.state0, j.seed, j.drag, j.schedule))
+        out.append(JobsChunk(tuple(models), tuple(refs), dt, max_batch))
+    return out
+
+
+def _duration(job: Job) -> float:
+    """Robot time [s] a job simulates."""
+    t = job.run.t
+    return float(t[job.k1] - t[job.k0])
+
+
+def _cuts(durations: list[float], robot_s: float) -> list[tuple[int, int]]:
+    """Contiguous (lo, hi) ranges of at most ``robot_s`` summed duration (a longer item alone)."""
+    out: list[tuple[int, int]] = []
+    lo, acc = 0, 0.0
+    for j, d in enumerate(durations):
+        if j > lo and acc + d > robot_s:
+            out.append((lo, j))
+            lo, acc = j, 0.0
+        acc += d
+    if lo < len(durations):
+        out.append((lo, len(durations)))
+    return out
 
 
 def chunk_task(shared: FitShared, chunk: Chunk) -> ChunkResult:
@@ -93,34 +160,12 @@ def chunk_task(shared: FitShared, chunk: Chunk) -> ChunkResult:
     return ChunkResult(res, len(jobs), time.process_time() - t0)
 
 
-def fit_task(shared: FitShared, task: FitTask, tick: Callable[[], None] | None = None) -> tuple[FitResult, int, float]:
-    """Fit one candidate whole (a backend task, or in this process); returns the fit, the robot-runs it
-    simulated (for the report: a worker's evaluator is a copy, so the driver adds the counts up) and its
-    CPU seconds."""
-    t0 = time.process_time()
-    ev = shared.ev
-    before = ev.simulated
-    fit = fit_candidate(task.candidate, ev, task.base, shared.fold_of, np.random.default_rng(task.seed), tick=tick)
-    return fit, ev.simulated - before, time.process_time() - t0
-
-
 def chunks(ev: Evaluator, models: list[SimModel], shooting: bool, robot_s: float = CHUNK_ROBOT_S) -> list[Chunk]:
     """A round's jobs (:meth:`Evaluator.jobs`) cut into contiguous chunks of at most ``robot_s`` of robot
     time each (a longer job is a chunk of its own); the cut depends on the round alone."""
-    jobs = ev.jobs(models, shooting)
     per = ev.jobs_per_model(shooting)
-    out: list[Chunk] = []
-    lo, acc = 0, 0.0
-    for j, job in enumerate(jobs):
-        t = job.run.t
-        d = float(t[job.k1] - t[job.k0])
-        if j > lo and acc + d > robot_s:
-            out.append(_chunk(models, per, shooting, lo, j))
-            lo, acc = j, 0.0
-        acc += d
-    if lo < len(jobs):
-        out.append(_chunk(models, per, shooting, lo, len(jobs)))
-    return out
+    return [_chunk(models, per, shooting, lo, hi)
+            for lo, hi in _cuts([_duration(j) for j in ev.jobs(models, shooting)], robot_s)]
 
 
 def _chunk(models: list[SimModel], per: int, shooting: bool, lo: int, hi: int) -> Chunk:
@@ -258,6 +303,21 @@ class TaskEvaluator:
         self.eval_thread_s += time.thread_time() - t_thread
         return out
 
+    def simulate(self, jobs: list[Job], dt: float, max_batch: int) -> list[np.ndarray]:
+        """:meth:`Evaluator.simulate`, the same bits (not counted in ``simulated``: the caller counts)."""
+        t_thread = time.thread_time()
+        if self._ex is None:
+            t0 = time.process_time()
+            poses = simulate_poses(jobs, dt, max_batch)
+            self.work.add_round([time.process_time() - t0])
+        else:
+            parts = self._ex.map(jobs_task, job_chunks(jobs, self._ev.ds.runs, dt, max_batch), shared=self._shared,
+                                 inline_single=False)
+            poses = [p for part in parts for p in part.residuals]
+            self.work.add_round([p.seconds for p in parts])
+        self.eval_thread_s += time.thread_time() - t_thread
+        return poses
+
 
 def run_fits(tasks: list[FitTask], ev: Evaluator, ex: Executor | None, shared: FitShared,
              tick: Callable[[], None] | None = None,
@@ -265,7 +325,7 @@ def run_fits(tasks: list[FitTask], ev: Evaluator, ex: Executor | None, shared: F
              finished: Callable[[int], None] | None = None) -> tuple[list[FitResult], int, list[FitWork]]:
     """Fit every task's candidate; returns the fits (in task order), the robot-runs simulated and each fit's
     work. ``ex`` None or serial: one fit after another in this thread. Else side by side in threads of
-    the driver, their rounds as chunk tasks on ``ex`` (the stochastic candidate as one whole task).
+    the driver, their rounds as chunk tasks on ``ex``.
     ``tick`` per search round, ``started(i)``/``finished(i)`` per fit (progress; called from the fit's
     thread, one at a time)."""
     n = len(tasks)
@@ -290,19 +350,12 @@ def run_fits(tasks: list[FitTask], ev: Evaluator, ex: Executor | None, shared: F
         task, work = tasks[i], works[i]
         if started_l:
             started_l(i)
-        if task.candidate.stochastic:
-            if parallel:
-                fit, sim, sec = ex.map(fit_task, [task], shared=shared, inline_single=False)[0]
-            else:
-                fit, sim, sec = fit_task(shared, task)
-            work.add_round([sec])
-        else:
-            t0 = time.thread_time()
-            tev = TaskEvaluator(ev, ex if parallel else None, shared, work)
-            fit = fit_candidate(task.candidate, tev, task.base, shared.fold_of, np.random.default_rng(task.seed),
-                                tick=tick_l)
-            work.driver_s = max(time.thread_time() - t0 - tev.eval_thread_s, 0.0)
-            sim = tev.simulated
+        t0 = time.thread_time()
+        tev = TaskEvaluator(ev, ex if parallel else None, shared, work)
+        fit = fit_candidate(task.candidate, tev, task.base, shared.fold_of, np.random.default_rng(task.seed),
+                            tick=tick_l)
+        work.driver_s = max(time.thread_time() - t0 - tev.eval_thread_s, 0.0)
+        sim = tev.simulated
         fits[i], sims[i] = fit, sim
         if finished_l:
             finished_l(i)

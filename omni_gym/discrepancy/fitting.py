@@ -176,6 +176,11 @@ class Evaluator:
         """True when some run is observed densely enough for multiple shooting."""
         return bool(self.windows)
 
+    def simulate(self, jobs: list[Job], dt: float, max_batch: int) -> list[np.ndarray]:
+        """Poses of any ``jobs`` (:func:`~omni_gym.discrepancy.simulate.simulate_poses`), for searches that
+        build their own jobs (the lift-event inference); not counted in ``simulated`` (the caller counts)."""
+        return simulate_poses(jobs, dt, max_batch)
+
 
 @dataclass
 class FitResult:
@@ -400,7 +405,8 @@ def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.nda
     counter = [0]
     efit = infer_events(ds, nominal, ev.lever, PARAMS_PER_EVENT * math.log(N), sse0, n_comp, ev.dt,
                         sigma=sigma, windows=ev.windows, counter=counter,
-                        adequacy=1.0 + RULES["noise_margin"])  # "noise level" as the decision defines it
+                        adequacy=1.0 + RULES["noise_margin"],  # "noise level" as the decision defines it
+                        simulate=ev.simulate)
     ev.simulated += counter[0]
     null = null_point(cand)
 
