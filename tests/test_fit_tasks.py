@@ -10,6 +10,7 @@ measured on a shared machine; only their sums and orderings, which hold whatever
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -130,3 +131,33 @@ def test_reachable_speedup_is_the_critical_path_bound() -> None:
     assert reachable_speedup(100.0, 10.0, 4) == 4.0  # total / W still above the critical path
     assert reachable_speedup(100.0, 10.0, 32) == 10.0  # the critical path bounds it
     assert reachable_speedup(0.0, 0.0, 8) == 1.0  # no work: nothing to gain
+
+
+def test_work_json_and_the_scaling_table_of_a_known_record(monkeypatch) -> None:
+    """One step of 100 s of work with a 10 s critical path, 10 s of serial driver work around it."""
+    import importlib.util
+
+    from omni_gym.discrepancy.fit_tasks import FitWork, StepWork, work_json
+
+    fit = FitWork("a")
+    for _ in range(9):  # 9 rounds of ten 1-s tasks: 90 s of work, a 9 s chain
+        fit.add_round([1.0] * 10)
+    fit.driver_s = 1.0  # chain 10 s
+    other = FitWork("b")
+    other.add_round([9.0])  # one 9-s task: shorter than a's chain
+    step = StepWork(fits=[fit, other], decide_s=0.0)
+    assert (step.tasks, step.total_s, step.critical_path_s, step.max_task_s) == (91, 100.0, 10.0, 9.0)
+    work = work_json([step], serial_s=10.0, wall_s=60.0, backend="2 local processes")
+    assert work["steps"][0]["reachable_speedup"] == {"1": 1.0, "2": 2.0, "4": 4.0, "8": 8.0, "16": 10.0, "32": 10.0}
+    # Whole run: 110 s of work; with 16 workers 10 s serial + 10 s critical path.
+    assert work["reachable_speedup"]["16"] == pytest.approx(110.0 / 20.0)
+    assert work["reachable_speedup"]["2"] == pytest.approx(110.0 / 60.0)
+    spec = importlib.util.spec_from_file_location("scaling", Path(__file__).resolve().parents[1] / "benchmarks" /
+                                                  "scaling.py")
+    scaling = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "scaling", scaling)  # its dataclasses look their module up
+    spec.loader.exec_module(scaling)
+    table = scaling.gap_work_table({"work": work}, "cmd")
+    assert "| step 1 | 91 | 100.0 | 10.0 | 9.00 | 1.00 | 2.00 | 4.00 | 8.00 | 10.00 | 10.00 |" in table
+    assert "| whole run (serial part 10.0 s) | 91 | 110.0 | 20.0 | |" in table and "**5.50**" in table
+    assert "wall time 60.0 s on 2 local processes" in table
