@@ -168,7 +168,7 @@ def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: l
         if parallel:
             say(f"{prefix}fitted candidate {finished[0]}/{len(cands)} {cands[i].name}")
             bar.set_postfix_str(cands[i].name)
-            bar.update(1 + (max_ticks(cands[i]) if cands[i].stochastic else 0))
+            bar.update(1)  # its rounds ticked as they ran; the end of the step fills what converged early skipped
         else:
             bar.update(max(ends[i] - bar.n, 0))  # searches that converge early skip their remaining rounds
 
