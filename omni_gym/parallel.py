@@ -12,7 +12,7 @@ that makes every task a pure function of its arguments (its random numbers from 
 arguments, never from the worker) gets the same result bit for bit from every backend and worker
 count. A large input every task needs (``shared``) is pickled once and read by each local worker
 process once, when it starts (from an in-memory file of the driver that the kernel frees with it, or
-elsewhere a temporary file removed once every worker has read it; a new shared input starts new
+elsewhere a temporary file removed when the workers stop; a new shared input starts new
 workers), or is put once into Ray's object store. Ray retries a task whose worker died
 (``max_retries``). Each worker runs its task on one thread (numba, BLAS): the parallelism is the tasks'.
 
@@ -159,8 +159,6 @@ class Executor:
             except BaseException:  # an interrupt while the workers start up
                 self._kill_pool()
                 raise
-            if len(getattr(pool, "_processes", None) or {}) == self.backend.jobs:
-                self._remove_pool_file()  # every worker has read it (no public handle before 3.14)
 
     def abort(self) -> None:
         """Kill the local workers now (a task running in one is not waited for); later maps raise
