@@ -114,6 +114,7 @@ def test_work_record_is_consistent(runs) -> None:
         assert work["critical_path_s"] == pytest.approx(
             work["serial_s"] + sum(s["critical_path_s"] for s in steps), rel=1e-9)
         assert work["critical_path_s"] <= work["total_work_s"]
+        assert work["driver_cpu_s"] >= work["serial_s"]  # the serial part is the driver's, outside the steps
         speedup = [work["reachable_speedup"][str(w)] for w in WORKERS]
         assert speedup[0] == pytest.approx(1.0)
         assert all(a <= b + 1e-12 for a, b in zip(speedup, speedup[1:], strict=False))  # more workers never reach less

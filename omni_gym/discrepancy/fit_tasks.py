@@ -246,7 +246,8 @@ def reachable_speedup(total_s: float, critical_path_s: float, workers: int) -> f
     return total_s / bound if bound > 0 else 1.0
 
 
-def work_json(steps: list[StepWork], serial_s: float, wall_s: float, backend: str) -> dict:
+def work_json(steps: list[StepWork], serial_s: float, wall_s: float, backend: str,
+              driver_cpu_s: float | None = None) -> dict:
     """``result.json``'s ``work``: per step and for the whole run. The whole run's bound with W workers is
     its serial part (the driver's work outside the steps: start model, localising, the held-out replays,
     the report) plus, per step (steps run one after another), max(critical path, total / W)."""
@@ -258,14 +259,17 @@ def work_json(steps: list[StepWork], serial_s: float, wall_s: float, backend: st
 
     return {
         "unit": "CPU seconds", "backend": backend, "wall_s": wall_s, "serial_s": serial_s,
+        "driver_cpu_s": serial_s if driver_cpu_s is None else driver_cpu_s,
         "total_work_s": total, "critical_path_s": critical, "tasks": sum(s.tasks for s in steps),
         "reachable_speedup": {str(w): total / bound(w) if bound(w) > 0 else 1.0 for w in WORKERS},
         "steps": [s.to_json() for s in steps],
         "note": "measured, so not the same from run to run (everything else in result.json is): per task the CPU "
                 "seconds it ran; a fit's critical path is its rounds one after another, each as long as its "
                 "longest task, plus its search arithmetic in the driver; a step's is its longest fit's plus the "
-                "decision; reachable_speedup with W workers: total / (serial + sum over steps of max(critical path, "
-                "total / W)), the bound the dependencies allow (omni_gym.discrepancy.fit_tasks)",
+                "decision; driver_cpu_s: the driver process's own CPU time (on a parallel backend: the serial part, "
+                "the fits' search arithmetic and the tasks' dispatch); reachable_speedup with W workers: total / "
+                "(serial + sum over steps of max(critical path, total / W)), the bound the dependencies allow "
+                "(omni_gym.discrepancy.fit_tasks)",
     }
 
 

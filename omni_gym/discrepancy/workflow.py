@@ -378,8 +378,9 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
                          "fitted": fitted.to_json()}
     # Measured (the one part of result.json that differs from run to run): the steps' tasks, total work and
     # critical paths, and what W workers could reach (fit_tasks.work_json).
-    result["work"] = work_json(step_works, max(time.process_time() - cpu0 - steps_cpu, 0.0),
-                               time.perf_counter() - wall0, backend.describe())
+    cpu = time.process_time() - cpu0
+    result["work"] = work_json(step_works, max(cpu - steps_cpu, 0.0), time.perf_counter() - wall0, backend.describe(),
+                               driver_cpu_s=cpu)
     result, bad = finite_json(result)  # standard JSON: a value that could not be computed is null
     if bad:
         result["non_finite"] = bad
