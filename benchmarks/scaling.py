@@ -9,6 +9,13 @@ Efficiency = t1 / (N · tN). The results (minus wall times) must be identical ac
     python benchmarks/scaling.py --cases 8 --runs 4 --duration 2 --workers 2 --out benchmarks/results
     # a tiny check that it works (seconds of work, mostly start-up):
     python benchmarks/scaling.py --cases 2 --runs 3 --duration 1 --workers 2 --out /tmp/scaling
+
+``--gap-result REPORT/result.json``: instead, the scaling table of one ``gap`` run from the work it recorded
+(``result.json``'s ``work``: per search step its tasks, total work and critical path): the speed-up W
+workers can reach on that work, per step and for the whole run, beside the run's measured wall time
+(``benchmarks/results/gap_work.md``)::
+
+    python benchmarks/scaling.py --gap-result REPORT/result.json --out benchmarks/results
 """
 
 from __future__ import annotations
@@ -21,6 +28,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from omni_gym.discrepancy.fit_tasks import WORKERS
 from omni_gym.discrepancy.recovery import SIZES, run_case
 from omni_gym.parallel import Backend, parallel_map
 
@@ -67,7 +75,16 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--backends", default="processes,ray", help="comma-separated: processes, ray")
     ap.add_argument("--out", default="benchmarks/results")
+    ap.add_argument("--gap-result", default=None, metavar="RESULT_JSON",
+                    help="write the scaling table of this gap run's recorded work instead (gap_work.md)")
     args = ap.parse_args()
+    if args.gap_result is not None:
+        result = json.loads(Path(args.gap_result).read_text())
+        text = gap_work_table(result, f"python benchmarks/scaling.py --gap-result {args.gap_result}")
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        (Path(args.out) / "gap_work.md").write_text(text)
+        print(text)
+        return
     cases = [Case(200 + i, args.runs, args.duration) for i in range(args.cases)]
     # One case first, not timed: numba's compiled kernels land in its disk cache for every worker to load.
     run(cases[0])
@@ -103,6 +120,35 @@ def write(out: Path, args: argparse.Namespace, timings: list[Timing], identical:
     lines += ["", f"Results identical across all runs (wall times aside): {'yes' if identical else 'NO'}."]
     (out / "scaling.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
+
+
+def gap_work_table(result: dict, command: str) -> str:
+    """Markdown: per search step and for the whole run, tasks, total work, critical path, longest task and
+    the speed-up reachable with W workers (``result['work']``, :func:`omni_gym.discrepancy.fit_tasks.work_json`),
+    then each step's candidate fits."""
+    work = result["work"]
+    heads = " | ".join(f"W = {w}" for w in WORKERS)
+    lines = ["# Scaling of one gap run, from its recorded work", "", f"`{command}`", "",
+             f"Measured: wall time {work['wall_s']:.1f} s on {work['backend']}; CPU seconds of work below. "
+             "Reachable speed-up with W workers: total / max(critical path, total / W) per step; for the whole "
+             "run total / (serial part + sum over steps of max(critical path, total / W)).", "",
+             f"| part | tasks | total work [s] | critical path [s] | longest task [s] | {heads} |",
+             "|---|---|---|---|---|" + "---|" * len(WORKERS)]
+    for i, s in enumerate(work["steps"], start=1):
+        cells = " | ".join(f"{s['reachable_speedup'][str(w)]:.2f}" for w in WORKERS)
+        lines.append(f"| step {i} | {s['tasks']} | {s['total_work_s']:.1f} | {s['critical_path_s']:.1f} | "
+                     f"{s['max_task_s']:.2f} | {cells} |")
+    cells = " | ".join(f"**{work['reachable_speedup'][str(w)]:.2f}**" for w in WORKERS)
+    lines.append(f"| whole run (serial part {work['serial_s']:.1f} s) | {work['tasks']} | {work['total_work_s']:.1f} | "
+                 f"{work['critical_path_s']:.1f} | | {cells} |")
+    for i, s in enumerate(work["steps"], start=1):
+        lines += ["", f"Step {i}, per candidate fit (decision {s['decide_s']:.3f} s):", "",
+                  "| candidate | tasks | rounds | work [s] | driver [s] | critical path [s] | longest task [s] |",
+                  "|---|---|---|---|---|---|---|"]
+        lines += [f"| {f['candidate']} | {f['tasks']} | {f['rounds']} | {f['work_s']:.1f} | {f['driver_s']:.2f} | "
+                  f"{f['critical_path_s']:.2f} | {f['max_task_s']:.3f} |"
+                  for f in sorted(s["fits"], key=lambda f: -f["critical_path_s"])]
+    return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":

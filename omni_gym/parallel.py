@@ -10,10 +10,15 @@ One ordered map of a picklable function over task arguments, with a backend chos
 The results come back in the order of the arguments whatever order the tasks finish in, so a caller
 that makes every task a pure function of its arguments (its random numbers from a seed in the
 arguments, never from the worker) gets the same result bit for bit from every backend and worker
-count. A large input every task needs (``shared``) is pickled once, travels with each task and is
-unpickled once per worker process (local processes), or is put once into Ray's object store. Ray
-retries a task whose worker died (``max_retries``). Each worker runs its task on one thread (numba,
-BLAS): the parallelism is the tasks'.
+count. A large input every task needs (``shared``) is pickled once and read by each local worker
+process once, when it starts (from an in-memory file of the driver that the kernel frees with it, or
+elsewhere a temporary file removed when the workers stop; a new shared input starts new
+workers), or is put once into Ray's object store. Ray retries a task whose worker died
+(``max_retries``). Each worker runs its task on one thread (numba, BLAS): the parallelism is the tasks'.
+
+:meth:`Executor.map` may be called from several threads of the driver at once (``gap`` runs its
+candidate fits in driver threads, each mapping its simulation batches as tasks): open the backend from
+the main thread first (:meth:`Executor.start`), and stop it from there (:meth:`Executor.abort`).
 
 Local workers die with the process that started them, however it ends: an exception or an interrupt in
 :meth:`Executor.map` kills them at once (a running candidate fit is not waited for), and each worker
@@ -34,6 +39,7 @@ import pickle
 import signal
 import socket
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -47,9 +53,8 @@ RAY_EXTRA = "omni-gym[rllib]"
 # Threading libraries whose thread count a task pins to 1 (set before a worker loads them).
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 _NO_SHARED = object()
-# Module state of a local worker process: the key and value of the shared input it last unpickled.
-_worker_shared: tuple[int, Any] = (-1, _NO_SHARED)
-_SHARED_KEYS = iter(range(1 << 62))  # in the driver: one key per shared input sent to a pool
+# Module state of a local worker process: the shared input it was started with.
+_worker_shared: Any = _NO_SHARED
 
 
 class BackendError(ValueError):
@@ -122,24 +127,62 @@ class Executor:
     def __init__(self, backend: Backend) -> None:
         self.backend = backend
         self._pool: ProcessPoolExecutor | None = None
-        self._pool_shared: Any = _NO_SHARED
-        self._pool_blob: tuple[int, bytes | None] = (-1, None)  # the shared input pickled once, and its key
+        self._pool_shared: Any = _NO_SHARED  # the shared input the pool's workers were started with
+        self._pool_file: tuple[str, int | None] | None = None  # the file the workers read it from (path, fd)
         self._ray: Any = None
+        self._ray_task: Any = None  # the remote function of _call_ray, made once
         self._started_ray = False
         self._ray_shared: Any = _NO_SHARED  # the shared input last put into the object store, and its ref
         self._ray_ref: Any = None
+        self._lock = threading.RLock()  # the pool, the Ray connection and the shared input, for threads
+        self._aborted = False
 
-    def map(self, fn: Callable, args: Sequence, shared: Any = _NO_SHARED, on_done: OnDone | None = None) -> list:
+    def start(self, shared: Any = _NO_SHARED) -> None:
+        """Start the workers now, from the calling (main) thread, with ``shared`` as their shared input:
+        every local worker process (they start with SIGINT ignored, which only the main thread can
+        arrange), or the Ray connection. Optional before :meth:`map` from the main thread; needed before
+        maps from other threads, which then reuse these workers. A no-op in this process (serial)."""
+        if self.backend.ray:
+            self._connect_ray()
+            return
+        if self.backend.serial:
+            return
+        with self._lock:
+            with _sigint_ignored():  # only while the processes are started (submit starts them), not after
+                pool = self._open_pool(shared)
+                # A spawn pool starts its processes as tasks arrive: as many tasks as workers, submitted at
+                # once (each start takes far longer than a submit), start them all.
+                started = [pool.submit(time.sleep, 0.0) for _ in range(self.backend.jobs)]
+            try:
+                for f in started:
+                    f.result()
+            except BaseException:  # an interrupt while the workers start up
+                self._kill_pool()
+                raise
+
+    def abort(self) -> None:
+        """Kill the local workers now (a task running in one is not waited for); later maps raise
+        :class:`BackendError`. For the main thread when it is interrupted while other threads map."""
+        with self._lock:
+            self._aborted = True
+            self._kill_pool()
+
+    def map(self, fn: Callable, args: Sequence, shared: Any = _NO_SHARED, on_done: OnDone | None = None,
+            inline_single: bool = True) -> list:
         """``[fn(a) for a in args]`` (``fn(shared, a)`` when ``shared`` is given), in the order of ``args``.
 
         ``on_done(i, result)`` is called in this process as each task finishes (in finishing order;
         for progress). ``fn``, the arguments and ``shared`` must pickle; ``fn`` must be importable by
-        the workers (a module-level function).
+        the workers (a module-level function). ``inline_single``: a single task runs in this process
+        (nothing to share it with) unless the backend is a ``pool``; False sends it to a worker too (a
+        caller mapping from several threads at once keeps its tasks off the driver's cores).
         """
         args = list(args)
+        if self._aborted:
+            raise BackendError("the backend was stopped")
         if self.backend.ray:
             return self._map_ray(fn, args, shared, on_done)
-        if self.backend.serial or (len(args) <= 1 and not self.backend.pool):
+        if self.backend.serial or (len(args) <= 1 and not self.backend.pool and inline_single):
             out = []
             for i, a in enumerate(args):
                 out.append(fn(a) if shared is _NO_SHARED else fn(shared, a))
@@ -150,37 +193,67 @@ class Executor:
 
     # --- local processes -------------------------------------------------------------------------
 
+    def _open_pool(self, shared: Any) -> ProcessPoolExecutor:
+        """The pool whose workers hold ``shared`` (a new one when they hold another); under ``_lock``.
+
+        The shared input is pickled once here into a temporary file that each worker reads when it starts
+        (not in the start-up data itself: a large one would keep the driver writing it, with SIGINT
+        ignored, until the new process reads it); the worker unpickles it after pinning its threads:
+        unpickling it imports numba, which reads NUMBA_NUM_THREADS once (see pin_threads).
+        """
+        if self._pool is not None and self._pool_shared is not shared:
+            self._close_pool()  # a new shared input: new workers
+        if self._pool is None:
+            if shared is not _NO_SHARED:
+                self._pool_file = _shared_file(pickle.dumps(shared, pickle.HIGHEST_PROTOCOL))
+            self._pool = ProcessPoolExecutor(self.backend.jobs, mp_context=get_context("spawn"),
+                                             initializer=_init_worker,
+                                             initargs=(os.getpid(), self._pool_file and self._pool_file[0]))
+            self._pool_shared = shared
+        return self._pool
+
+    def _remove_pool_file(self) -> None:
+        held, self._pool_file = self._pool_file, None
+        if held is None:
+            return
+        path, fd = held
+        try:
+            if fd is not None:
+                os.close(fd)
+            else:
+                os.unlink(path)
+        except OSError:
+            pass
+
     def _map_processes(self, fn: Callable, args: list, shared: Any, on_done: OnDone | None) -> list:
         try:
             # The workers start (spawn: fork + exec) on submit. SIGINT is ignored meanwhile, a few
             # milliseconds: they inherit it ignored and so never raise KeyboardInterrupt, not even while
-            # they start (a worker that died then left Process.start blocked in its pipe write).
-            with _sigint_ignored():
-                if self._pool is None:
-                    self._pool = ProcessPoolExecutor(self.backend.jobs, mp_context=get_context("spawn"),
-                                                     initializer=_init_worker, initargs=(os.getpid(),))
-                if self._pool_shared is not shared:
-                    # Pickled once here; it travels with every task (the start of a worker stays small and
-                    # quick) and is unpickled once per worker, after the worker pinned its threads:
-                    # unpickling it imports numba, which reads NUMBA_NUM_THREADS once (see pin_threads).
-                    blob = None if shared is _NO_SHARED else pickle.dumps(shared, pickle.HIGHEST_PROTOCOL)
-                    self._pool_shared, self._pool_blob = shared, (next(_SHARED_KEYS), blob)
-                key, blob = self._pool_blob
-                futures = {self._pool.submit(_call_local, fn, a, key, blob): i for i, a in enumerate(args)}
+            # they start (a worker that died then left Process.start blocked in its pipe write). Off the
+            # main thread it cannot be ignored: there the workers were started by start().
+            with self._lock, _sigint_ignored():
+                if self._aborted:
+                    raise BackendError("the backend was stopped")
+                pool = self._open_pool(shared)
+                has_shared = shared is not _NO_SHARED
+                futures = {pool.submit(_call_local, fn, a, has_shared): i for i, a in enumerate(args)}
             return _collect(futures, len(args), on_done)
         except BaseException:  # an interrupt, a failed task: stop every worker now, not after its task
-            self._kill_pool()
+            with self._lock:
+                self._kill_pool()
             raise
 
     def _close_pool(self) -> None:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
-        self._pool_shared, self._pool_blob = _NO_SHARED, (-1, None)
+        self._pool_shared = _NO_SHARED
+        self._remove_pool_file()
 
     def _kill_pool(self) -> None:
         """Kill the worker processes (SIGKILL) and wait for them; a second Ctrl-C cannot cut this short."""
-        pool, self._pool, self._pool_shared, self._pool_blob = self._pool, None, _NO_SHARED, (-1, None)
+        pool, self._pool, self._pool_shared = self._pool, None, _NO_SHARED
+        self._remove_pool_file()
         if pool is None:
             return
         with _sigint_ignored():
@@ -200,6 +273,10 @@ class Executor:
     # --- Ray -------------------------------------------------------------------------------------
 
     def _connect_ray(self) -> Any:
+        with self._lock:
+            return self._connect_ray_locked()
+
+    def _connect_ray_locked(self) -> Any:
         if self._ray is not None:
             return self._ray
         ray = _import_ray()
@@ -222,10 +299,14 @@ class Executor:
 
     def _map_ray(self, fn: Callable, args: list, shared: Any, on_done: OnDone | None) -> list:
         ray = self._connect_ray()
-        task = ray.remote(num_cpus=1, max_retries=self.backend.max_retries, retry_exceptions=False)(_call_ray)
-        if shared is not _NO_SHARED and shared is not self._ray_shared:
-            self._ray_shared, self._ray_ref = shared, ray.put(shared)  # once into the object store
-        ref = None if shared is _NO_SHARED else self._ray_ref
+        with self._lock:
+            if self._ray_task is None:
+                self._ray_task = ray.remote(num_cpus=1, max_retries=self.backend.max_retries,
+                                            retry_exceptions=False)(_call_ray)
+            task = self._ray_task
+            if shared is not _NO_SHARED and shared is not self._ray_shared:
+                self._ray_shared, self._ray_ref = shared, ray.put(shared)  # once into the object store
+            ref = None if shared is _NO_SHARED else self._ray_ref
         refs = [task.remote(fn, a, ref, ref is not None) for a in args]
         index = {r: i for i, r in enumerate(refs)}
         out: list = [None] * len(refs)
@@ -245,6 +326,7 @@ class Executor:
         if self._started_ray and self._ray is not None:
             self._ray.shutdown()
         self._ray, self._started_ray, self._ray_shared, self._ray_ref = None, False, _NO_SHARED, None
+        self._ray_task = None
 
 
 @contextmanager
@@ -318,11 +400,34 @@ def pin_threads() -> None:
         pass
 
 
-def _init_worker(parent: int) -> None:
-    """A local worker's start: SIGINT ignored (also inherited so), die with ``parent`` (pid), one thread."""
+def _shared_file(blob: bytes) -> tuple[str, int | None]:
+    """``blob`` in a file the workers can open by path: (path, fd to close) for an in-memory file
+    (Linux ``memfd``, opened through ``/proc/PID/fd``: freed when the driver closes it or dies, even by
+    SIGKILL), else (path of a temporary file, None)."""
+    proc = f"/proc/{os.getpid()}/fd"
+    if hasattr(os, "memfd_create") and os.path.isdir(proc):
+        fd = os.memfd_create("omni-gym-shared", os.MFD_CLOEXEC)
+        view = memoryview(blob)
+        done = 0
+        while done < len(blob):
+            done += os.pwrite(fd, view[done:], done)
+        return f"{proc}/{fd}", fd
+    fd, path = tempfile.mkstemp(prefix="omni-gym-shared-", suffix=".pickle")
+    with os.fdopen(fd, "wb") as f:
+        f.write(blob)
+    return path, None
+
+
+def _init_worker(parent: int, shared_file: str | None = None) -> None:
+    """A local worker's start: SIGINT ignored (also inherited so), die with ``parent`` (pid), one thread,
+    then the shared input read from ``shared_file`` (after the pinning: unpickling it may import numba)."""
+    global _worker_shared
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops the workers
     _die_with_parent(parent)
     pin_threads()
+    if shared_file is not None:
+        with open(shared_file, "rb") as f:
+            _worker_shared = pickle.load(f)
 
 
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
@@ -362,13 +467,8 @@ def _sigint_ignored() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
-def _call_local(fn: Callable, a: Any, key: int, blob: bytes | None) -> Any:
-    global _worker_shared
-    if blob is None:
-        return fn(a)
-    if _worker_shared[0] != key:  # a new shared input: unpickled once per worker
-        _worker_shared = (key, pickle.loads(blob))
-    return fn(_worker_shared[1], a)
+def _call_local(fn: Callable, a: Any, has_shared: bool) -> Any:
+    return fn(_worker_shared, a) if has_shared else fn(a)
 
 
 def _call_ray(fn: Callable, a: Any, shared: Any, has_shared: bool) -> Any:

@@ -54,6 +54,7 @@ says run time.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -227,11 +228,15 @@ class EventInference:
         counter: optional one-element list to which the number of simulated robot-runs is added.
         adequacy: largest row-weighted geometric-mean MSE with the events, in units of σ̂², for the
             events to be kept (step 4; None: no check).
+        simulate: optional ``simulate(jobs, dt, max_batch)`` to use instead of ``simulate_poses`` (the same
+            poses, e.g. simulated as parallel tasks: :mod:`omni_gym.discrepancy.fit_tasks`).
     """
 
     def __init__(self, ds: Dataset, nominal: SimModel, lever: float, cost: float, sse0: np.ndarray,
                  n_comp: np.ndarray, dt: float, sigma: float | None = None, windows: list[tuple] | None = None,
-                 max_batch: int = 3000, counter: list[int] | None = None, adequacy: float | None = None) -> None:
+                 max_batch: int = 3000, counter: list[int] | None = None, adequacy: float | None = None,
+                 simulate: Callable[..., list[np.ndarray]] | None = None) -> None:
+        self.simulate = simulate_poses if simulate is None else simulate
         self.ds, self.nominal, self.lever, self.cost = ds, nominal, lever, cost
         self.sse0, self.n_comp, self.dt, self.sigma = sse0, n_comp, dt, sigma
         self.max_batch, self.adequacy = max_batch, adequacy
@@ -264,7 +269,7 @@ class EventInference:
     def _run_batch(self, jobs: list[Job]) -> list[np.ndarray]:
         """Simulated poses of ``jobs`` (one batched call), counted."""
         self.count[0] += len(jobs)
-        return simulate_poses(jobs, self.dt, self.max_batch)
+        return self.simulate(jobs, self.dt, self.max_batch)
 
     def _win_sse(self, wi: int, pose: np.ndarray) -> float:
         """SSE [m²] of window wi's simulated ``pose`` (rows after its start) against the measurement."""
@@ -677,8 +682,9 @@ class EventInference:
 
 def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_comp: np.ndarray,
                  dt: float, sigma: float | None = None, windows: list[tuple] | None = None, max_batch: int = 3000,
-                 counter: list[int] | None = None, adequacy: float | None = None) -> EventFit:
+                 counter: list[int] | None = None, adequacy: float | None = None,
+                 simulate: Callable[..., list[np.ndarray]] | None = None) -> EventFit:
     """MAP lift events of every run of ``ds`` (see the module docstring and :class:`EventInference` for the
     arguments)."""
     return EventInference(ds, nominal, lever, cost, sse0, n_comp, dt, sigma=sigma, windows=windows,
-                          max_batch=max_batch, counter=counter, adequacy=adequacy).run()
+                          max_batch=max_batch, counter=counter, adequacy=adequacy, simulate=simulate).run()

@@ -126,35 +126,60 @@ class Evaluator:
 
         ``shooting``: simulate the windows of :func:`shooting_windows` instead (each from the measured
         state at its start) and return, per run, the windows' residual rows stacked.
+
+        The same as :meth:`assemble` of :meth:`job_residuals` over all :meth:`jobs`: a job's result does not
+        depend on the other robots of its world, so the jobs may be simulated in any grouping (the
+        parallel fit tasks of :mod:`omni_gym.discrepancy.fit_tasks` split them) with the same bits.
         """
-        if shooting:
-            return self._shooting_residuals(models)
-        runs = self.ds.runs
-        jobs = [Job(m, r) for m in models for r in runs]
-        out = simulate_poses(jobs, self.dt, self.max_batch)
+        jobs = self.jobs(models, shooting)
+        flat = self.job_residuals(jobs, shooting)
         self.simulated += len(jobs)
-        R = len(runs)
-        return [[pose_residual(run.pose, out[mi * R + ri], self.lever) for ri, run in enumerate(runs)]
-                for mi in range(len(models))]
+        return self.assemble(len(models), flat, shooting)
+
+    def jobs(self, models: list[SimModel], shooting: bool = False) -> list[Job]:
+        """The simulation jobs of :meth:`residuals`, model-major: every run (or every shooting window)
+        of ``models[0]``, then of ``models[1]``, ..."""
+        if shooting:
+            return [Job(m, self.ds.runs[ri], k0=k0, k1=k1, state0=st)
+                    for m in models for ri, k0, k1, st in self.windows]
+        return [Job(m, r) for m in models for r in self.ds.runs]
+
+    def jobs_per_model(self, shooting: bool = False) -> int:
+        """Jobs of one model in :meth:`jobs`: the runs, or the shooting windows."""
+        return len(self.windows) if shooting else len(self.ds.runs)
+
+    def job_residuals(self, jobs: list[Job], shooting: bool = False) -> list[np.ndarray]:
+        """Per job of :meth:`jobs` (any contiguous part of them): its residual rows [m] (open loop: the
+        run's (K, 3); shooting: the window's rows after its start)."""
+        out = simulate_poses(jobs, self.dt, self.max_batch)
+        if shooting:
+            return [pose_residual(j.run.pose[j.k0 + 1:j.k1 + 1], p[1:], self.lever)
+                    for j, p in zip(jobs, out, strict=True)]
+        return [pose_residual(j.run.pose, p, self.lever) for j, p in zip(jobs, out, strict=True)]
+
+    def assemble(self, n_models: int, flat: list[np.ndarray], shooting: bool = False) -> list[list[np.ndarray]]:
+        """:meth:`residuals`' per-model, per-run lists from the :meth:`job_residuals` of all jobs."""
+        R = len(self.ds.runs)
+        if not shooting:
+            return [flat[mi * R:(mi + 1) * R] for mi in range(n_models)]
+        wins = self.windows
+        W = len(wins)
+        res = []
+        for mi in range(n_models):
+            per_run: list[list[np.ndarray]] = [[np.zeros((1, 3))] for _ in self.ds.runs]
+            for wi, (ri, _, _, _) in enumerate(wins):
+                per_run[ri].append(flat[mi * W + wi])
+            res.append([np.vstack(x) for x in per_run])
+        return res
 
     def has_windows(self) -> bool:
         """True when some run is observed densely enough for multiple shooting."""
         return bool(self.windows)
 
-    def _shooting_residuals(self, models: list[SimModel]) -> list[list[np.ndarray]]:
-        wins = self.windows
-        jobs = [Job(m, self.ds.runs[ri], k0=k0, k1=k1, state0=st) for m in models for ri, k0, k1, st in wins]
-        out = simulate_poses(jobs, self.dt, self.max_batch)
-        self.simulated += len(jobs)
-        res = []
-        W = len(wins)
-        for mi in range(len(models)):
-            per_run: list[list[np.ndarray]] = [[np.zeros((1, 3))] for _ in self.ds.runs]
-            for wi, (ri, k0, k1, _) in enumerate(wins):
-                run = self.ds.runs[ri]
-                per_run[ri].append(pose_residual(run.pose[k0 + 1:k1 + 1], out[mi * W + wi][1:], self.lever))
-            res.append([np.vstack(x) for x in per_run])
-        return res
+    def simulate(self, jobs: list[Job], dt: float, max_batch: int) -> list[np.ndarray]:
+        """Poses of any ``jobs`` (:func:`~omni_gym.discrepancy.simulate.simulate_poses`), for searches that
+        build their own jobs (the lift-event inference); not counted in ``simulated`` (the caller counts)."""
+        return simulate_poses(jobs, dt, max_batch)
 
 
 @dataclass
@@ -380,7 +405,8 @@ def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.nda
     counter = [0]
     efit = infer_events(ds, nominal, ev.lever, PARAMS_PER_EVENT * math.log(N), sse0, n_comp, ev.dt,
                         sigma=sigma, windows=ev.windows, counter=counter,
-                        adequacy=1.0 + RULES["noise_margin"])  # "noise level" as the decision defines it
+                        adequacy=1.0 + RULES["noise_margin"],  # "noise level" as the decision defines it
+                        simulate=ev.simulate)
     ev.simulated += counter[0]
     null = null_point(cand)
 

@@ -12,8 +12,10 @@ stopping. The single-effect keys of ``result.json`` (``effect``, ``why``, ``para
 ``ranking``) describe the first step; ``effects`` and ``steps`` the whole search; ``model`` and ``gap``
 the final model.
 
-Each step's candidate fits are independent tasks (:func:`fit_task`), run on the chosen backend
-(:mod:`omni_gym.parallel`: this process by default, local processes or Ray). A fit draws its random
+Each step's candidate fits are independent, run on the chosen backend (:mod:`omni_gym.parallel`: this
+process by default, local processes or Ray); on a parallel backend side by side, each fit's simulation
+batches split into tasks finer than a candidate (:mod:`omni_gym.discrepancy.fit_tasks`, which also
+records each step's work and critical path in ``result.json``'s ``work``). A fit draws its random
 numbers from its own generator, seeded from the gap seed, the step and the candidate's name
 (:func:`fit_seed`), never from the worker or the order the fits finish in, so the result is the same
 bit for bit on every backend and worker count. The driver's own generator (folds, the decision's
@@ -24,6 +26,7 @@ from __future__ import annotations
 
 import math
 import sys
+import time
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -37,7 +40,8 @@ from omni_gym.discrepancy.dataset import Dataset, load_dataset, sessions_of
 from omni_gym.discrepancy.decision import RULES, decide
 from omni_gym.discrepancy.events import EVENT_METHOD
 from omni_gym.discrepancy.finite import finite_json
-from omni_gym.discrepancy.fitting import Evaluator, FitResult, fit_candidate, max_ticks, param_intervals, source_folds
+from omni_gym.discrepancy.fit_tasks import FitShared, FitTask, StepWork, run_fits, work_json
+from omni_gym.discrepancy.fitting import Evaluator, FitResult, max_ticks, param_intervals, source_folds
 from omni_gym.discrepancy.kinematic_calibration import calibrate
 from omni_gym.discrepancy.localise import localise
 from omni_gym.discrepancy.outliers import OUTLIER_RULE, drop_outliers, find_outliers
@@ -98,6 +102,7 @@ class Step:
 
     fits: list[FitResult]
     decision: dict
+    work: StepWork | None = None  # the step's measured work (fit_tasks.StepWork)
 
     @property
     def partial(self) -> bool:
@@ -116,24 +121,6 @@ class Step:
         return next((f for f in self.fits if f.candidate.name == self.effect), None)
 
 
-@dataclass(frozen=True)
-class FitShared:
-    """What every fit task of a gap run needs (sent to each worker once): the evaluator, with its
-    cached nominal baseline, noise floor and shooting windows, and the runs' folds."""
-
-    ev: Evaluator
-    fold_of: np.ndarray
-
-
-@dataclass(frozen=True)
-class FitTask:
-    """One candidate fit: the candidate, the model it is fitted on top of, and its own seed."""
-
-    candidate: Candidate
-    base: SimModel
-    seed: np.random.SeedSequence
-
-
 FIT_STREAM = 1  # first spawn key of the fits' seeds (the driver's generator uses the root seed itself)
 
 
@@ -142,15 +129,6 @@ def fit_seed(seed: int, step: int, name: str) -> np.random.SeedSequence:
     and the name (CRC-32, stable across processes and Python versions), so the fit draws the same numbers
     wherever and whenever it runs, and does not depend on which other candidates are fitted."""
     return np.random.SeedSequence(seed, spawn_key=(FIT_STREAM, step, zlib.crc32(name.encode())))
-
-
-def fit_task(shared: FitShared, task: FitTask, tick: Callable[[], None] | None = None) -> tuple[FitResult, int]:
-    """Fit one candidate (a backend task); returns the fit and the robot-runs it simulated (for the report:
-    a worker's evaluator is a copy, so the driver adds the counts up)."""
-    ev = shared.ev
-    before = ev.simulated
-    fit = fit_candidate(task.candidate, ev, task.base, shared.fold_of, np.random.default_rng(task.seed), tick=tick)
-    return fit, ev.simulated - before
 
 
 def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: list[str], fold_of: np.ndarray,
@@ -171,31 +149,39 @@ def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: l
     tasks = [FitTask(c, base, fit_seed(seed, step, c.name)) for c in cands]
     prefix = f"step {step}: " if step > 1 else ""
     start = ev.simulated
-    if ex is None or ex.backend.serial:
-        results = []
-        for i, (c, task) in enumerate(zip(cands, tasks, strict=True), start=1):
-            say(f"{prefix}fitting candidate {i}/{len(cands)} {c.name}")
-            bar.set_postfix_str(c.name)
-            done = bar.n + max_ticks(c) + 1
-            results.append(fit_task(shared, task, tick=lambda: bar.update(1)))
-            bar.update(max(done - bar.n, 0))  # searches that converge early skip their remaining rounds
-    else:
-        say(f"{prefix}fitting {len(cands)} candidates on {ex.backend.describe()}")
-        finished = [0]
+    wall0 = time.perf_counter()
+    parallel = ex is not None and not ex.backend.serial
+    if parallel:
+        say(f"{prefix}fitting {len(cands)} candidates side by side, their simulations as tasks on "
+            f"{ex.backend.describe()}")
+    finished = [0]
+    ends: dict[int, int] = {}
 
-        def on_done(i: int, _result: tuple) -> None:  # tasks finish in any order: one bar step per fit
-            finished[0] += 1
+    def started(i: int) -> None:
+        if not parallel:
+            say(f"{prefix}fitting candidate {i + 1}/{len(cands)} {cands[i].name}")
+            bar.set_postfix_str(cands[i].name)
+        ends[i] = bar.n + max_ticks(cands[i]) + 1
+
+    def done(i: int) -> None:
+        finished[0] += 1
+        if parallel:
             say(f"{prefix}fitted candidate {finished[0]}/{len(cands)} {cands[i].name}")
             bar.set_postfix_str(cands[i].name)
-            bar.update(max_ticks(cands[i]) + 1)
+            bar.update(1)  # its rounds ticked as they ran; the end of the step fills what converged early skipped
+        else:
+            bar.update(max(ends[i] - bar.n, 0))  # searches that converge early skip their remaining rounds
 
-        results = ex.map(fit_task, tasks, shared=shared, on_done=on_done)
-    fits = [f for f, _ in results]
-    ev.simulated = start + sum(n for _, n in results)  # in place (this process) or counted by the workers
+    fits, simulated, works = run_fits(tasks, ev, ex, shared, tick=lambda: bar.update(1), started=started,
+                                      finished=done)
+    ev.simulated = start + simulated  # in place (this process) or counted by the workers
     say(f"{prefix}deciding")
+    t0 = time.process_time()
     decision = decide(base_sse, fits, n_comp, sigma, rng, reference_excess=reference_excess)
+    work = StepWork(fits=works, decide_s=time.process_time() - t0)
     bar.update(1)
-    return Step(fits=fits, decision=decision)
+    work.wall_s = time.perf_counter() - wall0
+    return Step(fits=fits, decision=decision, work=work)
 
 
 def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress: bool | None, dt: float,
@@ -204,6 +190,9 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     """The workflow of :func:`gap`; the report is written into ``out`` as it is (no transaction)."""
     from tqdm import tqdm
 
+    cpu0, wall0 = time.process_time(), time.perf_counter()  # the work record (fit_tasks.work_json)
+    step_works: list[StepWork] = []
+    steps_cpu = 0.0  # this process's CPU time inside the search steps (the rest is the run's serial part)
     show = sys.stderr.isatty() if progress is None else progress
     say = _stage_printer(progress is None and not show)  # redirected stderr: one line per stage
     ds = load_dataset(dataset)
@@ -260,9 +249,12 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         model, base_sse = nominal, sse0
         excess0 = _excess(sse0, n_comp, sigma**2 if sigma is not None else 0.0)
         while True:
+            cpu_step = time.process_time()
             step = _search_step(ev, model, base_sse, [*first.excluded, *[s.effect for s in steps]], fold_of, n_comp,
                                 sigma, rng, bar, say, len(steps) + 1, reference_excess=excess0 if steps else None,
                                 seed=seed, ex=ex, shared=shared, refit=first.refit)
+            steps_cpu += time.process_time() - cpu_step
+            step_works.append(step.work)
             fit = step.fit
             if fit is None:  # none or unexplained: the search ends here
                 break
@@ -407,6 +399,11 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
                           "liftoff": EVENT_METHOD, "rules": RULES, "robot_runs_simulated": ev.simulated}
     result["dataset"] = {"path": str(dataset), "runs": fitted.source_runs, "description": ds.description,
                          "fitted": fitted.to_json()}
+    # Measured (the one part of result.json that differs from run to run): the steps' tasks, total work and
+    # critical paths, and what W workers could reach (fit_tasks.work_json).
+    cpu = time.process_time() - cpu0
+    result["work"] = work_json(step_works, max(cpu - steps_cpu, 0.0), time.perf_counter() - wall0, backend.describe(),
+                               driver_cpu_s=cpu)
     result, bad = finite_json(result)  # standard JSON: a value that could not be computed is null
     if bad:
         result["non_finite"] = bad
