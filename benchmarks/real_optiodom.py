@@ -161,18 +161,21 @@ def gap_subset(robot: Robot, train: list[Run], runs: int | None, seconds: float 
 
 
 def run_gap(nominal: SimModel, metas: list, train: list[Run], seed: int, fit_budget: float,
-            start: str | SimModel | None = None) -> tuple[dict, float]:
+            start: str | SimModel | None = None, jobs: int = 1) -> tuple[dict, float]:
     """``gap`` on the training runs (written to a temporary dataset, each run's session recorded), from
     ``start`` (None: the dataset's nominal model; ``"kinematic"``: gap's own kinematic start, calibrated per
-    held-out fold); (result, wall time [s])."""
+    held-out fold), on ``jobs`` local worker processes (the result does not depend on it); (result, wall
+    time [s])."""
     from omni_gym.discrepancy.workflow import gap
+    from omni_gym.parallel import SERIAL, backend_from_options
 
     with tempfile.TemporaryDirectory(prefix="real_optiodom_") as tmp:
         ds = Path(tmp) / "train"
         desc = describe(metas, len(train), nominal.robot.mass, nominal.robot.inertia, nominal.surface.name)
         write_dataset(ds, nominal.to_json(), desc, train)
         t0 = time.perf_counter()
-        result = gap(ds, None, seed=seed, progress=None, fit_budget=fit_budget, start=start)
+        backend = SERIAL if jobs <= 1 else backend_from_options(jobs, None)
+        result = gap(ds, None, seed=seed, progress=None, fit_budget=fit_budget, start=start, backend=backend)
         wall = time.perf_counter() - t0
     return result, wall
 
@@ -323,7 +326,11 @@ def main(argv: list[str] | None = None) -> int:
                     help="give gap only the first S seconds of each of its runs (default: whole runs)")
     ap.add_argument("--fit-budget", type=float, default=FIT_BUDGET, metavar="S",
                     help=f"gap's fit budget [s] of robot time (default {FIT_BUDGET:g}; omni-gym gap --fit-budget)")
+    ap.add_argument("--jobs", type=int, default=1, metavar="N",
+                    help="gap's local worker processes (omni-gym gap --jobs; the result does not depend on it)")
     args = ap.parse_args(argv)
+    if args.jobs < 1:
+        ap.error(f"--jobs must be at least 1, got {args.jobs}")
     command = "python benchmarks/real_optiodom.py" + "".join(f" {a}" for a in (argv or sys.argv[1:]))
     out = Path(args.out) if args.out else (Path(tempfile.mkdtemp(prefix="real_optiodom_quick_")) if args.quick
                                            else ROOT / "benchmarks" / "results")
@@ -369,7 +376,7 @@ def main(argv: list[str] | None = None) -> int:
         say(f"running gap on {len(gap_train)} training runs ({sum(r.t[-1] for r in gap_train):.0f} s; its stage "
             "lines follow)")
         result, wall = run_gap(nominal, metas, gap_train, args.seed, args.fit_budget,
-                               start="kinematic" if args.gap_start == "kinematic" else None)
+                               start="kinematic" if args.gap_start == "kinematic" else None, jobs=args.jobs)
         extended = SimModel.from_json(result["model"], where="gap result")
         subset = "" if len(gap_train) == len(train) and args.gap_seconds is None else (
             f" on a subset of the training runs: {len(gap_train)} runs, {sum(r.t[-1] for r in gap_train):.0f} s "
