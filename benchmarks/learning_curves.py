@@ -9,7 +9,8 @@ validation RMSE of the untrained policy and the best checkpoint, mean and 95 % i
 
     python benchmarks/learning_curves.py --runs benchmarks/results/training_runs/* --out benchmarks/results
 
-The agent label comes from ``meta.json``: ``obs_mode="state"`` is the privileged upper bound,
+The agent label comes from ``meta.json``: ``obs_mode="state"`` is the privileged upper bound ("privileged,
+BC-init" with ``bc_init``: BC-initialised from the feedback law),
 ``wrapper="ekf-features"`` the EKF-feature agent, ``wrapper="residual-ekf-pid"`` the residual agent,
 ``wrapper="none"`` with sensors the raw-sensor agent.
 """
@@ -52,9 +53,10 @@ class Run:
 
 
 def agent_label(meta: dict) -> str:
-    """privileged / ekf-features / residual / sensors, from a run's meta.json."""
+    """privileged (", BC-init" when warm-started on the feedback law) / ekf-features / residual / sensors, from a
+    run's meta.json."""
     if meta.get("obs_mode") == "state":
-        return "privileged"
+        return "privileged, BC-init" if "bc_init" in meta else "privileged"
     return {"ekf-features": "ekf-features", "residual-ekf-pid": "residual"}.get(meta.get("wrapper"), "sensors")
 
 
