@@ -62,10 +62,11 @@ def main(argv: list[str] | None = None) -> int:
     colours = {v: plt.cm.tab10(i % 10) for i, v in enumerate(variants)}
     fig, ax = plt.subplots(figsize=(8, 4.5))
     lines = ["# Privileged PPO agent: diagnosis runs", "", "```", command, "```", "",
-             "Validation: 10 episodes (seeds 5000–5009) of the id's default condition every 100k steps; "
+             "Validation: 10 episodes (seeds 5000–5009) of the id's default condition at each validation (every "
+             "100k steps; 50k for the BC-initialised runs, whose first point is the clone itself); "
              "'lost' = final error at the 0.5 m termination distance in all 10. Wall time on the shared 2-core "
              "machine (many other jobs). Hyperparameters: `agents/hyperparams/diagnosis/VARIANT.yml`.", "",
-             "| run | env | steps | wall [min] | validation RMSE [m] per 100k steps | best | final success |",
+             "| run | env | steps | wall [min] | validation RMSE [m] at each validation | best | final success |",
              "|---|---|---|---|---|---|---|"]
     for path, variant, meta, data in runs:
         style = "-o" if meta["env_id"].endswith("Williams-v1") else "--s"  # other ids dashed
@@ -77,7 +78,8 @@ def main(argv: list[str] | None = None) -> int:
         dest = out / "diagnosis_runs" / path.name
         dest.mkdir(parents=True, exist_ok=True)
         for f in ("meta.json", "curve.csv"):
-            shutil.copyfile(path / f, dest / f)
+            if (path / f).resolve() != (dest / f).resolve():  # runs already under OUT/diagnosis_runs stay as they are
+                shutil.copyfile(path / f, dest / f)
     ax.set_xlabel("training steps")
     ax.set_ylabel("validation tracking RMSE [m]")
     ax.set_yscale("log")
