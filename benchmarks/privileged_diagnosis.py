@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     for path, variant, meta, data in runs:
         style = "-o" if meta["env_id"].endswith("Williams-v1") else "--s"  # other ids dashed
         ax.plot(data[:, 0], data[:, 2], style, ms=3, color=colours[variant], label=f"{path.name}")
-        curve = ", ".join(f"{v:.3f}" for v in data[:, 2])
+        curve = ", ".join(f"{v:.4f}" for v in data[:, 2])
         best = np.nanmin(data[1:, 2]) if len(data) > 1 else data[0, 2]
         lines.append(f"| {path.name} | {meta['env_id'].split('-', 1)[1]} | {int(data[-1, 0]):,} | "
                      f"{data[-1, 1] / 60:.1f} | {curve} | {best:.4f} | {data[-1, 4]:.1f} |")
