@@ -58,3 +58,86 @@ class ResidualInit(BaseCallback):
 
     def _on_step(self) -> bool:
         return True
+
+
+class BehaviourCloningInit(BaseCallback):
+    """At the start of training from scratch, :func:`agents.behaviour_cloning.behaviour_clone` of the actor
+    on the true-state feedback law in the training environments (keywords: the fields of
+    :class:`agents.behaviour_cloning.BCSpec`). For the RL Zoo; ``agents/train.py`` does the same right
+    after building the model, and for SAC also holds the actor for ``actor_warmup`` steps."""
+
+    def __init__(self, verbose: int = 0, **kwargs) -> None:
+        from agents.behaviour_cloning import BCSpec
+
+        super().__init__(verbose)
+        self.spec = BCSpec(**kwargs)
+        self.summary: dict | None = None
+
+    def _on_training_start(self) -> None:
+        from agents.behaviour_cloning import behaviour_clone
+
+        if self.model.num_timesteps == 0:
+            self.summary = behaviour_clone(self.model, self.training_env, self.spec, int(self.model.seed or 0))
+
+    def _on_step(self) -> bool:
+        return True
+
+
+class HoldActor(BaseCallback):
+    """After behaviour cloning: for the first ``steps`` environment steps the actor (PPO: the policy network,
+    the action layer and log std; SAC: the actor) is put back to its weights at the start before every
+    rollout (PPO) or after every step (SAC), while the critic trains. The critic then first learns the
+    value of the cloned policy; a randomly initialised critic would otherwise give the first policy updates
+    advantages that are noise, and pull the clone anywhere."""
+
+    def __init__(self, steps: int, verbose: int = 0) -> None:
+        super().__init__(verbose)
+        self.steps = int(steps)
+        self._state = None
+
+    def _actor_modules(self):
+        from stable_baselines3 import PPO
+
+        if isinstance(self.model, PPO):
+            p = self.model.policy
+            return {"policy_net": p.mlp_extractor.policy_net, "action_net": p.action_net}
+        return {"actor": self.model.actor}
+
+    def _save(self) -> None:
+        import copy
+
+        self._state = {k: copy.deepcopy(m.state_dict()) for k, m in self._actor_modules().items()}
+        log_std = getattr(self.model.policy, "log_std", None)
+        self._log_std = None if log_std is None or not hasattr(log_std, "detach") else log_std.detach().clone()
+
+    def _restore(self) -> None:
+        import torch
+
+        for k, m in self._actor_modules().items():
+            m.load_state_dict(self._state[k])
+        if self._log_std is not None:
+            with torch.no_grad():
+                self.model.policy.log_std.copy_(self._log_std)
+
+    def _on_training_start(self) -> None:
+        self._save()
+
+    def _hold(self) -> None:
+        if self._state is not None and self.num_timesteps < self.steps:
+            self._restore()
+        elif self._state is not None:
+            self._state = None  # released: the algorithm trains the actor from here on
+
+    def _on_rollout_start(self) -> None:
+        self._hold()
+
+    def _on_step(self) -> bool:
+        from stable_baselines3 import SAC
+
+        if isinstance(self.model, SAC):
+            self._hold()
+        return True
+
+    def _on_training_end(self) -> None:
+        if self._state is not None:  # training ended within the warm-up: undo the last updates
+            self._restore()

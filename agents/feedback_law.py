@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from omni_gym.envs.observations import StateObsDecoder
+from omni_gym.envs.observations import POS_SCALE, StateObsDecoder
 
 DEFAULT_GAIN = 2.0  # 1/s: the middle of headroom.md's 1, 2, 4 /s (none tuned on the benchmark seeds)
 
@@ -37,7 +37,23 @@ class TrueStateFeedback:
         """Nothing to reset: the law reads only the current observation."""
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        rows = [self.decode(o) for o in obs]  # SI units, body frame of each robot
-        ref = np.array([r.reference_velocity for r in rows])  # m/s, m/s, rad/s
-        err = np.array([[*r.tracking_error_body, r.heading_error] for r in rows])  # m, m, rad
-        return np.clip((ref + self.gain * err) / self.twist_scale, -1.0, 1.0)
+        return law_actions(self.decode, np.asarray(obs, dtype=float), self.gain)
+
+
+def law_actions(decode: StateObsDecoder, obs: np.ndarray, gain: float = DEFAULT_GAIN, clip: bool = True) -> np.ndarray:
+    """The law's actions (N, 3) for ``state`` observations ``obs`` (N, D) of the layout ``decode`` reads
+    (``clip=False``: before clipping to the action box; linear in ``obs``).
+
+    Vectorised form of :class:`TrueStateFeedback` (one array expression, no per-row decoding), for
+    behaviour cloning (:mod:`agents.behaviour_cloning`) where millions of rows are labelled.
+    """
+    sc = decode.scales
+    twist = np.array([sc.max_speed, sc.max_speed, sc.max_yaw_rate])
+    if obs.ndim != 2 or obs.shape[1] != decode.dim:
+        raise ValueError(f"state observations must have shape (N, {decode.dim}), got {obs.shape}")
+    L = decode.layout
+    ref = obs[:, L["reference_velocity"]] * twist  # m/s, m/s, rad/s
+    err = np.column_stack([obs[:, L["tracking_error_body"]] * POS_SCALE,
+                           obs[:, L["heading_error"]][:, 0] * np.pi])  # m, m, rad
+    a = (ref + gain * err) / twist
+    return np.clip(a, -1.0, 1.0) if clip else a

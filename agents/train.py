@@ -71,7 +71,7 @@ from agents.options import BACKENDS, check_backend_args, check_hyperparams, chec
 from agents.rollout import make_env, run_episode
 from agents.sb3_policy import SB3Policy
 from agents.wrappers import wrap_env
-from agents.zoo_config import WrapperSpec, residual_init, wrapper_spec
+from agents.zoo_config import WrapperSpec, bc_init_spec, residual_init, wrapper_spec
 from omni_gym.envs.config import parse_model
 
 HYPERPARAM_DIR = Path(__file__).resolve().parent / "hyperparams"
@@ -346,6 +346,11 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
     spec = wrapper_spec(hp, where)
     wrapper, residual_scale, noise = spec.name, spec.residual_scale, spec.sensor_noise_range
     init_factor, init_log_std = residual_init(hp, where)
+    bc_spec = bc_init_spec(hp, where)
+    if bc_spec is not None and (algo not in ("ppo", "sac") or spec.name != "none"
+                                or dict(hp.get("env_kwargs") or {}, **(env_kwargs or {})).get("obs_mode") != "state"):
+        raise ValueError(f"{where}: callback: BehaviourCloningInit clones the true-state law: it needs ppo or sac, "
+                         "obs_mode 'state' and no EKF or feed-forward wrapper")
     norm = _normalize(hp.get("normalize"), where)
     extra = {k: v for k, v in hp.items() if k not in OWN_KEYS}
     if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
@@ -382,6 +387,11 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
         raise ValueError(f"{where}: bad hyperparameter for {algo}: {exc}") from None
     if init_factor is not None:
         init_residual(model, init_factor, init_log_std)
+    bc_summary = None
+    if bc_spec is not None:  # supervised warm start on the feedback law; the agent still outputs the full twist
+        from agents.behaviour_cloning import behaviour_clone
+
+        bc_summary = behaviour_clone(model, venv, bc_spec, seed)
 
     meta = {
         "backend": "sb3", "algo": algo, "env_id": env_id, "train_env_kwargs": kw, "wrapper": wrapper,
@@ -394,14 +404,21 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
         "vecnormalize": "vecnormalize.pkl" if norm is not None else None, "model": "model.zip",
         "command": command, "git_commit": git_commit(), "torch_threads": torch.get_num_threads(),
     }
+    if bc_summary is not None:
+        meta["bc_init"] = bc_summary
     # Validation: the training conditions without domain randomisation (e.g. the id's defaults).
     val_kw = {k: v for k, v in kw.items() if not k.startswith("randomize_") and k != "obs_mode"}
     meta["validation_env_kwargs"] = val_kw
     callback = _Training(out, meta, env_id, eval_freq, eval_episodes, checkpoint_freq, n_timesteps, progress,
                          max_minutes, lambda: make_env(env_id, val_kw, obs_mode=meta["obs_mode"]))
+    callbacks = [callback]
+    if bc_spec is not None and bc_spec.actor_warmup > 0:
+        from agents.callbacks import HoldActor
+
+        callbacks.append(HoldActor(bc_spec.actor_warmup))
     t0 = time.time()
     try:
-        model.learn(total_timesteps=n_timesteps, callback=callback, progress_bar=False,
+        model.learn(total_timesteps=n_timesteps, callback=callbacks, progress_bar=False,
                     tb_log_name=f"{algo}_{seed}")
     finally:
         callback.close()
@@ -490,8 +507,10 @@ class _TrainingMixin:
                              int(self.num_timesteps), time.time() - self._t0, self._train_reward())
         self.rows.append(row)
         rmse = row["val_tracking_rmse"]
-        # The untrained policy (step 0) is a reference point on the curve, not a candidate.
-        if self.num_timesteps > 0 and (self.best is None or rmse < self.best["val_tracking_rmse"]):
+        # The untrained policy (step 0) is a reference point on the curve, not a candidate; a behaviour-cloned
+        # one (meta "bc_init") is a trained policy and is.
+        candidate = self.num_timesteps > 0 or "bc_init" in self.meta
+        if candidate and (self.best is None or rmse < self.best["val_tracking_rmse"]):
             self.best = dict(row)
             self.model.save(self.out / "model.zip")
             if vn is not None:

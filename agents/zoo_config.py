@@ -17,6 +17,7 @@ EKF_WRAPPER = "agents.wrappers.EKFFeatures"
 REWARD_WRAPPER = "agents.rewards.TrackingReward"
 FF_WRAPPER = "agents.wrappers.FeedForwardTwist"
 RESIDUAL_INIT = "agents.callbacks.ResidualInit"
+BC_INIT = "agents.callbacks.BehaviourCloningInit"
 
 
 @dataclass(frozen=True)
@@ -107,9 +108,31 @@ def residual_init(hp: dict, where: str) -> tuple[float | None, float | None]:
         return (None if factor is None else float(factor)), (None if log_std is None else float(log_std))
     factor = log_std = None
     for path, kw in _zoo_entries(hp["callback"], "callback", where):
+        if path == BC_INIT:
+            continue  # read by bc_init_spec
         if path != RESIDUAL_INIT:
-            raise ValueError(f"{where}: callback: {path!r}: this trainer knows only {RESIDUAL_INIT}")
+            raise ValueError(f"{where}: callback: {path!r}: this trainer knows only {RESIDUAL_INIT} and {BC_INIT}")
         _known_keywords(path, kw, ("factor", "log_std"), "callback", where)
         factor = float(kw.get("factor", 0.01))
         log_std = None if kw.get("log_std") is None else float(kw["log_std"])
     return factor, log_std
+
+
+def bc_init_spec(hp: dict, where: str):
+    """The :class:`agents.behaviour_cloning.BCSpec` of a ``BehaviourCloningInit`` callback entry, or None."""
+    from agents.behaviour_cloning import BC_KEYS, BCSpec
+
+    if "callback" not in hp:
+        return None
+    for path, kw in _zoo_entries(hp["callback"], "callback", where):
+        if path == BC_INIT:
+            _known_keywords(path, kw, BC_KEYS, "callback", where)
+            try:
+                spec = BCSpec(**{k: type(getattr(BCSpec, k))(v) for k, v in kw.items()})
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"{where}: callback: {path}: {exc}") from None
+            if spec.rollout_steps < 1 or spec.epochs < 1 or spec.batch_size < 1 or spec.gain < 0 or spec.noise < 0:
+                raise ValueError(f"{where}: callback: {path}: rollout_steps, epochs, batch_size must be >= 1 and "
+                                 f"gain, noise >= 0")
+            return spec
+    return None

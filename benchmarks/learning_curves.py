@@ -9,7 +9,8 @@ validation RMSE of the untrained policy and the best checkpoint, mean and 95 % i
 
     python benchmarks/learning_curves.py --runs benchmarks/results/training_runs/* --out benchmarks/results
 
-The agent label comes from ``meta.json``: ``obs_mode="state"`` is the privileged upper bound,
+The agent label comes from ``meta.json``: ``obs_mode="state"`` is the privileged upper bound ("privileged,
+BC-init" with ``bc_init``: BC-initialised from the feedback law),
 ``wrapper="ekf-features"`` the EKF-feature agent, ``wrapper="residual-ekf-pid"`` the residual agent,
 ``wrapper="none"`` with sensors the raw-sensor agent.
 """
@@ -52,9 +53,10 @@ class Run:
 
 
 def agent_label(meta: dict) -> str:
-    """privileged / ekf-features / residual / sensors, from a run's meta.json."""
+    """privileged (", BC-init" when warm-started on the feedback law) / ekf-features / residual / sensors, from a
+    run's meta.json."""
     if meta.get("obs_mode") == "state":
-        return "privileged"
+        return "privileged, BC-init" if "bc_init" in meta else "privileged"
     return {"ekf-features": "ekf-features", "residual-ekf-pid": "residual"}.get(meta.get("wrapper"), "sensors")
 
 
@@ -132,15 +134,18 @@ def plot(path: Path, groups: dict) -> None:
 
 def markdown(command: str, groups: dict) -> str:
     lines = ["# Learning curves", "", "```", command, "```", "",
-             "Validation tracking RMSE [m] (5 fixed validation seeds, the id's defaults without randomisation); "
-             "mean over seeds and 95 % Student-t interval. `best` is the checkpoint kept as `model.zip`.", "",
-             "| environment | agent | algorithm | seeds | steps per run | wall time per run [min] | untrained | best |",
+             "Validation tracking RMSE [m] (each run's fixed validation seeds, `meta.json` `validation_seeds`; "
+             "the id's defaults without randomisation); mean over seeds and 95 % Student-t interval. `best` is "
+             "the checkpoint kept as `model.zip` (after step 0; for BC-initialised runs step 0, the clone of the "
+             "feedback law, counts too).", "",
+             "| environment | agent | algorithm | seeds | steps per run | wall time per run [min] | step 0 (untrained; "
+             "BC-init: the clone) | best |",
              "|---|---|---|---|---|---|---|---|"]
     for (env_id, agent, algo), runs in groups.items():
         steps = np.array([r.steps[-1] for r in runs])
         wall = np.array([r.wall_s[-1] / 60.0 for r in runs])
         first = np.array([r.rmse[0] for r in runs])
-        best = np.array([r.rmse[1:].min() for r in runs])
+        best = np.array([(r.rmse if "BC-init" in agent else r.rmse[1:]).min() for r in runs])
         lines.append(f"| {env_id} | {agent} | {algo.upper()} | {', '.join(str(r.seed) for r in runs)} | "
                      f"{steps.mean():,.0f} | {wall.mean():.1f} | {ci_text(first)} | {ci_text(best)} |")
     return "\n".join(lines) + "\n"

@@ -62,22 +62,24 @@ def main(argv: list[str] | None = None) -> int:
     colours = {v: plt.cm.tab10(i % 10) for i, v in enumerate(variants)}
     fig, ax = plt.subplots(figsize=(8, 4.5))
     lines = ["# Privileged PPO agent: diagnosis runs", "", "```", command, "```", "",
-             "Validation: 10 episodes (seeds 5000–5009) of the id's default condition every 100k steps; "
+             "Validation: 10 episodes (seeds 5000–5009) of the id's default condition at each validation (every "
+             "100k steps; 50k for the BC-initialised runs, whose first point is the clone itself); "
              "'lost' = final error at the 0.5 m termination distance in all 10. Wall time on the shared 2-core "
              "machine (many other jobs). Hyperparameters: `agents/hyperparams/diagnosis/VARIANT.yml`.", "",
-             "| run | env | steps | wall [min] | validation RMSE [m] per 100k steps | best | final success |",
+             "| run | env | steps | wall [min] | validation RMSE [m] at each validation | best | final success |",
              "|---|---|---|---|---|---|---|"]
     for path, variant, meta, data in runs:
         style = "-o" if meta["env_id"].endswith("Williams-v1") else "--s"  # other ids dashed
         ax.plot(data[:, 0], data[:, 2], style, ms=3, color=colours[variant], label=f"{path.name}")
-        curve = ", ".join(f"{v:.3f}" for v in data[:, 2])
+        curve = ", ".join(f"{v:.4f}" for v in data[:, 2])
         best = np.nanmin(data[1:, 2]) if len(data) > 1 else data[0, 2]
         lines.append(f"| {path.name} | {meta['env_id'].split('-', 1)[1]} | {int(data[-1, 0]):,} | "
                      f"{data[-1, 1] / 60:.1f} | {curve} | {best:.4f} | {data[-1, 4]:.1f} |")
         dest = out / "diagnosis_runs" / path.name
         dest.mkdir(parents=True, exist_ok=True)
         for f in ("meta.json", "curve.csv"):
-            shutil.copyfile(path / f, dest / f)
+            if (path / f).resolve() != (dest / f).resolve():  # runs already under OUT/diagnosis_runs stay as they are
+                shutil.copyfile(path / f, dest / f)
     ax.set_xlabel("training steps")
     ax.set_ylabel("validation tracking RMSE [m]")
     ax.set_yscale("log")

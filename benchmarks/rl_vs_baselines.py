@@ -1,10 +1,12 @@
 """Trained SB3 agents against every scripted baseline, on both path-following ids, batched evaluation.
 
-Ids (``--envs``, default both): ``OmniPathFollow-Phunopas-v0`` and ``OmniPathFollow-Williams-v1``. On each:
-every scripted policy of ``agents.policies.POLICY_NAMES`` (open-loop, odometry-pid, ekf-pid,
-ekf-pid-traction) and every model of ``--models`` trained on that id (its ``meta.json`` ``env_id``), in the
-three conditions of the baseline table (``CONDITIONS`` of ``benchmarks/baselines.py``: no slip, slip,
-slip + lift-off), on the same seeds for every policy (paired):
+Ids (``--envs``, default ``OmniPathFollow-Phunopas-v0`` and ``OmniPathFollow-Williams-v1``;
+``OmniPathFollow-Mecanum-v0`` on request, without goal rows). On each: the scripted policies of
+``--scripted`` (default all: ``agents.policies.POLICY_NAMES``, i.e. open-loop, odometry-pid, ekf-pid,
+ekf-pid-traction, and ``feedback-law``, the privileged true-state law of ``agents.feedback_law``, k = 2/s)
+and every model of ``--models`` trained on that id (its ``meta.json`` ``env_id``), in the three conditions
+of the baseline table (``conditions(id)`` of ``benchmarks/baselines.py``: no slip, slip, slip + lift-off),
+on the same seeds for every policy (paired):
 
 * **held-out seeds** (always): random-waypoint paths on seeds ``--seed``… (default 10 000; training used
   seeds 0…n_envs−1 and their continuations, validation 5000…);
@@ -17,8 +19,11 @@ single-environment episodes (bit for bit for open-loop, within 1e-8 m for the EK
 ``tests/test_vector_rollout.py``).
 
 Per metric: mean and 95 % Student-t interval; success rate with its 95 % Wilson interval; lost count.
-Each learned agent against ekf-pid and against ekf-pid-traction (tracking RMSE): ratio of means with a
-95 % paired-bootstrap interval and a two-sided paired Wilcoxon test. Privileged agents (``obs_mode``
+Each learned agent against ekf-pid and against ekf-pid-traction (privileged agents also against the
+feedback law; tracking RMSE): ratio of means with a 95 % paired-bootstrap interval, the share of episodes
+in which the agent is better with its 95 % paired-bootstrap interval, and a two-sided paired Wilcoxon test.
+Agents trained with a behaviour-cloning warm start (``meta.json`` ``bc_init``) are labelled
+"BC-initialised from the feedback law". Privileged agents (``obs_mode``
 "state": they read the true state) are marked "privileged (upper bound)" everywhere and are never the
 "best learned agent": they show the headroom. Goals (held-out seeds):
 
@@ -28,14 +33,15 @@ Each learned agent against ekf-pid and against ekf-pid-traction (tracking RMSE):
 * Phunopas-v0, slip + lift-off: a learned agent's tracking RMSE ≤ 0.8 × ekf-pid's with the two 95 %
   intervals apart.
 
-Writes ``rl_vs_baselines.md`` (command line first) and ``rl_vs_baselines.png`` (bars with 95 % whiskers per
-id, set and condition) into ``--out``; training curves are ``benchmarks/learning_curves.py``. With
-``--cache FILE`` every episode's metrics are kept in a JSON file keyed by (id, policy, a hash of the model's
+Writes ``NAME.md`` (``--name``, default ``rl_vs_baselines``; command line first) and ``NAME.png`` (bars
+with 95 % whiskers per id, set and condition) into ``--out``; training curves are ``benchmarks/learning_curves.py``.
+With ``--cache FILE`` every episode's metrics are kept in a JSON file keyed by (id, policy, a hash of the model's
 files, set, condition, seed, overrides) and reused on the next run (e.g. the scripted policies while the
 agents train). Usage::
 
     python benchmarks/rl_vs_baselines.py [--models DIR ...] [--envs ID ...] [--episodes 50] [--seed 10000]
                                          [--sets held-out [unseen]] [--workers 2] [--cache FILE]
+                                         [--scripted POLICY ...] [--name STEM]
                                          [--ray [ADDRESS]]
                                          [--out benchmarks/results]
 """
@@ -60,7 +66,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from baselines import CONDITIONS, fmt_ci, paired_bootstrap_ratio  # noqa: E402
+from baselines import CONDITIONS, MECANUM_ENV, conditions, fmt_ci, paired_bootstrap_ratio  # noqa: E402
 from scipy import stats  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
@@ -72,12 +78,16 @@ from omni_gym.parallel import Backend, add_ray_option, backend_from_options, par
 
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"
 WILLIAMS = "OmniPathFollow-Williams-v1"
-ENV_IDS = (PHUNOPAS, WILLIAMS)
+MECANUM = MECANUM_ENV
+ENV_IDS = (PHUNOPAS, WILLIAMS, MECANUM)
+DEFAULT_ENVS = (PHUNOPAS, WILLIAMS)
+LAW = "feedback-law"  # agents.feedback_law.TrueStateFeedback, k = 2/s: privileged (reads the true state), scripted
+SCRIPTED = (*POLICY_NAMES, LAW)
 SETS = {"held-out": "held-out seeds", "unseen": "unseen families"}
 UNSEEN = ("circle", "figure_eight", "line")
 UNSEEN_OFFSET = 1000  # unseen-family episodes start at --seed + 1000
 SLIP, LIFT = "slip", "slip + lift-off"
-BASELINES = ("ekf-pid", "ekf-pid-traction")  # what every learned agent is compared with
+BASELINES = ("ekf-pid", "ekf-pid-traction")  # what every learned agent is compared with (privileged ones: + LAW)
 PRIVILEGED = "privileged (upper bound)"
 LABELS = {"tracking_rmse": "tracking RMSE [m]", "final_position_error": "final position error [m]",
           "final_heading_error": "final heading error [rad]", "success_rate": "success rate"}
@@ -88,7 +98,7 @@ class Batch:
     """One vector env's worth of episodes: the same id, policy, set, path family and condition."""
 
     env_id: str
-    policy: str  # a POLICY_NAMES entry or a model directory
+    policy: str  # a SCRIPTED entry or a model directory
     eval_set: str  # a SETS value
     cond: str  # a CONDITIONS key
     family: str | None  # None: the id's default (random waypoints)
@@ -96,7 +106,7 @@ class Batch:
     overrides: tuple[tuple[str, float], ...]
 
     def env_kwargs(self) -> dict:
-        kw = {**CONDITIONS[self.cond], **dict(self.overrides)}
+        kw = {**conditions(self.env_id)[self.cond], **dict(self.overrides)}
         if self.family is not None:
             kw["trajectory"] = self.family
         return kw
@@ -110,7 +120,7 @@ class Batch:
 def policy_fingerprint(policy: str) -> str:
     """A scripted policy's name, or the SHA-256 of a model directory's files: a retrained model at the same
     path must not reuse the cached episodes of the old one."""
-    if policy in POLICY_NAMES:
+    if policy in SCRIPTED:
         return policy
     digest = hashlib.sha256()
     for f in sorted(Path(policy).iterdir()):
@@ -123,7 +133,12 @@ def run_batch(batch: Batch) -> tuple[Batch, list[Episode]]:
     """The batch's episodes, all robots at once (in a worker process or in this one)."""
     from agents.vector_rollout import make_vector_env, run_episodes_vector
 
-    if batch.policy in POLICY_NAMES:
+    if batch.policy == LAW:
+        from agents.feedback_law import TrueStateFeedback
+
+        venv = make_vector_env(batch.env_id, len(batch.seeds), batch.env_kwargs(), obs_mode="state")
+        policy = TrueStateFeedback(venv)
+    elif batch.policy in POLICY_NAMES:
         from agents.batched.policies import make_vector_policy
 
         venv = make_vector_env(batch.env_id, len(batch.seeds), batch.env_kwargs())
@@ -212,6 +227,7 @@ class Comparison:
     ratio: float
     ci95: list[float]
     better_share: float  # share of seeds where a < b
+    better_ci95: list[float]  # its 95 % paired-bootstrap interval (the same resamples as the ratio's)
     wilcoxon_p: float
     intervals_apart: bool  # a's 95 % t-interval entirely below b's
 
@@ -220,23 +236,38 @@ def compare(a_eps: list[Episode], b_eps: list[Episode], metric: str, summaries_a
             ) -> Comparison:
     a, b = values(a_eps, metric), values(b_eps, metric)
     ci, _ = paired_bootstrap_ratio(a, b, np.random.default_rng(0))  # fixed: same episodes, same interval
-    return Comparison(float(a.mean() / b.mean()), ci, float(np.mean(a < b)), wilcoxon_p(a, b),
+    return Comparison(float(a.mean() / b.mean()), ci, float(np.mean(a < b)), share_interval(a, b), wilcoxon_p(a, b),
                       bool(summaries_a[metric]["ci95"][1] < summaries_b[metric]["ci95"][0]))
+
+
+def share_interval(a: np.ndarray, b: np.ndarray, resamples: int = 10_000) -> list[float]:
+    """95 % percentile-bootstrap interval of the share of paired seeds where ``a < b`` (seeds resampled with
+    replacement; Generator seeded 0, as the ratio's: the same episodes give the same interval)."""
+    better = (np.asarray(a) < np.asarray(b)).astype(float)
+    idx = np.random.default_rng(0).integers(0, len(better), size=(resamples, len(better)))
+    shares = better[idx].mean(axis=1)
+    return [float(np.quantile(shares, 0.025)), float(np.quantile(shares, 0.975))]
 
 
 # --- report ------------------------------------------------------------------------------------
 
 
 def label_plain(policy: str) -> str:
-    return policy if policy in POLICY_NAMES else Path(policy).name
+    return policy if policy in SCRIPTED else Path(policy).name
 
 
 def is_privileged(policy: str, metas: dict) -> bool:
-    return policy in metas and metas[policy].get("obs_mode") == "state"
+    return policy == LAW or (policy in metas and metas[policy].get("obs_mode") == "state")
+
+
+def is_bc(policy: str, metas: dict) -> bool:
+    """Trained with a behaviour-cloning warm start on the feedback law (meta.json ``bc_init``)."""
+    return policy in metas and "bc_init" in metas[policy]
 
 
 def label(policy: str, metas: dict) -> str:
-    return f"{label_plain(policy)} ({PRIVILEGED})" if is_privileged(policy, metas) else label_plain(policy)
+    name = label_plain(policy) + (", BC-initialised from the feedback law" if is_bc(policy, metas) else "")
+    return f"{name} ({PRIVILEGED})" if is_privileged(policy, metas) else name
 
 
 def fmt_cmp(c: Comparison) -> str:
@@ -253,6 +284,8 @@ def agents_table(models: list[str], metas: dict) -> list[str]:
                "none": f"{meta.get('obs_mode')} observation; full twist"}.get(meta["wrapper"], meta["wrapper"])
         if is_privileged(m, metas):
             obs += f" — {PRIVILEGED}: reads the true state"
+        if is_bc(m, metas):
+            obs += "; BC-initialised from the feedback law, then fine-tuned"
         curve = Path(m) / "curve.csv"
         val = "n/a"
         if curve.is_file():
@@ -296,6 +329,8 @@ def goal_williams(cond: str, learned: list[str], scripted: list[str], eps: dict,
         verdict[name] = c.ci95[1] <= goal
         rows.append(f"| {cond} | {name} | {label(top, metas)}: {fmt_cmp(c)} | {'yes' if c.ci95[1] <= goal else 'no'}"
                     f" | **{verdict_text(c.ratio, c.ci95[1], goal)}** |")
+    if "open-loop" not in k:
+        return rows, verdict
     top_any = best([*learned, *[p for p in scripted if p != "open-loop"]], k, "final_position_error")
     name = "best scripted or learned policy final position error ≤ 0.2 × open-loop"
     c = compare(k[top_any], k["open-loop"], "final_position_error", sm[top_any], sm["open-loop"])
@@ -324,15 +359,20 @@ def goal_phunopas(learned: list[str], eps: dict, summ: dict, metas: dict) -> tup
 
 
 def comparison_rows(env_id: str, models: list[str], sets: list[str], eps: dict, summ: dict, metas: dict) -> list[str]:
-    lines = ["| agent | set | condition | vs | ratio of mean tracking RMSE [95 % paired bootstrap] | agent better on "
-             "| Wilcoxon p (two-sided) | 95 % intervals apart |", "|---|---|---|---|---|---|---|---|"]
+    lines = ["| agent | set | condition | vs | ratio of mean tracking RMSE [95 % paired bootstrap] | share of episodes "
+             "the agent is better [95 % bootstrap] | Wilcoxon p (two-sided) | 95 % intervals apart |",
+             "|---|---|---|---|---|---|---|---|"]
     for m in models:
+        bases = [*BASELINES, *([LAW] if is_privileged(m, metas) else [])]
         for s in sets:
             for cond in CONDITIONS:
-                for base in BASELINES:
+                for base in bases:
                     a, b = (env_id, m, s, cond), (env_id, base, s, cond)
+                    if a not in eps or b not in eps:
+                        continue
                     c = compare(eps[a], eps[b], "tracking_rmse", summ[a], summ[b])
-                    lines.append(f"| {label(m, metas)} | {s} | {cond} | {base} | {fmt_cmp(c)} | {c.better_share:.2f} | "
+                    lines.append(f"| {label(m, metas)} | {s} | {cond} | {base} | {fmt_cmp(c)} | {c.better_share:.2f} "
+                                 f"[{c.better_ci95[0]:.2f}, {c.better_ci95[1]:.2f}] | "
                                  f"{c.wilcoxon_p:.2g} | {'yes' if c.intervals_apart else 'no'} |")
     return lines
 
@@ -341,7 +381,7 @@ def condition_tables(env_id: str, policies: list[str], sets: list[str], eps: dic
                      ) -> list[str]:
     lines = []
     for s in sets:
-        for cond, kw in CONDITIONS.items():
+        for cond, kw in conditions(env_id).items():
             traj = f"trajectory {', '.join(UNSEEN)}" if s == SETS["unseen"] else "trajectory waypoints"
             lines += [f"### {s}: {cond} (`{', '.join(f'{k}={v!r}' for k, v in kw.items())}`; {traj})", "",
                       "| policy | tracking RMSE [m] | final position error [m] | final heading error [rad] "
@@ -358,7 +398,7 @@ def condition_tables(env_id: str, policies: list[str], sets: list[str], eps: dic
 
 def write_markdown(path: Path, command: str, env_ids: list[str], policies: dict, sets: list[str], metas: dict,
                    eps: dict, summ: dict, episodes: int, seed: int, elapsed: float) -> dict:
-    models = [m for e in env_ids for m in policies[e] if m not in POLICY_NAMES]
+    models = [m for e in env_ids for m in policies[e] if m not in SCRIPTED]
     set_text = (f"Held-out seeds: random-waypoint paths (the training family) on seeds {seed}–{seed + episodes - 1}."
                 + (f" Unseen families: {', '.join(UNSEEN)} in turn on seeds {seed + UNSEEN_OFFSET}–"
                    f"{seed + UNSEEN_OFFSET + episodes - 1}." if SETS["unseen"] in sets else ""))
@@ -381,14 +421,15 @@ def write_markdown(path: Path, command: str, env_ids: list[str], policies: dict,
               "| condition | goal | measured: ratio [95 % paired bootstrap] | whole interval within the goal | "
               "verdict |", "|---|---|---|---|---|"]
     for env_id in env_ids:
-        learned = [m for m in policies[env_id] if m not in POLICY_NAMES and not is_privileged(m, metas)]
+        learned = [m for m in policies[env_id] if m not in SCRIPTED and not is_privileged(m, metas)]
         if env_id == WILLIAMS:
             lines.append(f"| **{WILLIAMS}** | | | | |")
             for cond in (SLIP, LIFT):
-                rows, v = goal_williams(cond, learned, list(POLICY_NAMES), eps, summ, metas)
+                rows, v = goal_williams(cond, learned, [p for p in POLICY_NAMES if p in policies[env_id]], eps, summ,
+                                        metas)
                 lines += rows
                 verdicts.update({f"{WILLIAMS} | {cond} | {k}": x for k, x in v.items()})
-        else:
+        elif env_id == PHUNOPAS:
             lines.append(f"| **{PHUNOPAS}** | | | | |")
             rows, v = goal_phunopas(learned, eps, summ, metas)
             lines += rows
@@ -401,10 +442,11 @@ def write_markdown(path: Path, command: str, env_ids: list[str], policies: dict,
               "RMSE is the position error only: read the heading column too (an agent that ignores the heading "
               "can have a small position RMSE).", ""]
     for env_id in env_ids:
-        env_models = [m for m in policies[env_id] if m not in POLICY_NAMES]
+        env_models = [m for m in policies[env_id] if m not in SCRIPTED]
         lines += [f"## {env_id}", ""]
         if env_models:
-            lines += ["### Learned agents vs ekf-pid and ekf-pid-traction", ""]
+            lines += ["### Learned agents vs ekf-pid and ekf-pid-traction (privileged agents also vs the feedback law)",
+                      ""]
             lines += comparison_rows(env_id, env_models, sets, eps, summ, metas) + [""]
         lines += condition_tables(env_id, policies[env_id], sets, eps, summ, metas)
     write_text_atomic(path, "\n".join(lines))
@@ -450,7 +492,11 @@ def parse(argv: list[str] | None) -> tuple[argparse.Namespace, dict]:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--models", nargs="*", default=[],
                     help="trained model directories (meta.json names the id each is evaluated on)")
-    ap.add_argument("--envs", nargs="+", choices=ENV_IDS, default=list(ENV_IDS), help="ids (default both)")
+    ap.add_argument("--envs", nargs="+", choices=ENV_IDS, default=list(DEFAULT_ENVS),
+                    help=f"ids (default {' and '.join(DEFAULT_ENVS)}; {MECANUM} has no goal rows)")
+    ap.add_argument("--scripted", nargs="+", choices=SCRIPTED, default=list(SCRIPTED),
+                    help=f"scripted policies to run (default all; {LAW}: the privileged true-state law, k = 2/s)")
+    ap.add_argument("--name", default="rl_vs_baselines", help="output file stem (default rl_vs_baselines)")
     ap.add_argument("--sets", nargs="+", choices=list(SETS), default=["held-out"],
                     help="evaluation sets (default held-out; 'unseen': circle, figure-eight, line)")
     ap.add_argument("--episodes", type=int, default=50, help="episodes per id, policy, condition and set (default 50)")
@@ -487,7 +533,7 @@ def main(argv: list[str] | None = None) -> int:
     skipped = [m for m in args.models if metas[m]["env_id"] not in env_ids]
     for m in skipped:
         print(f"note: {m} was trained on {metas[m]['env_id']}, not in --envs: skipped", file=sys.stderr)
-    policies = {e: [*[m for m in args.models if metas[m]["env_id"] == e], *POLICY_NAMES] for e in env_ids}
+    policies = {e: [*[m for m in args.models if metas[m]["env_id"] == e], *args.scripted] for e in env_ids}
     sets = [SETS[s] for s in SETS if s in args.sets]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -503,12 +549,15 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     elapsed = time.time() - t0
     summ = {k: summarize(v, interval="t") for k, v in eps.items()}  # Student-t, as the header says
-    verdicts = write_markdown(out / "rl_vs_baselines.md", command.strip(), env_ids, policies, sets, metas, eps, summ,
+    if any(b not in args.scripted for b in BASELINES):
+        print(f"rl_vs_baselines.py: error: --scripted must include {' and '.join(BASELINES)}", file=sys.stderr)
+        return 2
+    verdicts = write_markdown(out / f"{args.name}.md", command.strip(), env_ids, policies, sets, metas, eps, summ,
                               args.episodes, args.seed, elapsed)
-    plot(out / "rl_vs_baselines.png", env_ids, policies, sets, summ, metas)
+    plot(out / f"{args.name}.png", env_ids, policies, sets, summ, metas)
     for key, met in verdicts.items():
         print(f"{key}: {'met' if met else 'not met'}")
-    print(f"wall time {elapsed / 60:.1f} min; wrote {out / 'rl_vs_baselines.md'} and {out / 'rl_vs_baselines.png'}")
+    print(f"wall time {elapsed / 60:.1f} min; wrote {out / (args.name + '.md')} and {out / (args.name + '.png')}")
     return 0
 
 
