@@ -31,18 +31,14 @@ Scripted policies (:data:`agents.policies.POLICY_NAMES`) run with ``obs_mode="se
 from __future__ import annotations
 
 import math
-import os
 import sys
 import time
 from collections.abc import Iterable, Iterator
 
 import numpy as np
 
-from agents.policies import POLICY_NAMES, make_policy
-from agents.rllib.policy import build as build_rllib
-from agents.rllib.policy import is_rllib_model
-from agents.rollout import Episode, make_env, run_episode
-from agents.sb3_policy import build
+from agents.loaders import find_loader
+from agents.rollout import Episode, run_episode
 
 METRICS = ("tracking_rmse", "final_position_error", "final_heading_error")
 Z95 = 1.959963984540054  # standard normal 97.5 % quantile
@@ -179,16 +175,9 @@ def progress_lines(items: Iterable[int], total: int, what: str, every_s: float |
 
 
 def check_policy_name(policy: str) -> None:
-    """A scripted policy name, or an existing model path; else one line saying which it is not."""
-    if policy in POLICY_NAMES or os.path.isdir(policy) or policy.endswith(".zip"):
-        return
-    if os.path.exists(policy):
-        raise ValueError(f"policy {policy!r}: not a model (a model directory, an RL Zoo folder or an SB3 .zip)")
-    if os.sep in policy or "/" in policy or policy.startswith("."):
-        raise ValueError(f"policy {policy!r}: no such folder or file (a model directory, an RL Zoo folder, an "
-                         f"SB3 .zip or an RLlib checkpoint)")
-    raise ValueError(f"unknown policy {policy!r}; choose one of {', '.join(POLICY_NAMES)} or a saved model path "
-                     f"(no such folder or file either)")
+    """A scripted policy name, or a model path some loader takes; else one line saying which it is not
+    (:func:`agents.loaders.find_loader`)."""
+    find_loader(policy)
 
 
 def evaluate(policy: str, env_id: str, episodes: int, seed: int = DEFAULT_SEED, env_kwargs: dict | None = None,
@@ -200,6 +189,7 @@ def evaluate(policy: str, env_id: str, episodes: int, seed: int = DEFAULT_SEED, 
             (``meta.json`` + model zip), an RL Zoo output folder or a plain SB3 ``.zip`` (see
             :mod:`agents.sb3_policy`; it builds the environment and wrapper the model needs), or an RLlib
             model (our ``--backend rllib`` directory or a bare RLlib checkpoint; :mod:`agents.rllib.policy`).
+            The first loader of :data:`agents.loaders.LOADERS` that accepts it builds it.
         env_id: a registered omni-gym id.
         episodes: number of episodes (≥ 1).
         seed: first seed (default :data:`DEFAULT_SEED`, held out from training and validation).
@@ -212,28 +202,16 @@ def evaluate(policy: str, env_id: str, episodes: int, seed: int = DEFAULT_SEED, 
     ([first, last]), per metric and ``episode_return`` {mean, std, ci95}, ``success_rate`` {mean, successes, ci95},
     ``terminated_rate`` and ``per_episode`` lists.
     """
-    scripted = policy in POLICY_NAMES
-    check_policy_name(policy)
-    if scripted and model_options is not None and model_options.given():
-        raise ValueError(f"{model_options.given()[0]} applies to a trained model, not to the scripted policy "
-                         f"{policy!r}")
+    loader = find_loader(policy)
+    loader.check_options(policy, model_options)
     if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     from tqdm import tqdm
 
-    if scripted:
-        env = make_env(env_id, env_kwargs)
-    elif is_rllib_model(policy):  # an RLlib checkpoint (agents/rllib): no SB3 options apply
-        if model_options is not None and model_options.given():
-            raise ValueError(f"{model_options.given()[0]} applies to an SB3 model, not to the RLlib model {policy}")
-        env, pol = build_rllib(policy, env_id, env_kwargs)
-    else:  # a trained model: it knows (or the options say) its observation mode and wrapper
-        env, pol = build(policy, env_id, env_kwargs, model_options)
+    env, pol = loader.load(policy, env_id, env_kwargs, model_options)  # the env the policy needs
     try:
-        if scripted:
-            pol = make_policy(policy, env)
         bar = progress is True or (progress is None and sys.stderr.isatty())
         what = f"{policy} on {env_id}"
         seeds: Iterable[int] = range(episodes)

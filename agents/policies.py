@@ -45,9 +45,8 @@ import math
 import numpy as np
 
 from agents.pid import PathPID, PIDGains
+from agents.registry import Registry
 from omni_gym.envs.observations import SensorObs, SensorObsDecoder
-
-POLICY_NAMES = ("open-loop", "odometry-pid", "ekf-pid", "ekf-pid-traction")
 
 
 class ScriptedPolicy:
@@ -252,15 +251,15 @@ class EKFPIDTractionPolicy(EKFPIDPolicy):
         self.pid = LimitedPathPID(self.limiter, self.cfg.max_speed, self.cfg.max_yaw_rate, self.dt, gains)
 
 
-_POLICIES = {"open-loop": OpenLoopPolicy, "odometry-pid": OdometryPIDPolicy, "ekf-pid": EKFPIDPolicy,
-             "ekf-pid-traction": EKFPIDTractionPolicy}
+# The scripted policies by name (``--policy``), in the order tables and messages list them.
+POLICIES: Registry[type[ScriptedPolicy]] = Registry(
+    "policy", [(c.name, c) for c in (OpenLoopPolicy, OdometryPIDPolicy, EKFPIDPolicy, EKFPIDTractionPolicy)])
+POLICY_NAMES = POLICIES.names()
 
 
 def make_policy(name: str, env, gains: PIDGains | None = None) -> ScriptedPolicy:
     """The scripted policy ``name`` (one of :data:`POLICY_NAMES`) for ``env`` (obs_mode='sensors')."""
-    if name not in _POLICIES:
-        raise ValueError(f"unknown policy {name!r}; choose one of {', '.join(POLICY_NAMES)}")
-    cls = _POLICIES[name]
+    cls = POLICIES.get(name)
     if gains is not None and not issubclass(cls, PIDPolicy):
         raise ValueError(f"policy {name!r} takes no PID gains")
     return cls(env) if gains is None else cls(env, gains)

@@ -37,25 +37,26 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorWrapper
 
-REWARDS = ("env", "tracking", "squared", "gaussian", "pose")
+from agents.registry import Registry
+
 LOST_HORIZON = 50  # steps: the squared reward's penalty for getting lost (≈ 1/(1 − γ) at γ = 0.98)
 ERROR_SCALE = 0.1  # m: the squared reward's unit of tracking error
-# One line per mode, for plot labels and reports (e: true tracking error [m], a: the agent's action).
-REWARD_FORMULAS = {
-    "env": "the environment's reward (docs/environments.md)",
-    "tracking": "0.5·exp(−(e/0.05 m)²) + 0.5·exp(−e/0.1 m) − 0.02·mean(a²)",
-    "squared": "−(e/0.1 m)² − 0.01·mean(a²); once when lost −50·(lost_distance/0.1 m)²",
-    "gaussian": "0.5·exp(−(e/0.01 m)²) + 0.5·exp(−(e/0.1 m)²) − 0.01·mean(a²)",
-    "pose": "gaussian + 0.25·exp(−(e_θ/0.02 rad)²) + 0.25·exp(−(e_θ/0.2 rad)²)",
-}
+# The reward modes by name, each with its formula in one line, for plot labels and reports (e: true tracking
+# error [m], a: the agent's action).
+REWARDS: Registry[str] = Registry("reward", [
+    ("env", "the environment's reward (docs/environments.md)"),
+    ("tracking", "0.5·exp(−(e/0.05 m)²) + 0.5·exp(−e/0.1 m) − 0.02·mean(a²)"),
+    ("squared", "−(e/0.1 m)² − 0.01·mean(a²); once when lost −50·(lost_distance/0.1 m)²"),
+    ("gaussian", "0.5·exp(−(e/0.01 m)²) + 0.5·exp(−(e/0.1 m)²) − 0.01·mean(a²)"),
+    ("pose", "gaussian + 0.25·exp(−(e_θ/0.02 rad)²) + 0.25·exp(−(e_θ/0.2 rad)²)"),
+])
 GAUSSIAN_SCALES = (0.01, 0.1)  # m: the gaussian reward's narrow and wide error scales
 HEADING_SCALES = (0.02, 0.2)  # rad: the pose reward's narrow and wide heading scales
 
 
 def check_reward(reward: str) -> None:
     """Raise ValueError unless ``reward`` is one of :data:`REWARDS`."""
-    if reward not in REWARDS:
-        raise ValueError(f"unknown reward {reward!r}; choose one of {', '.join(REWARDS)}")
+    REWARDS.check(reward)
 
 
 def tracking_reward(mode: str, env_reward, error, action, terminated, lost_distance: float,

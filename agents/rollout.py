@@ -33,6 +33,32 @@ class Policy(Protocol):
     def act(self, obs: np.ndarray) -> np.ndarray: ...
 
 
+class TrainedPolicy:
+    """Base of the trained-model adapters (:class:`agents.sb3_policy.SB3Policy`,
+    :class:`agents.rllib.policy.RLlibPolicy`): a network acting on each observation alone.
+
+    It keeps the environment it acts on and exposes that environment's ``estimate`` (the EKF wrappers'
+    pose estimate, x [m], y [m], θ [rad], world frame; None without one) as its own. ``reset`` has nothing
+    to reset: any filter state lives in the wrapper, which restarts it with the environment. Subclasses
+    give ``act``.
+    """
+
+    name = "trained"
+
+    def __init__(self, env=None) -> None:
+        self.env = env
+
+    @property
+    def estimate(self) -> np.ndarray | None:
+        return getattr(self.env, "estimate", None)
+
+    def reset(self, obs: np.ndarray) -> None:
+        """Nothing to reset: the network acts on each observation alone (a wrapper keeps any filter state)."""
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
 @dataclass
 class Episode:
     """One evaluated episode; the trajectories are filled only with ``record=True``."""

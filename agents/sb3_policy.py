@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from agents import require_agents_extra
-from agents.algorithms import ALGOS, algorithm_class
-from agents.rollout import make_env
+from agents.algorithms import ALGORITHMS, algorithm_class
+from agents.rollout import TrainedPolicy, make_env
 from agents.wrappers import WRAPPERS, wrap_env
 from agents.zoo_config import wrapper_spec
 
@@ -79,28 +79,22 @@ class ModelSource:
     where: str  # the file the meta keys came from, for error messages
 
 
-class SB3Policy:
+class SB3Policy(TrainedPolicy):
     """Adapter: an SB3 model (+ optional VecNormalize statistics) with the scripted policies' reset/act protocol.
 
     Args:
         model: a stable-baselines3 model.
         vecnormalize: a ``VecNormalize`` whose ``normalize_obs`` matches the model's training (or None).
-        env: the (wrapped) environment it acts on; its ``estimate`` (EKF wrappers) is exposed.
+        env: the (wrapped) environment it acts on; its ``estimate`` (EKF wrappers) is exposed
+            (:class:`agents.rollout.TrainedPolicy`).
     """
 
     name = "sb3"
 
     def __init__(self, model, vecnormalize, env) -> None:
+        super().__init__(env)
         self.model = model
         self.vecnormalize = vecnormalize
-        self.env = env
-
-    @property
-    def estimate(self) -> np.ndarray | None:
-        return getattr(self.env, "estimate", None)
-
-    def reset(self, obs: np.ndarray) -> None:
-        """Nothing to reset: the model acts on each observation alone (a wrapper keeps any filter state)."""
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         o = np.asarray(obs, dtype=np.float32)
@@ -125,8 +119,7 @@ def read_meta(path: str | Path) -> dict:
     for key in ("algo", "model", "wrapper"):
         if key not in meta:
             raise ValueError(f"{f}: missing key {key!r}")
-    if meta["algo"] not in ALGOS:
-        raise ValueError(f"{f}: key 'algo': unknown algorithm {meta['algo']!r}; one of {', '.join(ALGOS)}")
+    _check_algo(meta["algo"], f"{f}: key 'algo'")
     return meta
 
 
@@ -137,9 +130,7 @@ def is_model_path(path: str | Path) -> bool:
 
 
 def _check_algo(algo, where: str) -> str:
-    if algo not in ALGOS:
-        raise ValueError(f"{where}: unknown algorithm {algo!r}; one of {', '.join(ALGOS)}")
-    return algo
+    return ALGORITHMS.check(algo, what="algorithm", where=where)
 
 
 def _check_options(options: ModelOptions, values: dict, where: str) -> None:
@@ -218,8 +209,7 @@ def resolve(path: str | Path, options: ModelOptions | None = None) -> ModelSourc
     if options.algo is None:
         raise ValueError(f"{path}: a plain SB3 model records no algorithm: give --algo (ppo, sac or td3)")
     wrapper = options.wrapper or "none"
-    if wrapper not in WRAPPERS:
-        raise ValueError(f"--wrapper {wrapper!r}: choose one of {', '.join(WRAPPERS)}")
+    WRAPPERS.check(wrapper, what="--wrapper")
     meta = {"algo": _check_algo(options.algo, "--algo"), "env_id": None, "wrapper": wrapper,
             "residual_scale": 0.3 if options.residual_scale is None else options.residual_scale,
             "obs_mode": None, "model": p.name, "vecnormalize": options.vecnormalize}

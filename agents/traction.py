@@ -56,6 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from agents.pid import PathPID, PIDGains
+from agents.registry import Registry
 from omni_gym.envs.config import EnvConfig
 from omni_gym.physics.friction import Surface
 from omni_gym.physics.loads import wheel_loads
@@ -109,7 +110,11 @@ def wrench_facets(generators: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return normals, offsets
 
 
-MODES = ("static", "moving")
+# The limiter's modes (see TractionLimiter's ``mode``), each with the friction set it bounds the twist by.
+MODES: Registry[str] = Registry("traction mode", [
+    ("static", "the LP's set Z: every wheel's transverse force free within its friction limit"),
+    ("moving", "the drive boxes only, once the rollers turn"),
+])
 
 
 class TractionLimiter:
@@ -143,8 +148,7 @@ class TractionLimiter:
     def __init__(self, robot: RobotSpec, surface: Surface, mode: str = "static", margin: float = 1.0,
                  com: Sequence[float] | None = None, contact_cases: Sequence[Sequence[bool]] | None = None,
                  gravity: float = GRAVITY) -> None:
-        if mode not in MODES:
-            raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+        MODES.check(mode)
         if not (isinstance(margin, (int, float)) and math.isfinite(margin) and 0.0 < margin <= 1.0):
             raise ValueError(f"margin must be a number in (0, 1], got {margin!r}")
         self.robot = robot

@@ -66,8 +66,9 @@ from pathlib import Path
 import numpy as np
 
 from agents import require_agents_extra
-from agents.algorithms import ALGOS, algorithm_class
+from agents.algorithms import ALGORITHMS, ALGOS, algorithm_class
 from agents.options import BACKENDS, check_backend_args, check_hyperparams, check_train_args, parse_env_kwargs
+from agents.registry import Registry
 from agents.rollout import make_env, run_episode
 from agents.sb3_policy import SB3Policy
 from agents.wrappers import wrap_env
@@ -132,8 +133,7 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
     ``agents/hyperparams/<algo>.yml``). ValueError naming the file (and key) on any problem; a missing
     entry names the shipped files that hold the id."""
     require_agents_extra("reading hyperparameter files")
-    if algo not in ALGOS:
-        raise ValueError(f"unknown algo {algo!r}; choose one of {', '.join(ALGOS)}")
+    ALGORITHMS.check(algo)
     path = hyperparams_path(algo, path)
     data = _read_yaml(path)
     if not isinstance(data, dict):
@@ -225,7 +225,13 @@ class _EnvFactory:
         return Monitor(make_train_env(*self.args))
 
 
-VEC_ENVS = ("native", "dummy", "subproc")
+# The SB3 vector environments training can run on (``--vec-env``), each with what it is.
+VEC_ENV_KINDS: Registry[str] = Registry("vec_env", [
+    ("native", "one native vector env of N robots (the batched EKF wrappers)"),
+    ("dummy", "N single environments in this process (SB3's DummyVecEnv)"),
+    ("subproc", "N single environments in worker processes (SB3's SubprocVecEnv)"),
+])
+VEC_ENVS = VEC_ENV_KINDS.names()
 
 
 def make_training_vec_env(kind: str, env_id: str, env_kwargs: dict, spec: WrapperSpec, n: int, seed: int):
@@ -243,8 +249,7 @@ def make_training_vec_env(kind: str, env_id: str, env_kwargs: dict, spec: Wrappe
     """
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
-    if kind not in VEC_ENVS:
-        raise ValueError(f"unknown vec_env {kind!r}; choose one of {', '.join(VEC_ENVS)}")
+    VEC_ENV_KINDS.check(kind)
     if kind == "native":
         from agents.sb3_vec_env import make_native_vec_env
         from agents.wrappers import wrap_vector_env
@@ -320,10 +325,8 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
 
     from agents.callbacks import init_residual
 
-    if algo not in ALGOS:
-        raise ValueError(f"unknown algo {algo!r}; choose one of {', '.join(ALGOS)}")
-    if vec_env not in VEC_ENVS:
-        raise ValueError(f"unknown vec_env {vec_env!r}; choose one of {', '.join(VEC_ENVS)}")
+    ALGORITHMS.check(algo)
+    VEC_ENV_KINDS.check(vec_env)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     if env_kwargs is not None and not isinstance(env_kwargs, dict):
@@ -612,7 +615,7 @@ def curve_figure(data: np.ndarray, meta: dict):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from agents.rewards import REWARD_FORMULAS
+    from agents.rewards import REWARDS
 
     reward = meta.get("reward", "env")
     fig, ax = plt.subplots(1, 2, figsize=(11, 4.2), layout="constrained")
@@ -626,7 +629,7 @@ def curve_figure(data: np.ndarray, meta: dict):
     ax[1].set_xlabel("timesteps")
     ax[1].set_ylabel("training episode return (no unit)")
     ax[1].set_title(f"training reward '{reward}' per control step, e: tracking error, a: action\n"
-                    f"{REWARD_FORMULAS.get(reward, reward)}\n"
+                    f"{REWARDS.get(reward) if reward in REWARDS else reward}\n"
                     "summed over an episode; mean of the last 100 episodes (higher is better)", fontsize=8)
     _zero_based(ax[1], data[:, 5])
     ax[1].set_xlim(ax[0].get_xlim())  # the same steps under each other

@@ -54,6 +54,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorWrapper
 from gymnasium.vector.utils import batch_space
 
+from agents.registry import Registry
 from agents.rewards import (
     TrackingReward,
     VectorTrackingReward,
@@ -64,7 +65,13 @@ from agents.rewards import (
 )
 from omni_gym.angles import wrap_angle
 
-WRAPPERS = ("none", "residual-ekf-pid", "ekf-features", "feedforward")
+# The wrappers by name (``--wrapper``, ``meta.json``'s ``wrapper``), each with what the agent then sees and does.
+WRAPPERS: Registry[str] = Registry("wrapper", [
+    ("none", "the environment's own observation and action (the privileged agent)"),
+    ("residual-ekf-pid", "EKF features; the action is a bounded residual on the ekf-pid twist"),
+    ("ekf-features", "EKF features; the action is the whole twist"),
+    ("feedforward", "the environment's state; the action corrects the reference twist (privileged)"),
+])
 POS_SCALE = 0.05  # m: tracking errors of a few cm are what the agent must act on
 HEAD_SCALE = 0.1  # rad
 LOOK_SCALE = 0.5  # m
@@ -409,8 +416,7 @@ def wrap_env(env: gym.Env, name: str = "none", residual_scale: float = 0.3,
     ``reward``: one of :data:`agents.rewards.REWARDS`; without an EKF wrapper ("none", the privileged
     agent) a reward other than "env" is applied alone (:class:`agents.rewards.TrackingReward`).
     """
-    if name not in WRAPPERS:
-        raise ValueError(f"unknown wrapper {name!r}; choose one of {', '.join(WRAPPERS)}")
+    WRAPPERS.check(name)
     if sensor_noise_range is not None:
         env = SensorNoiseRandomizer(env, sensor_noise_range)
     if name == "residual-ekf-pid":
@@ -429,8 +435,7 @@ def wrap_vector_env(env, name: str = "none", residual_scale: float = 0.3, reward
     """:func:`wrap_env` for a native vector environment: the named wrapper as :class:`VectorEKFFeatures`,
     or the reward alone (:class:`agents.rewards.VectorTrackingReward`). The sensor-noise randomiser has
     no vector twin: give the environment keyword ``randomize_sensor_noise`` instead."""
-    if name not in WRAPPERS:
-        raise ValueError(f"unknown wrapper {name!r}; choose one of {', '.join(WRAPPERS)}")
+    WRAPPERS.check(name)
     if name == "residual-ekf-pid":
         return VectorEKFFeatures(env, residual_scale, reward)
     if name == "ekf-features":

@@ -37,9 +37,8 @@ import numpy as np
 from agents.batched.estimation import BatchEKF, robot_mask
 from agents.batched.pid import BatchPathPID
 from agents.pid import PIDGains
+from agents.registry import Registry
 from omni_gym.envs.observations import BatchSensorObs, BatchSensorObsDecoder
-
-VECTOR_POLICY_NAMES = ("open-loop", "odometry-pid", "ekf-pid", "ekf-pid-traction")
 
 Limiter = Callable[[np.ndarray, np.ndarray, "VectorPolicy"], np.ndarray]
 
@@ -281,16 +280,17 @@ class VectorEKFPIDTractionPolicy(VectorEKFPIDPolicy):
                                        gains)
 
 
-_POLICIES = {"open-loop": VectorOpenLoopPolicy, "odometry-pid": VectorOdometryPIDPolicy,
-             "ekf-pid": VectorEKFPIDPolicy, "ekf-pid-traction": VectorEKFPIDTractionPolicy}
+# The batched twins of agents.policies.POLICIES, by the same names (a test keeps the two tables equal).
+VECTOR_POLICIES: Registry[type[VectorPolicy]] = Registry(
+    "vector policy", [(c.name, c) for c in (VectorOpenLoopPolicy, VectorOdometryPIDPolicy, VectorEKFPIDPolicy,
+                                            VectorEKFPIDTractionPolicy)])
+VECTOR_POLICY_NAMES = VECTOR_POLICIES.names()
 
 
 def make_vector_policy(name: str, env, gains: PIDGains | None = None, limiter: Limiter | None = None,
                        **kwargs) -> VectorPolicy:
     """The vector policy ``name`` (one of :data:`VECTOR_POLICY_NAMES`) for a vector env (obs_mode='sensors')."""
-    if name not in _POLICIES:
-        raise ValueError(f"unknown vector policy {name!r}; choose one of {', '.join(VECTOR_POLICY_NAMES)}")
-    cls = _POLICIES[name]
+    cls = VECTOR_POLICIES.get(name)
     if not issubclass(cls, VectorPIDPolicy):
         if gains is not None:
             raise ValueError(f"policy {name!r} takes no PID gains")

@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.rollout import TrainedPolicy
+
 CHECKPOINT_MARKER = "rllib_checkpoint.json"
 MODULE_PATH = ("learner_group", "learner", "rl_module", "default_policy")
 META = "meta.json"
@@ -97,29 +99,23 @@ def load_module(checkpoint: str | Path):
     return module
 
 
-class RLlibPolicy:
+class RLlibPolicy(TrainedPolicy):
     """Adapter: an RLlib torch RL module acting deterministically (the mean action, clipped to the box).
 
     Args:
         module: an RLlib ``TorchRLModule`` with a diagonal-Gaussian action distribution (PPO's default).
-        env: the environment it acts on (its ``estimate`` is exposed as for SB3 models).
+        env: the environment it acts on (its ``estimate`` is exposed as for SB3 models:
+            :class:`agents.rollout.TrainedPolicy`).
     """
 
     name = "rllib"
 
     def __init__(self, module, env=None) -> None:
+        super().__init__(env)
         self.module = module
-        self.env = env
         space = module.action_space
         self.low = np.asarray(space.low, dtype=np.float32)
         self.high = np.asarray(space.high, dtype=np.float32)
-
-    @property
-    def estimate(self) -> np.ndarray | None:
-        return getattr(self.env, "estimate", None)
-
-    def reset(self, obs: np.ndarray) -> None:
-        """Nothing to reset: the module acts on each observation alone."""
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """The mean action for one observation (D,) → (A,), or a batch (N, D) → (N, A); float32."""
