@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from agents.registry import Registry
 from omni_gym.bounds import Bound
 
 SEED_MAX = 2**31 - 1  # SB3 seeds numpy's legacy generator (< 2^32) with seed + i for environment i
@@ -35,7 +36,12 @@ TRAIN: dict[str, Bound] = {b.name: b for b in (
           "each needs a CPU of the Ray cluster, 1024 exceeds any cluster this runs on", integer=True),
 )}
 
-BACKENDS = ("sb3", "rllib")
+# The training backends (``--backend``); argparse refuses other names with its own message.
+TRAINING_BACKENDS: Registry[str] = Registry("backend", [
+    ("sb3", "Stable-Baselines3 (PPO, SAC, TD3), in this process"),
+    ("rllib", "RLlib PPO on Ray (agents/rllib)"),
+])
+BACKENDS = TRAINING_BACKENDS.names()
 # Options that only one backend reads: option -> (attribute, backend). Given with the other, they are refused.
 BACKEND_ONLY = {"--address": ("address", "rllib"), "--num-env-runners": ("num_env_runners", "rllib"),
                 "--tensorboard": ("tensorboard", "sb3")}

@@ -6,6 +6,7 @@ import pytest
 
 from agents.algorithms import ALGORITHMS
 from agents.batched.policies import VECTOR_POLICIES
+from agents.options import TRAINING_BACKENDS
 from agents.policies import POLICIES
 from agents.registry import Registry
 from agents.rewards import REWARDS
@@ -68,6 +69,7 @@ def test_agent_tables_keep_their_names_and_messages():
     assert ALGORITHMS.names() == ("ppo", "sac", "td3")
     assert VEC_ENV_KINDS.names() == ("native", "dummy", "subproc")
     assert MODES.names() == ("static", "moving")
+    assert TRAINING_BACKENDS.names() == ("sb3", "rllib")
     cases = [(POLICIES, "unknown policy 'pid'; choose one of open-loop, odometry-pid, ekf-pid, ekf-pid-traction"),
              (VECTOR_POLICIES, "unknown vector policy 'pid'; choose one of open-loop, odometry-pid"),
              (WRAPPERS, "unknown wrapper 'pid'; choose one of none, residual-ekf-pid"),
