@@ -1,4 +1,4 @@
-"""Recovery table of the model-discrepancy workflow (issue 5).
+"""Recovery table of the model-discrepancy workflow.
 
 For every library effect x size x tracker noise x seed: synthesize a dataset with the effect hidden
 (Williams robot, carpet, initial friction as the nominal model), run ``omni-gym gap`` on it, and

@@ -10,11 +10,11 @@ measured on a shared machine; only their sums and orderings, which hold whatever
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from benchmark_loader import load_benchmark
 
 from omni_gym.discrepancy import candidates, workflow
 from omni_gym.discrepancy.candidates import candidates as library
@@ -134,9 +134,8 @@ def test_reachable_speedup_is_the_critical_path_bound() -> None:
     assert reachable_speedup(0.0, 0.0, 8) == 1.0  # no work: nothing to gain
 
 
-def test_work_json_and_the_scaling_table_of_a_known_record(monkeypatch) -> None:
+def test_work_json_and_the_scaling_table_of_a_known_record() -> None:
     """One step of 100 s of work with a 10 s critical path, 10 s of serial driver work around it."""
-    import importlib.util
 
     from omni_gym.discrepancy.fit_tasks import FitWork, StepWork, work_json
 
@@ -153,11 +152,7 @@ def test_work_json_and_the_scaling_table_of_a_known_record(monkeypatch) -> None:
     # Whole run: 110 s of work; with 16 workers 10 s serial + 10 s critical path.
     assert work["reachable_speedup"]["16"] == pytest.approx(110.0 / 20.0)
     assert work["reachable_speedup"]["2"] == pytest.approx(110.0 / 60.0)
-    spec = importlib.util.spec_from_file_location("scaling", Path(__file__).resolve().parents[1] / "benchmarks" /
-                                                  "scaling.py")
-    scaling = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, "scaling", scaling)  # its dataclasses look their module up
-    spec.loader.exec_module(scaling)
+    scaling = load_benchmark("scaling")
     table = scaling.gap_work_table({"work": work}, "cmd")
     assert "| step 1 | 91 | 100.0 | 10.0 | 9.00 | 1.00 | 2.00 | 4.00 | 8.00 | 10.00 | 10.00 |" in table
     assert "| whole run (serial part 10.0 s) | 91 | 110.0 | 20.0 | |" in table and "**5.50**" in table

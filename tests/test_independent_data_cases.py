@@ -3,12 +3,11 @@ and (slow) the new kinds end to end on data from the independent reference integ
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from benchmark_loader import load_benchmark
 
 from omni_gym.discrepancy.recovery import TOLERANCES, nominal_model, param_error
 from omni_gym.discrepancy.reference_data import write_reference_dataset
@@ -19,11 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _load():
-    spec = importlib.util.spec_from_file_location("independent_data", ROOT / "benchmarks" / "independent_data.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("independent_data")
 
 
 def test_a_subset_of_kinds_repeats_the_full_study_cases():

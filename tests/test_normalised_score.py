@@ -75,19 +75,9 @@ def test_evaluate_score_command(capsys):
 def test_benchmark_table_runs_the_mecanum_id_in_its_own_conditions():
     """benchmarks/normalised_score.py: the mecanum id has no roller-gap friction model, so its three conditions
     keep the floors and lift-off rates of the others with ``initial`` friction; the omni ids keep theirs."""
-    import importlib.util
-    import sys
-    from pathlib import Path
+    from benchmark_loader import load_benchmark
 
-    bench = Path(__file__).resolve().parents[1] / "benchmarks"
-    sys.path.insert(0, str(bench))  # the script imports baselines.py beside it
-    try:
-        spec = importlib.util.spec_from_file_location("normalised_score_bench", bench / "normalised_score.py")
-        ns = importlib.util.module_from_spec(spec)
-        sys.modules[spec.name] = ns
-        spec.loader.exec_module(ns)
-    finally:
-        sys.path.remove(str(bench))
+    ns = load_benchmark("normalised_score")
     assert ns.MECANUM in ns.ENV_IDS
     for cond in ("no slip", "slip", "slip + lift-off"):
         mec = ns.Cell(ns.MECANUM, "ekf-pid", cond, (1,)).env_kwargs()

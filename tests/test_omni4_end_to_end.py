@@ -3,7 +3,6 @@ the command's input checks (the benchmark's figures are in benchmarks/results/om
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import subprocess
 import sys
@@ -11,17 +10,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from benchmark_loader import load_benchmark
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "benchmarks" / "omni4_end_to_end.py"
 
 
 def _load():
-    spec = importlib.util.spec_from_file_location("omni4_end_to_end", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while the file executes
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("omni4_end_to_end")
 
 
 def test_calibrated_wheel_matrix_divides_each_row_by_its_radius_scale():
