@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from omni_gym.discrepancy.dataset import Dataset, Run
-from omni_gym.discrepancy.events import PARAMS_PER_EVENT, infer_events
+from omni_gym.discrepancy.events import PARAMS_PER_EVENT, EventProblem, infer_events
 from omni_gym.discrepancy.fitting import Evaluator
 from omni_gym.discrepancy.recovery import nominal_model
 from omni_gym.discrepancy.residuals import count_components, noise_estimate, run_sse
@@ -72,8 +72,8 @@ def test_event_inference_finds_one_known_lift():
     sse0 = np.array([run_sse(r) for r in res0])
     sigma = noise_estimate(res0, [r.t for r in runs])
     n_comp = count_components(ds)
-    fit = infer_events(ds, model, lever, PARAMS_PER_EVENT * math.log(n_comp.sum()), sse0, n_comp, FIT_DT,
-                       sigma=sigma, adequacy=1.0 + DecisionRules().noise_margin)
+    fit = infer_events(EventProblem(ds, model, lever, PARAMS_PER_EVENT * math.log(n_comp.sum()), sse0, n_comp,
+                                    FIT_DT, sigma=sigma, adequacy=1.0 + DecisionRules().noise_margin))
     assert fit.events[1] == []  # the run without a lift gets no event
     assert len(fit.events[0]) == 1, fit.events
     start, end, case = fit.events[0][0]
@@ -121,8 +121,8 @@ def _infer(ds: Dataset, lever: float, settings: EventSearchSettings | None = Non
     sse0 = np.array([run_sse(r) for r in res0])
     sigma = noise_estimate(res0, [r.t for r in ds.runs])
     n_comp = count_components(ds)
-    fit = infer_events(ds, ds.model, lever, PARAMS_PER_EVENT * math.log(n_comp.sum()), sse0, n_comp, FIT_DT,
-                       sigma=sigma, adequacy=1.0 + DecisionRules().noise_margin, settings=settings)
+    fit = infer_events(EventProblem(ds, ds.model, lever, PARAMS_PER_EVENT * math.log(n_comp.sum()), sse0, n_comp,
+                                    FIT_DT, sigma=sigma, adequacy=1.0 + DecisionRules().noise_margin), settings)
     return fit, sse0 / n_comp / sigma**2
 
 

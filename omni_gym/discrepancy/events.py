@@ -199,6 +199,32 @@ class _RunFits:
         self.set(ri, other.events[ri], other.sse[ri], other.res[ri])
 
 
+@dataclass(frozen=True)
+class EventProblem:
+    """The lift-event inference problem of one dataset (what :class:`EventInference` searches on).
+
+    ds: the dataset; nominal: the nominal SimModel (no lift-off); lever [m]: heading lever.
+    cost: likelihood cost of one event (BIC: 3·ln N) in n·ln(SSE/n) units.
+    sse0: (R,) nominal open-loop SSE [m²]; n_comp: (R,) residual components per run.
+    dt: physics substep [s]; sigma: tracker noise estimate [m] (None: step 3 skips its sequential
+    decoding and global moves, step 4 its noise-level check).
+    adequacy: largest row-weighted geometric-mean MSE with the events, in units of σ̂², for the events
+    to be kept (step 4; None: no check).
+    windows: ``shooting_windows(ds)`` (computed if None).
+    """
+
+    ds: Dataset
+    nominal: SimModel
+    lever: float
+    cost: float
+    sse0: np.ndarray
+    n_comp: np.ndarray
+    dt: float
+    sigma: float | None = None
+    adequacy: float | None = None
+    windows: list[tuple] | None = None
+
+
 class EventInference:
     """MAP lift events of every run of a dataset: the search of the module docstring, one method per step.
 
@@ -208,26 +234,21 @@ class EventInference:
     the simulated jobs is part of the result (batching can change the last bits), so do not reorder them.
 
     Args:
-        ds: the dataset; nominal: the nominal SimModel (no lift-off); lever [m]: heading lever.
-        cost: likelihood cost of one event (BIC: 3·ln N) in n·ln(SSE/n) units.
-        sse0: (R,) nominal open-loop SSE [m²]; n_comp: (R,) residual components per run.
-        dt: physics substep [s]; sigma: tracker noise estimate [m] (None: step 3 skips its sequential
-            decoding and global moves, step 4 its noise-level check).
-        windows: ``shooting_windows(ds)`` (computed if None).
-        max_batch: most jobs per simulate call.
-        counter: optional one-element list to which the number of simulated robot-runs is added.
-        adequacy: largest row-weighted geometric-mean MSE with the events, in units of σ̂², for the
-            events to be kept (step 4; None: no check).
+        problem: the dataset, nominal model, event cost, nominal SSE, noise and adequacy limit
+            (:class:`EventProblem`).
+        settings: the search's grids, shifts, rounds and test levels (None: the defaults).
         simulate: optional ``simulate(jobs, dt, max_batch)`` to use instead of ``simulate_poses`` (the same
             poses, e.g. simulated as parallel tasks: :mod:`omni_gym.discrepancy.fit_tasks`).
-        settings: the search's grids, shifts, rounds and test levels (None: the defaults).
+        counter: optional one-element list to which the number of simulated robot-runs is added.
+        max_batch: most jobs per simulate call.
     """
 
-    def __init__(self, ds: Dataset, nominal: SimModel, lever: float, cost: float, sse0: np.ndarray,
-                 n_comp: np.ndarray, dt: float, sigma: float | None = None, windows: list[tuple] | None = None,
-                 max_batch: int = 3000, counter: list[int] | None = None, adequacy: float | None = None,
-                 simulate: Callable[..., list[np.ndarray]] | None = None,
-                 settings: EventSearchSettings | None = None) -> None:
+    def __init__(self, problem: EventProblem, settings: EventSearchSettings | None = None,
+                 simulate: Callable[..., list[np.ndarray]] | None = None, counter: list[int] | None = None,
+                 max_batch: int = 3000) -> None:
+        ds, nominal, lever, cost = problem.ds, problem.nominal, problem.lever, problem.cost
+        sse0, n_comp, dt, sigma = problem.sse0, problem.n_comp, problem.dt, problem.sigma
+        windows, adequacy = problem.windows, problem.adequacy
         self.simulate = simulate_poses if simulate is None else simulate
         self.cfg = EventSearchSettings() if settings is None else settings
         self.ds, self.nominal, self.lever, self.cost = ds, nominal, lever, cost
@@ -674,13 +695,9 @@ class EventInference:
                         moving=self.moving, note=self.note)
 
 
-def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_comp: np.ndarray,
-                 dt: float, sigma: float | None = None, windows: list[tuple] | None = None, max_batch: int = 3000,
-                 counter: list[int] | None = None, adequacy: float | None = None,
-                 simulate: Callable[..., list[np.ndarray]] | None = None,
-                 settings: EventSearchSettings | None = None) -> EventFit:
-    """MAP lift events of every run of ``ds`` (see the module docstring and :class:`EventInference` for the
-    arguments)."""
-    return EventInference(ds, nominal, lever, cost, sse0, n_comp, dt, sigma=sigma, windows=windows,
-                          max_batch=max_batch, counter=counter, adequacy=adequacy, simulate=simulate,
-                          settings=settings).run()
+def infer_events(problem: EventProblem, settings: EventSearchSettings | None = None,
+                 simulate: Callable[..., list[np.ndarray]] | None = None, counter: list[int] | None = None,
+                 max_batch: int = 3000) -> EventFit:
+    """MAP lift events of every run of ``problem.ds`` (see the module docstring and :class:`EventInference` for
+    the arguments)."""
+    return EventInference(problem, settings, simulate=simulate, counter=counter, max_batch=max_batch).run()

@@ -23,7 +23,7 @@ from scipy.stats import qmc
 
 from omni_gym.discrepancy.candidates import Candidate, null_point, prior_point
 from omni_gym.discrepancy.dataset import Dataset
-from omni_gym.discrepancy.events import PARAMS_PER_EVENT, EventFit, infer_events
+from omni_gym.discrepancy.events import PARAMS_PER_EVENT, EventFit, EventProblem, infer_events
 from omni_gym.discrepancy.residuals import (
     channel_noise,
     count_components,
@@ -406,10 +406,10 @@ def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.nda
     _, sse0, _ = ev.nominal_baseline(nominal)
     sigma, _ = ev.noise_floor(nominal)  # the noise floor the decision uses (tracker noise and integration error)
     counter = [0]
-    efit = infer_events(ds, nominal, ev.lever, PARAMS_PER_EVENT * math.log(N), sse0, n_comp, ev.dt,
-                        sigma=sigma, windows=ev.windows, counter=counter,
-                        adequacy=1.0 + settings.rules.noise_margin,  # "noise level" as the decision defines it
-                        simulate=ev.simulate, settings=settings.event_search)
+    problem = EventProblem(ds, nominal, ev.lever, PARAMS_PER_EVENT * math.log(N), sse0, n_comp, ev.dt, sigma=sigma,
+                           adequacy=1.0 + settings.rules.noise_margin,  # "noise level" as the decision defines it
+                           windows=ev.windows)
+    efit = infer_events(problem, settings.event_search, simulate=ev.simulate, counter=counter)
     ev.simulated += counter[0]
     null = null_point(cand)
 

@@ -31,6 +31,7 @@ import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -136,18 +137,42 @@ def fit_seed(seed: int, step: int, name: str) -> np.random.SeedSequence:
     return np.random.SeedSequence(seed, spawn_key=(FIT_STREAM, step, zlib.crc32(name.encode())))
 
 
-def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: list[str], fold_of: np.ndarray,
-                 n_comp: np.ndarray, sigma: float | None, rng: np.random.Generator, bar, say, step: int,
-                 reference_excess: float | None = None, seed: int = 0, ex: Executor | None = None,
-                 shared: FitShared | None = None, refit: tuple[str, ...] = ()) -> Step:
-    """Fit every library candidate not in ``exclude`` on top of ``base`` and decide (the 70 % rule
-    measured against ``reference_excess``, the nominal gap, from the second step on).
+@dataclass(frozen=True)
+class SearchRun:
+    """What every step of one gap run's effect search shares (built once by :func:`_gap`).
 
-    The fits run on ``ex`` (None: in this process, with a progress tick per search round); the
-    decision draws from ``rng`` in this process. ``refit``: effects ``base`` carries that are refitted from
-    their current values (:func:`_from_current`), not from the effect's own null point."""
+    ``ev``: the evaluator of the fitted data; ``shared``: what every fit task needs (the evaluator, the
+    runs' folds, the settings of the fit, the event search and the decision; sent to each worker once);
+    ``n_comp``: (R,) residual components per run; ``sigma`` [m]: the decision's noise floor (None when
+    unknown); ``rng``: the driver's generator (the decisions' bootstrap draws); ``seed``: the gap seed
+    (each fit's own seed, :func:`fit_seed`); ``bar``: the tqdm progress bar; ``say``: the stage printer;
+    ``ex``: where the fits run (None: in this process, with a progress tick per search round);
+    ``refit``: effects the start model carries that are refitted from their current values
+    (:func:`_from_current`), not from the effect's own null point.
+    """
+
+    ev: Evaluator
+    shared: FitShared
+    n_comp: np.ndarray
+    sigma: float | None
+    rng: np.random.Generator
+    seed: int
+    bar: Any
+    say: Callable[[str], None]
+    ex: Executor | None = None
+    refit: tuple[str, ...] = ()
+
+
+def _search_step(search: SearchRun, base: SimModel, base_sse: np.ndarray, exclude: list[str], step: int,
+                 reference_excess: float | None = None) -> Step:
+    """Fit every library candidate not in ``exclude`` on top of ``base`` (per-run SSE ``base_sse`` [m²])
+    and decide, at search step ``step`` (1-based; the 70 % rule measured against ``reference_excess``
+    [m], the nominal gap, from the second step on).
+
+    The fits run on ``search.ex``; the decision draws from ``search.rng`` in this process."""
+    ev, n_comp, sigma, rng, refit = search.ev, search.n_comp, search.sigma, search.rng, search.refit
+    bar, say, seed, ex, shared = search.bar, search.say, search.seed, search.ex, search.shared
     cands = [_from_current(c, base) if c.name in refit else c for c in candidates(base) if c.name not in exclude]
-    shared = FitShared(ev, fold_of) if shared is None else shared
     cfg = shared.settings
     if step > 1:  # the bar's first total covered step 1 only
         bar.total += 1 + sum(max_ticks(c, cfg.fit) + 1 for c in cands)
@@ -255,12 +280,12 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         where = localise(ds, nominal, lever, res0, dt=dt, sigma=tracker)  # windows: no integration drift
         bar.update(1)
         model, base_sse = nominal, sse0
+        search = SearchRun(ev, shared, n_comp, sigma, rng, seed, bar, say, ex, first.refit)
         excess0 = _excess(sse0, n_comp, sigma**2 if sigma is not None else 0.0)
         while True:
             cpu_step = time.process_time()
-            step = _search_step(ev, model, base_sse, [*first.excluded, *[s.effect for s in steps]], fold_of, n_comp,
-                                sigma, rng, bar, say, len(steps) + 1, reference_excess=excess0 if steps else None,
-                                seed=seed, ex=ex, shared=shared, refit=first.refit)
+            step = _search_step(search, model, base_sse, [*first.excluded, *[s.effect for s in steps]], len(steps) + 1,
+                                reference_excess=excess0 if steps else None)
             steps_cpu += time.process_time() - cpu_step
             step_works.append(step.work)
             fit = step.fit
