@@ -32,7 +32,7 @@ class HeldOutFit(Protocol):
 
 @dataclass(frozen=True)
 class Decision:
-    """The outcome of :func:`decide` (the keys of the dict it returned before, now typed).
+    """The outcome of :func:`decide` (result.json copies its ``effect``, ``why``, ``ranking``, ``score_nominal``).
 
     ``effect``: the named effect, or ``none`` / ``unexplained``; ``why``: one sentence for the report.
     ``ranking``: one row per candidate, best held-out score first (JSON rows: effect, score, held-out
