@@ -41,6 +41,7 @@ def test_result_json_records_every_setting_and_a_changed_one(lag_dataset, only_m
                                         "window_events", "add_rounds", "add_level", "add_top", "case_alpha",
                                         "max_lifted_share", "skip_factor", "seq_max_events", "seq_ahead",
                                         "seq_horizon", "dev_rows", "dev_level"}
+    assert rec["fit"]["identified_iterations"] == 4
 
     changed = GapSettings(fit=FitSettings(iterations=1, valley_rounds=1),
                           event_search=EventSearchSettings(grid_dt=0.1),

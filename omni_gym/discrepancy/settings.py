@@ -79,6 +79,8 @@ class FitSettings:
         low_dim: candidates with at most this many fitted dimensions start from ``low_dim_starts``
             design points instead of ``starts``.
         low_dim_starts: see ``low_dim``.
+        identified_iterations: LM iterations of the final refit in the identified subspace
+            (:func:`omni_gym.discrepancy.identified_fit.refit`), on all runs and per fold.
     """
 
     iterations: int = 6
@@ -91,6 +93,7 @@ class FitSettings:
     valley_rounds: int = 3
     low_dim: int = 3
     low_dim_starts: int = 4
+    identified_iterations: int = 4
 
 
 @dataclass(frozen=True)

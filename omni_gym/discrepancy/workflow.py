@@ -330,7 +330,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     lin = identifiability.linearise(ev, nominal, [identifiability.Named(s.fit.candidate, s.fit.u_all)
                                                   for s in steps], sigma)
     det = [s for s in steps if not s.fit.candidate.stochastic]
-    refit = (identified_fit.refit(ev, nominal, lin, fold_of, det[-1].fit.heldout, n_comp)
+    refit = (identified_fit.refit(ev, nominal, lin, fold_of, det[-1].fit.heldout, n_comp, settings.fit)
              if lin is not None else None)
     ident_json = None
     if lin is not None:
