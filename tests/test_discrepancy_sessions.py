@@ -143,6 +143,7 @@ def test_gap_starts_from_the_kinematic_calibration(tmp_path, omni3):
 def _step(model, name: str, params: dict, K: int):
     """A search step that named ``name`` with ``params`` on all runs and in every fold."""
     from omni_gym.discrepancy.candidates import candidates
+    from omni_gym.discrepancy.decision import Decision
     from omni_gym.discrepancy.fitting import FitResult
     from omni_gym.discrepancy.workflow import Step
 
@@ -150,7 +151,7 @@ def _step(model, name: str, params: dict, K: int):
     z = np.zeros(2)
     fit = FitResult(candidate=cand, u_all=z, params_all=params, sse_all=z, heldout=z, fold_params=[params] * K,
                     pool_u=z[None], pool_sse=z[None])
-    return Step(fits=[fit], decision={"effect": name})
+    return Step(fits=[fit], decision=Decision(effect=name, why="", ranking=[]))
 
 
 def test_drift_check_drops_an_effect_that_makes_a_session_drift(omni3):

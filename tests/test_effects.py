@@ -18,6 +18,7 @@ from omni_gym.discrepancy.candidates import candidates, null_point
 from omni_gym.discrepancy.dataset import Dataset
 from omni_gym.discrepancy.fitting import Evaluator, fit_candidate, make_folds
 from omni_gym.discrepancy.measurement import measured
+from omni_gym.discrepancy.settings import FitSettings, GapSettings
 from omni_gym.physics.effects import REGISTRY, Effect, get
 from omni_gym.physics.model import MODEL_BOUNDS, SimModel
 from omni_gym.physics.replay import simulate_commands
@@ -131,8 +132,8 @@ def test_synth_hides_the_effect_and_a_fit_finds_parameters_that_explain_it(name,
     rng = np.random.default_rng(0)
     folds = make_folds(len(runs), rng)
     cand = next(c for c in candidates(nominal) if c.name == name)
-    fit = fit_candidate(cand, ev, nominal, folds, rng, iterations=2, fold_iterations=1, phase_sweeps=1,
-                        phase_restarts=2, valley_rounds=1)
+    quick = FitSettings(iterations=2, fold_iterations=1, phase_sweeps=1, phase_restarts=2, valley_rounds=1)
+    fit = fit_candidate(cand, ev, nominal, folds, rng, GapSettings(fit=quick))
     nominal.with_effect(name, fit.params_all)  # valid: validates schema and bounds
     nominal_sse = float(ev.nominal_baseline(nominal)[1].sum())
     # The hidden effect at its default size moves the robot by several noise levels (test above), so a

@@ -10,6 +10,8 @@ Modules (each one job):
 * :mod:`.outliers`: tracker outliers, single pose rows no motion and no tracker noise can explain.
 * :mod:`.localise`: where the nominal model's residuals concentrate (multiple shooting).
 * :mod:`.residuals`: shooting windows, per-run SSE, the decision metric, the noise estimate.
+* :mod:`.settings`: the settings of the event search, the fit and the decision (one frozen dataclass per
+  stage, recorded in full in ``result.json``).
 * :mod:`.events`: lift-event inference for the stochastic ``wheel_liftoff`` candidate.
 * :mod:`.candidates`: the effect library (``omni_gym.physics.effects``) as fit candidates (bounded
   parameter cubes, null points).

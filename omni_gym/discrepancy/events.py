@@ -12,22 +12,22 @@ Search (all runs batched; :class:`EventInference`, one method per step, :func:`i
 1. **Windows** (:meth:`~EventInference.search_windows`). The multiple-shooting windows
    (``residuals.shooting_windows``, 1 s, each restarted from the measured state) make an event show
    up locally. Per window, the nominal window and every single-event alternative on a coarse grid
-   (lifted case × start every :data:`GRID_DT` × duration in :data:`DURATIONS`, clipped to the window)
+   (lifted case × start every ``grid_dt`` × duration in ``durations``, clipped to the window)
    are simulated in one batched call over all windows. A window's best event is accepted when its
    gain n_w·ln(SSE_nominal/SSE_event) beats the event cost; greedy passes add up to
-   :data:`WINDOW_EVENTS` events per window; start/end are refined locally.
+   ``window_events`` events per window; start/end are refined locally.
 2. **Join and open loop** (:meth:`~EventInference.join_and_refine`). Events cut by a window boundary
    are joined (same case, touching ends), then every run is replayed **open loop** from its start
    with its schedule — the other candidates are scored by the open-loop full-run SSE, so this one is
    too — and each event's start/end is refined or the event dropped by coordinate sweeps (shifts
-   :data:`REFINE_OL`) on the penalised open-loop score.
+   ``refine_ol``) on the penalised open-loop score.
 3. **Decoding and keep test** (:meth:`~EventInference.decode_and_keep`). Sequential decoding gives a
    second proposal per run: the open-loop residual is at noise level up to the first missing event,
    so walk forward in time, fitting one event where the residual first leaves the noise level. The
    better proposal per run is kept; runs still above the noise level get global "one more event
    anywhere" moves. (Both are skipped when the step-2 proposal is far above the adequacy limit of
-   step 4, :data:`SKIP_FACTOR`.) Then fine coordinate sweeps (:data:`REFINE`, up to
-   :data:`OPEN_LOOP_ROUNDS`), and a run keeps its events only if their open-loop likelihood gain
+   step 4, ``skip_factor``.) Then fine coordinate sweeps (``refine``, up to
+   ``open_loop_rounds``), and a run keeps its events only if their open-loop likelihood gain
    beats their total cost.
 4. **Evidence and adequacy** (:meth:`~EventInference.check_evidence`,
    :meth:`~EventInference.check_adequacy`). Events must beat the noise by the decision's rule: their
@@ -37,15 +37,19 @@ Search (all runs batched; :class:`EventInference`, one method per step, :func:`i
    Lift-off says the nominal model is exact between events,
    so the MAP events must leave a noise-level residual; otherwise they are absorbing
    a continuous model error (e.g. a viscous drag) and are rejected (``adequacy``). Lift-off is also
-   transient: events that keep a wheel lifted more than :data:`MAX_LIFTED_SHARE` of the moving time
+   transient: events that keep a wheel lifted more than ``max_lifted_share`` of the moving time
    describe a persistent load change (a centre-of-mass offset unloads one wheel) and are rejected as
    well, and so are events whose lifted cases are not a plausible uniform draw (exact multinomial
-   test, p < :data:`CASE_ALPHA`): the process lifts a random case, a systematic one-wheel effect
+   test, p < ``case_alpha``): the process lifts a random case, a systematic one-wheel effect
    lifts the same wheel every time.
 
 Rates from events (:meth:`~EventInference.result` builds the :class:`EventFit`; maximum likelihood
 for exponential holding times, :meth:`EventFit.rates`): lift_rate = events / time all wheels are
 down, recover_rate = 1 / mean lifted duration; with no event, the null point.
+
+The search's settings (grid steps, shifts, rounds, test levels) are the fields of
+:class:`omni_gym.discrepancy.settings.EventSearchSettings`, named in ``code`` above; result.json records
+them (``settings.event_search``).
 
 Times in this module are seconds on a job's local clock (0 = the job's first row) unless a name
 says run time.
@@ -61,27 +65,12 @@ import numpy as np
 
 from omni_gym.discrepancy.dataset import Dataset, Run
 from omni_gym.discrepancy.residuals import geo_mse, run_sse, shooting_windows
+from omni_gym.discrepancy.settings import EventSearchSettings
 from omni_gym.discrepancy.simulate import Job, pose_residual, simulate_poses
 from omni_gym.physics.liftoff import OVERLAP_TOL, contact_cases
 from omni_gym.physics.model import SimModel
 
-GRID_DT = 0.05  # s: start grid of the window search (half the shortest duration)
-DURATIONS = (0.05, 0.1, 0.2, 0.4)  # s: coarse lifted durations (mean holding 1/recover_rate ~ 0.2 s)
-REFINE = (-0.03, -0.015, -0.005, 0.0, 0.005, 0.015, 0.03)  # s: local start/end shifts
-REFINE_OL = (-0.15, -0.08, -0.03, -0.01, 0.0, 0.01, 0.03, 0.08, 0.15)  # s: wider shifts for the first open-loop sweep
-OPEN_LOOP_ROUNDS = 2  # fine coordinate rounds of start/end refinement on the open-loop cost
-WINDOW_EVENTS = 3  # most events per 1 s window of the window search (greedy, one per batched pass)
-ADD_ROUNDS = 3  # rounds of the global "one more event" move...
-ADD_LEVEL = 1.2  # ...for runs whose open-loop MSE is above this multiple of sigma^2...
-ADD_TOP = 3  # ...trying each run's 3 best additions, each refined before the comparison
-CASE_ALPHA = 0.01  # reject events whose lifted cases are this unlikely under the uniform draw (step 4)
-MAX_LIFTED_SHARE = 0.5  # most of the moving time that inferred events may keep a wheel lifted (step 4)
-SKIP_FACTOR = 3.0  # skip the sequential/global moves when the window proposal is above 3 x the adequacy limit
-SEQ_MAX_EVENTS = 12  # most events per run of the sequential open-loop decoding
-SEQ_AHEAD = 0.1  # s: new events start up to this long after the deviation point...
-SEQ_HORIZON = 0.5  # s: ...and are scored on the rows up to this long after it
-DEV_ROWS, DEV_LEVEL = 10, 2.0  # deviation: mean z^2 over 10 rows (0.2 s) above 2 (about 4 sd for noise)
-PARAMS_PER_EVENT = 3  # start, end, lifted case
+PARAMS_PER_EVENT = 3  # fitted numbers per event: start, end, lifted case (the BIC count; not a setting)
 
 EVENT_METHOD = ("wheel_liftoff: MAP lift events per run (window grid search, open-loop refinement), BIC cost "
                 "3 ln N per event; rates = MLE from the events (fold rates from training runs); the held-out "
@@ -167,11 +156,12 @@ def case_uniformity(events: list[list[Event]], n_cases: int) -> float:
     return min(1.0, total)
 
 
-def _window_grid(tw: float, n_cases: int) -> list[Event]:
-    """Single-event alternatives in a window of length tw [s] (clipped to it, deduplicated)."""
+def _window_grid(tw: float, n_cases: int, cfg: EventSearchSettings) -> list[Event]:
+    """Single-event alternatives in a window of length tw [s] (clipped to it, deduplicated) on the coarse grid
+    of ``cfg`` (``grid_dt`` × ``durations``)."""
     out = set()
-    for s in np.arange(0.0, tw - 1e-9, GRID_DT):
-        for d in DURATIONS:
+    for s in np.arange(0.0, tw - 1e-9, cfg.grid_dt):
+        for d in cfg.durations:
             e = min(s + d, tw)
             if e - s >= 0.02:  # shorter lifts move the robot by less than tracker noise
                 for c in range(1, n_cases):
@@ -209,6 +199,32 @@ class _RunFits:
         self.set(ri, other.events[ri], other.sse[ri], other.res[ri])
 
 
+@dataclass(frozen=True)
+class EventProblem:
+    """The lift-event inference problem of one dataset (what :class:`EventInference` searches on).
+
+    ds: the dataset; nominal: the nominal SimModel (no lift-off); lever [m]: heading lever.
+    cost: likelihood cost of one event (BIC: 3·ln N) in n·ln(SSE/n) units.
+    sse0: (R,) nominal open-loop SSE [m²]; n_comp: (R,) residual components per run.
+    dt: physics substep [s]; sigma: tracker noise estimate [m] (None: step 3 skips its sequential
+    decoding and global moves, step 4 its noise-level check).
+    adequacy: largest row-weighted geometric-mean MSE with the events, in units of σ̂², for the events
+    to be kept (step 4; None: no check).
+    windows: ``shooting_windows(ds)`` (computed if None).
+    """
+
+    ds: Dataset
+    nominal: SimModel
+    lever: float
+    cost: float
+    sse0: np.ndarray
+    n_comp: np.ndarray
+    dt: float
+    sigma: float | None = None
+    adequacy: float | None = None
+    windows: list[tuple] | None = None
+
+
 class EventInference:
     """MAP lift events of every run of a dataset: the search of the module docstring, one method per step.
 
@@ -218,25 +234,23 @@ class EventInference:
     the simulated jobs is part of the result (batching can change the last bits), so do not reorder them.
 
     Args:
-        ds: the dataset; nominal: the nominal SimModel (no lift-off); lever [m]: heading lever.
-        cost: likelihood cost of one event (BIC: 3·ln N) in n·ln(SSE/n) units.
-        sse0: (R,) nominal open-loop SSE [m²]; n_comp: (R,) residual components per run.
-        dt: physics substep [s]; sigma: tracker noise estimate [m] (None: step 3 skips its sequential
-            decoding and global moves, step 4 its noise-level check).
-        windows: ``shooting_windows(ds)`` (computed if None).
-        max_batch: most jobs per simulate call.
-        counter: optional one-element list to which the number of simulated robot-runs is added.
-        adequacy: largest row-weighted geometric-mean MSE with the events, in units of σ̂², for the
-            events to be kept (step 4; None: no check).
+        problem: the dataset, nominal model, event cost, nominal SSE, noise and adequacy limit
+            (:class:`EventProblem`).
+        settings: the search's grids, shifts, rounds and test levels (None: the defaults).
         simulate: optional ``simulate(jobs, dt, max_batch)`` to use instead of ``simulate_poses`` (the same
             poses, e.g. simulated as parallel tasks: :mod:`omni_gym.discrepancy.fit_tasks`).
+        counter: optional one-element list to which the number of simulated robot-runs is added.
+        max_batch: most jobs per simulate call.
     """
 
-    def __init__(self, ds: Dataset, nominal: SimModel, lever: float, cost: float, sse0: np.ndarray,
-                 n_comp: np.ndarray, dt: float, sigma: float | None = None, windows: list[tuple] | None = None,
-                 max_batch: int = 3000, counter: list[int] | None = None, adequacy: float | None = None,
-                 simulate: Callable[..., list[np.ndarray]] | None = None) -> None:
+    def __init__(self, problem: EventProblem, settings: EventSearchSettings | None = None,
+                 simulate: Callable[..., list[np.ndarray]] | None = None, counter: list[int] | None = None,
+                 max_batch: int = 3000) -> None:
+        ds, nominal, lever, cost = problem.ds, problem.nominal, problem.lever, problem.cost
+        sse0, n_comp, dt, sigma = problem.sse0, problem.n_comp, problem.dt, problem.sigma
+        windows, adequacy = problem.windows, problem.adequacy
         self.simulate = simulate_poses if simulate is None else simulate
+        self.cfg = EventSearchSettings() if settings is None else settings
         self.ds, self.nominal, self.lever, self.cost = ds, nominal, lever, cost
         self.sse0, self.n_comp, self.dt, self.sigma = sse0, n_comp, dt, sigma
         self.max_batch, self.adequacy = max_batch, adequacy
@@ -311,9 +325,9 @@ class EventInference:
         self.tws = [float(self.runs[ri].t[k1] - self.runs[ri].t[k0]) for ri, k0, k1, _ in self.wins]
         self.win_events = [[] for _ in self.wins]
         base = self.win_events
-        grids = [_window_grid(tw, self.n_cases) for tw in self.tws]
+        grids = [_window_grid(tw, self.n_cases, self.cfg) for tw in self.tws]
         open_w = list(range(len(self.wins)))
-        for _ in range(WINDOW_EVENTS):
+        for _ in range(self.cfg.window_events):
             sub = [[ev for ev in grids[wi] if _free(ev, base[wi])] if wi in open_w else []
                    for wi in range(len(self.wins))]
             if not any(sub):
@@ -350,14 +364,14 @@ class EventInference:
         return best
 
     def _refine_window_events(self) -> None:
-        """Each window event's start and end shifted by REFINE (other events of the window fixed), one batch."""
+        """Each window event's start and end shifted by ``refine`` (other events of the window fixed), one batch."""
         base = self.win_events
         ref_grids: list[list[tuple[float, float, int, int]]] = [[] for _ in self.wins]  # (start, end, case, j)
         for wi, evs in enumerate(base):
             for j, (a, b, c) in enumerate(evs):
                 others = evs[:j] + evs[j + 1:]
-                for da in REFINE:
-                    for db in REFINE:
+                for da in self.cfg.refine:
+                    for db in self.cfg.refine:
                         na, nb = max(a + da, 0.0), min(b + db, self.tws[wi])
                         if nb - na >= 0.01 and _free((na, nb, c), others):
                             ref_grids[wi].append((round(na, 6), round(nb, 6), c, j))
@@ -384,13 +398,13 @@ class EventInference:
     # ---- step 2: join and open loop --------------------------------------------------------------------
 
     def join_and_refine(self) -> None:
-        """Step 2: window events joined on the run clock, replayed open loop, refined/pruned (REFINE_OL)."""
+        """Step 2: window events joined on the run clock, replayed open loop, refined/pruned (``refine_ol``)."""
         per_run = self._join_windows()
         self.fits = _RunFits([list(e) for e in per_run], np.array(self.sse0, dtype=float), [None] * self.R)
         live = [ri for ri in range(self.R) if self.fits.events[ri]]
         for ri, r in zip(live, self._open_loop([(ri, self.fits.events[ri]) for ri in live]), strict=True):
             self.fits.sse[ri], self.fits.res[ri] = run_sse(r), r
-        self._refine_sweep(REFINE_OL)
+        self._refine_sweep(self.cfg.refine_ol)
 
     def _join_windows(self) -> list[list[Event]]:
         """Per run: the window events on the run clock [s], joining those cut by a window boundary."""
@@ -400,7 +414,7 @@ class EventInference:
             for a, b, c in self.win_events[wi]:
                 a, b = a + t0, b + t0
                 prev = per_run[ri][-1] if per_run[ri] else None
-                if prev is not None and prev[2] == c and a - prev[1] <= GRID_DT / 2 + 1e-9:
+                if prev is not None and prev[2] == c and a - prev[1] <= self.cfg.grid_dt / 2 + 1e-9:
                     per_run[ri][-1] = (prev[0], b, c)
                 elif prev is not None and a < prev[1]:
                     per_run[ri][-1] = (prev[0], a, prev[2])
@@ -453,31 +467,31 @@ class EventInference:
         # step 4, so they are skipped (compute only).
         sigma = self.sigma
         if sigma is not None and sigma > 0 and (self.adequacy is None
-                                                or self._geo_ratio() <= SKIP_FACTOR * self.adequacy):
+                                                or self._geo_ratio() <= self.cfg.skip_factor * self.adequacy):
             self._keep_better(*self._sequential_decoding())
-            for _ in range(ADD_ROUNDS):
+            for _ in range(self.cfg.add_rounds):
                 if not self._add_one_event():
                     break
-        for _ in range(OPEN_LOOP_ROUNDS):
-            if not self._refine_sweep(REFINE):
+        for _ in range(self.cfg.open_loop_rounds):
+            if not self._refine_sweep(self.cfg.refine):
                 break
         self._keep_test()
 
     def _first_deviation(self, ri: int, r: np.ndarray) -> float | None:
         """Run time [s] where the open-loop residual ``r`` of run ri first leaves the noise level."""
         z = np.nan_to_num(np.sum(r[1:] ** 2, axis=1)) / (3 * self.sigma**2)
-        m = np.convolve(z, np.ones(DEV_ROWS) / DEV_ROWS, mode="valid")  # mean over DEV_ROWS rows
-        hit = np.flatnonzero(m > DEV_LEVEL)
+        m = np.convolve(z, np.ones(self.cfg.dev_rows) / self.cfg.dev_rows, mode="valid")  # mean over dev_rows rows
+        hit = np.flatnonzero(m > self.cfg.dev_level)
         return None if hit.size == 0 else float(self.runs[ri].t[1 + hit[0]])
 
     def _local_best(self, trials: list[Trial], tds: dict[int, float]) -> dict[int, Scored]:
-        """Per run: (local score, schedule, residual) of the best trial on rows t <= td + SEQ_HORIZON
+        """Per run: (local score, schedule, residual) of the best trial on rows t <= td + ``seq_horizon``
         (td: the run's deviation time [s] in ``tds``).
 
         Local score: n_loc·ln(SSE_loc) + cost·events, so a new event must pay its cost locally."""
         out: dict[int, Scored] = {}
         for (ri, sched), r in zip(trials, self._open_loop(trials), strict=True):
-            rows = self.runs[ri].t[1:] <= tds[ri] + SEQ_HORIZON
+            rows = self.runs[ri].t[1:] <= tds[ri] + self.cfg.seq_horizon
             rr = r[1:][rows]
             rr = rr[np.all(np.isfinite(rr), axis=1)]
             nl = max(rr.size, 1)
@@ -490,13 +504,13 @@ class EventInference:
         """Sequential (causal) decoding on the open-loop residual: per run, the events and their residual.
 
         The residual is at noise level up to the first missing event, so walk forward in time and fit one
-        event where the residual first leaves the noise level, scored on the rows up to SEQ_HORIZON after
+        event where the residual first leaves the noise level, scored on the rows up to ``seq_horizon`` after
         that point (later, still missing events would only blur the comparison)."""
         R, ends, n_cases = self.R, self.ends, self.n_cases
         seq: list[list[Event]] = [[] for _ in range(R)]
         active = set(range(R))
         seq_res: list[np.ndarray] = self._open_loop([(ri, []) for ri in range(R)])
-        for _ in range(SEQ_MAX_EVENTS):
+        for _ in range(self.cfg.seq_max_events):
             tds: dict[int, float] = {}  # run -> deviation time [s] the new event is scored around
             trials: list[Trial] = []
             for ri in sorted(active):
@@ -508,8 +522,8 @@ class EventInference:
                 td = max(td, last)  # an imperfect last event: look right after it
                 tds[ri] = td
                 trials.append((ri, list(seq[ri])))
-                for s0 in np.arange(max(td - 0.5, last), min(td + SEQ_AHEAD, ends[ri]), GRID_DT):
-                    for d in (*DURATIONS, 0.8):
+                for s0 in np.arange(max(td - 0.5, last), min(td + self.cfg.seq_ahead, ends[ri]), self.cfg.grid_dt):
+                    for d in (*self.cfg.durations, 0.8):
                         e = min(s0 + d, ends[ri])
                         for c in range(1, n_cases):
                             touching = seq[ri] and seq[ri][-1][2] == c and s0 - last < 0.01
@@ -517,7 +531,7 @@ class EventInference:
                                 trials.append((ri, [*seq[ri], (round(float(s0), 6), round(float(e), 6), c)]))
                 if seq[ri]:  # or the last event lasts longer (one event, no extra cost)
                     a0, _, c0 = seq[ri][-1]
-                    for d in (*DURATIONS, 0.8):
+                    for d in (*self.cfg.durations, 0.8):
                         trials.append((ri, [*seq[ri][:-1], (a0, round(min(last + d, ends[ri]), 6), c0)]))
             if not trials:
                 break
@@ -529,8 +543,8 @@ class EventInference:
                     continue
                 a0, b0, c0 = sched[-1]
                 lo = sched[-2][1] if len(sched) > 1 else 0.0
-                for da in REFINE_OL:
-                    for db in REFINE_OL:
+                for da in self.cfg.refine_ol:
+                    for db in self.cfg.refine_ol:
                         na, nb = max(a0 + da, lo), min(b0 + db, ends[ri])
                         if nb - na >= 0.01:
                             trials.append((ri, [*sched[:-1], (round(na, 6), round(nb, 6), c0)]))
@@ -546,13 +560,13 @@ class EventInference:
         return seq, seq_res
 
     def _keep_better(self, seq: list[list[Event]], seq_res: list[np.ndarray]) -> None:
-        """Refine the sequential proposal too (REFINE_OL), then keep per run the better (penalised, whole-run)
+        """Refine the sequential proposal too (``refine_ol``), then keep per run the better (penalised, whole-run)
         of it and the current (step-2) events."""
         fits = self.fits
         win_state = fits.copy()
         for ri in range(self.R):
             fits.set(ri, list(seq[ri]), run_sse(seq_res[ri]), seq_res[ri])
-        self._refine_sweep(REFINE_OL)
+        self._refine_sweep(self.cfg.refine_ol)
         for ri in range(self.R):
             if self._score(ri, win_state.sse[ri], len(win_state.events[ri])) <= self._current_score(ri):
                 fits.take(ri, win_state)
@@ -562,14 +576,14 @@ class EventInference:
 
         Runs still above the noise level try one more event anywhere on the coarse grid (replacing the events
         it overlaps), scored on the whole run. An added event often pays only once its neighbours have moved,
-        so the ADD_TOP best additions of each run are each refined (one sweep) before they are compared with
+        so the ``add_top`` best additions of each run are each refined (one sweep) before they are compared with
         the current events."""
         fits, n = self.fits, self.n
         trials: list[Trial] = []
         for ri in range(self.R):
-            if fits.sse[ri] <= ADD_LEVEL * n[ri] * self.sigma**2:
+            if fits.sse[ri] <= self.cfg.add_level * n[ri] * self.sigma**2:
                 continue
-            for ev in _window_grid(self.ends[ri], self.n_cases):
+            for ev in _window_grid(self.ends[ri], self.n_cases, self.cfg):
                 trials.append((ri, sorted([*(x for x in fits.events[ri] if _free(x, [ev])), ev])))
         if not trials:
             return False
@@ -578,14 +592,14 @@ class EventInference:
             ranked.setdefault(ri, []).append((self._score(ri, run_sse(r), len(sched)), sched, r))
         saved = fits.copy()
         best_final = {ri: (self._current_score(ri), fits.events[ri], fits.sse[ri], fits.res[ri]) for ri in ranked}
-        for k in range(ADD_TOP):
+        for k in range(self.cfg.add_top):
             for ri, lst in ranked.items():
                 lst.sort(key=lambda x: x[0])
                 if k < len(lst):
                     fits.set(ri, list(lst[k][1]), run_sse(lst[k][2]), lst[k][2])
                 else:
                     fits.take(ri, saved)
-            self._refine_sweep(REFINE_OL, only=set(ranked))
+            self._refine_sweep(self.cfg.refine_ol, only=set(ranked))
             for ri in ranked:
                 sc = self._current_score(ri)
                 if sc < best_final[ri][0] - 1e-9:
@@ -654,19 +668,20 @@ class EventInference:
             note = (f"{sum(len(e) for e in cur)} inferred events rejected: with them the held-out MSE is "
                     f"{self._geo_ratio():.2f} x the tracker-noise variance (lift-off alone would leave noise; "
                     f"limit {adequacy:g})")
-        elif any(cur) and share > MAX_LIFTED_SHARE:
+        elif any(cur) and share > self.cfg.max_lifted_share:
             # Lift-off is an excursion from the all-down state. Wheels "lifted" most of the time describe
             # a persistent load change (a centre-of-mass offset unloads one wheel), not lift-off.
             note = (f"{sum(len(e) for e in cur)} inferred events rejected: they keep wheels lifted "
                     f"{100 * share:.0f} % of the moving time (lift-off is transient; limit "
-                    f"{100 * MAX_LIFTED_SHARE:.0f} %)")
+                    f"{100 * self.cfg.max_lifted_share:.0f} %)")
         p_cases = case_uniformity(cur, self.n_cases)
-        if not note and p_cases < CASE_ALPHA:
+        if not note and p_cases < self.cfg.case_alpha:
             # The process lifts a uniformly drawn case; events that (almost) all lift the same wheel
             # mimic a systematic one-wheel effect (a centre-of-mass offset unloads one wheel).
             counts = np.bincount([c for e in cur for _, _, c in e], minlength=self.n_cases)[1:]
             note = (f"{sum(len(e) for e in cur)} inferred events rejected: their lifted cases {counts.tolist()} "
-                    f"are not a uniform draw (p = {p_cases:.2g} < {CASE_ALPHA:g}); lift-off lifts a random case")
+                    f"are not a uniform draw (p = {p_cases:.2g} < {self.cfg.case_alpha:g}); lift-off lifts a "
+                    "random case")
         self.note = note
         if note:
             self.fits = _RunFits([[] for _ in range(self.R)], np.array(self.sse0, dtype=float), [None] * self.R)
@@ -680,11 +695,9 @@ class EventInference:
                         moving=self.moving, note=self.note)
 
 
-def infer_events(ds, nominal, lever: float, cost: float, sse0: np.ndarray, n_comp: np.ndarray,
-                 dt: float, sigma: float | None = None, windows: list[tuple] | None = None, max_batch: int = 3000,
-                 counter: list[int] | None = None, adequacy: float | None = None,
-                 simulate: Callable[..., list[np.ndarray]] | None = None) -> EventFit:
-    """MAP lift events of every run of ``ds`` (see the module docstring and :class:`EventInference` for the
-    arguments)."""
-    return EventInference(ds, nominal, lever, cost, sse0, n_comp, dt, sigma=sigma, windows=windows,
-                          max_batch=max_batch, counter=counter, adequacy=adequacy, simulate=simulate).run()
+def infer_events(problem: EventProblem, settings: EventSearchSettings | None = None,
+                 simulate: Callable[..., list[np.ndarray]] | None = None, counter: list[int] | None = None,
+                 max_batch: int = 3000) -> EventFit:
+    """MAP lift events of every run of ``problem.ds`` (see the module docstring and :class:`EventInference` for
+    the arguments)."""
+    return EventInference(problem, settings, simulate=simulate, counter=counter, max_batch=max_batch).run()

@@ -33,6 +33,7 @@ import numpy as np
 
 from omni_gym.discrepancy.candidates import Candidate
 from omni_gym.discrepancy.fitting import Evaluator, FitResult, fit_candidate
+from omni_gym.discrepancy.settings import GapSettings
 from omni_gym.discrepancy.simulate import Job, simulate_poses
 from omni_gym.parallel import Executor
 from omni_gym.physics.model import SimModel
@@ -47,10 +48,12 @@ WORKERS = (1, 2, 4, 8, 16, 32)  # worker counts of the reachable speed-up table
 @dataclass(frozen=True)
 class FitShared:
     """What every fit task of a gap run needs (sent to each worker once): the evaluator, with its
-    cached nominal baseline, noise floor and shooting windows, and the runs' folds."""
+    cached nominal baseline, noise floor and shooting windows, the runs' folds, and the fit's and
+    event search's settings."""
 
     ev: Evaluator
     fold_of: np.ndarray
+    settings: GapSettings = field(default_factory=GapSettings)
 
 
 @dataclass(frozen=True)
@@ -357,7 +360,7 @@ def run_fits(tasks: list[FitTask], ev: Evaluator, ex: Executor | None, shared: F
         t0 = time.thread_time()
         tev = TaskEvaluator(ev, ex if parallel else None, shared, work)
         fit = fit_candidate(task.candidate, tev, task.base, shared.fold_of, np.random.default_rng(task.seed),
-                            tick=tick_l)
+                            shared.settings, tick=tick_l)
         work.driver_s = max(time.thread_time() - t0 - tev.eval_thread_s, 0.0)
         sim = tev.simulated
         fits[i], sims[i] = fit, sim

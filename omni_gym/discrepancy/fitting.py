@@ -23,8 +23,7 @@ from scipy.stats import qmc
 
 from omni_gym.discrepancy.candidates import Candidate, null_point, prior_point
 from omni_gym.discrepancy.dataset import Dataset
-from omni_gym.discrepancy.decision import RULES
-from omni_gym.discrepancy.events import PARAMS_PER_EVENT, EventFit, infer_events
+from omni_gym.discrepancy.events import PARAMS_PER_EVENT, EventFit, EventProblem, infer_events
 from omni_gym.discrepancy.residuals import (
     channel_noise,
     count_components,
@@ -39,15 +38,12 @@ from omni_gym.discrepancy.search import (
     phase_search,
     valley_search,
 )
+from omni_gym.discrepancy.settings import FitSettings, GapSettings
 from omni_gym.discrepancy.simulate import FIT_DT, Job, pose_residual, simulate_poses
 from omni_gym.physics.model import SimModel
 
-# Search rounds of fit_candidate (also the progress bound max_ticks): LM iterations of the all-run and
-# fold fits, roller phase sweeps, valley line-search rounds.
-ITERATIONS, FOLD_ITERATIONS, PHASE_SWEEPS, VALLEY_ROUNDS = 6, 4, 2, 3
-# Candidates with at most LOW_DIM fitted dimensions start their local search from LOW_DIM_STARTS
-# design points (that lie apart) instead of ``starts``.
-LOW_DIM, LOW_DIM_STARTS = 3, 4
+# The search rounds of fit_candidate (LM iterations, starts, phase sweeps, valley rounds; also the progress
+# bound max_ticks) are the fields of settings.FitSettings, recorded in result.json (settings.fit).
 
 
 class Evaluator:
@@ -237,10 +233,12 @@ def source_folds(n_runs: int, rng: np.random.Generator, k: int = 3, sessions: li
     return make_folds(n_runs, rng, k, groups=ids)
 
 
-def max_ticks(cand: Candidate, iterations: int = ITERATIONS, fold_iterations: int = FOLD_ITERATIONS,
-              phase_sweeps: int = PHASE_SWEEPS, valley_rounds: int = VALLEY_ROUNDS) -> int:
-    """Most progress ticks :func:`fit_candidate` (same keyword values) makes for ``cand``: one per batch
-    round (design, LM iteration, phase sweep, valley search)."""
+def max_ticks(cand: Candidate, fit: FitSettings | None = None) -> int:
+    """Most progress ticks :func:`fit_candidate` (with the same ``fit`` settings; None: the defaults) makes
+    for ``cand``: one per batch round (design, LM iteration, phase sweep, valley search)."""
+    fit = FitSettings() if fit is None else fit
+    iterations, fold_iterations = fit.iterations, fit.fold_iterations
+    phase_sweeps, valley_rounds = fit.phase_sweeps, fit.valley_rounds
     if cand.stochastic:
         return 0
     if any(d.periodic for d in cand.dims):
@@ -249,9 +247,7 @@ def max_ticks(cand: Candidate, iterations: int = ITERATIONS, fold_iterations: in
 
 
 def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray,
-                  rng: np.random.Generator, iterations: int = ITERATIONS, fold_iterations: int = FOLD_ITERATIONS,
-                  starts: int = 2, phase_grid: int = 32, phase_sweeps: int = PHASE_SWEEPS, phase_starts: int = 2,
-                  phase_restarts: int = 16, valley_rounds: int = VALLEY_ROUNDS,
+                  rng: np.random.Generator, settings: GapSettings | None = None,
                   tick: Callable[[], None] | None = None) -> FitResult:
     """Fit ``cand`` on all runs and on every fold's training runs (see the module docstring).
 
@@ -269,10 +265,16 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
        two thirds of the data); everything the fold fit then does uses its training runs only.
 
     The stochastic candidate (wheel_liftoff) is fitted by lift-event inference instead
-    (:func:`_fit_events`).
+    (:func:`_fit_events`). ``settings``: the rounds above (``settings.fit``), the event search's and the
+    decision's noise level (None: the defaults).
     """
+    settings = GapSettings() if settings is None else settings
     if cand.stochastic:
-        return _fit_events(cand, ev, nominal, folds)
+        return _fit_events(cand, ev, nominal, folds, settings)
+    fs = settings.fit
+    iterations, fold_iterations, starts, phase_grid = fs.iterations, fs.fold_iterations, fs.starts, fs.phase_grid
+    phase_sweeps, phase_starts, phase_restarts = fs.phase_sweeps, fs.phase_starts, fs.phase_restarts
+    valley_rounds = fs.valley_rounds
     p = cand.n_params
     K = int(folds.max()) + 1
     R = len(folds)
@@ -303,8 +305,8 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
     rows = np.arange(len(design)) if not periodic or null is None else np.flatnonzero(np.any(design != null, axis=1))
     # Low-dimensional candidates are cheap per start and can have several basins in directions (a 16 mm
     # centre-of-mass offset at -55 deg was fitted at (31.9, 1.3) mm from the two best design points):
-    # they start LM from LOW_DIM_STARTS design points that lie apart.
-    n_starts = phase_starts if periodic else (max(starts, LOW_DIM_STARTS) if p <= LOW_DIM else starts)
+    # they start LM from low_dim_starts design points that lie apart.
+    n_starts = phase_starts if periodic else (max(starts, fs.low_dim_starts) if p <= fs.low_dim else starts)
     free = [j for j in range(p) if j not in periodic]
     chosen: list[int] = []
     for i in rows[np.argsort(design_sse[rows].sum(axis=1))]:
@@ -336,9 +338,9 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
         # random phase vectors under its μ'' and roller fraction; coordinate descent on the
         # open-loop cost over all dimensions (μ'' and roller fraction on local grids, phases on a
         # coarse full grid); LM from the best three; a fine phase sweep + LM from the best.
-        # Compute only: skipped when the kept fit explains less than RULES['min_improvement'] of the
+        # Compute only: skipped when the kept fit explains less than rules.min_improvement of the
         # nominal error (noise-level data, where no basin of the effect can matter).
-        if kept.cost < (1.0 - RULES["min_improvement"]) * float(ev.nominal_baseline(nominal)[1].sum()):
+        if kept.cost < (1.0 - settings.rules.min_improvement) * float(ev.nominal_baseline(nominal)[1].sum()):
             restarts = np.tile(kept.u, (1 + phase_restarts, 1))
             restarts[1:, periodic] = rng.random((phase_restarts, len(periodic)))
             states = [SearchState(t=K, u=u, lam=1e-2) for u in restarts]  # scored by phase_search
@@ -382,7 +384,8 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
                      fold_params=fold_params, pool_u=np.vstack(pools_u[K]), pool_sse=np.vstack(pools_sse[K]))
 
 
-def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray) -> FitResult:
+def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray,
+                settings: GapSettings) -> FitResult:
     """wheel_liftoff by MAP lift-event inference (omni_gym.discrepancy.events).
 
     Every run's events are inferred with the BIC cost 3·ln N per event (N residual components of the
@@ -403,10 +406,10 @@ def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.nda
     _, sse0, _ = ev.nominal_baseline(nominal)
     sigma, _ = ev.noise_floor(nominal)  # the noise floor the decision uses (tracker noise and integration error)
     counter = [0]
-    efit = infer_events(ds, nominal, ev.lever, PARAMS_PER_EVENT * math.log(N), sse0, n_comp, ev.dt,
-                        sigma=sigma, windows=ev.windows, counter=counter,
-                        adequacy=1.0 + RULES["noise_margin"],  # "noise level" as the decision defines it
-                        simulate=ev.simulate)
+    problem = EventProblem(ds, nominal, ev.lever, PARAMS_PER_EVENT * math.log(N), sse0, n_comp, ev.dt, sigma=sigma,
+                           adequacy=1.0 + settings.rules.noise_margin,  # "noise level" as the decision defines it
+                           windows=ev.windows)
+    efit = infer_events(problem, settings.event_search, simulate=ev.simulate, counter=counter)
     ev.simulated += counter[0]
     null = null_point(cand)
 

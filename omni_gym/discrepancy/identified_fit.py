@@ -56,6 +56,7 @@ import numpy as np
 from omni_gym.discrepancy.candidates import to_cube
 from omni_gym.discrepancy.identifiability import BOUND, MERGE_WEIGHT, Linearisation, combination_text
 from omni_gym.discrepancy.residuals import geo_mse, run_sse
+from omni_gym.discrepancy.settings import FitSettings
 from omni_gym.physics.model import SimModel
 
 NOTE = ("parameters not determined by the data are held at the start model's values and the determined "
@@ -63,7 +64,6 @@ NOTE = ("parameters not determined by the data are held at the start model's val
         "runs for the held-out scores); per_effect_status: identified, merged (determined only in the listed "
         "combinations), fixed (start value), kept (no start value: left where the search put it); search_params: "
         "the search's values before the refit")
-ITERATIONS = 4  # LM iterations of the all-run and fold fits in the subspace
 STEP = 3e-3  # forward-difference step along each combination (unit-cube length)
 BOUND_PASSES = 2  # most re-fits after fixing parameters that the subspace fit put at a bound
 
@@ -122,7 +122,7 @@ def _stack(res: list[np.ndarray], mask: np.ndarray) -> np.ndarray:
 
 
 def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, search_heldout: np.ndarray | None = None,
-          n_comp: np.ndarray | None = None) -> IdentifiedFit | None:
+          n_comp: np.ndarray | None = None, fit: FitSettings | None = None) -> IdentifiedFit | None:
     """The fit with the undetermined directions and the parameters at a fit bound held at the start model
     (module docstring); None when nothing is held (every combination identified or away from the start, no
     parameter at a bound): the search's fit stands as it is. ``ev``: the workflow's Evaluator; ``start``:
@@ -133,7 +133,9 @@ def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, search_h
     :data:`HELD_OUT_TOLERANCE` of the search's held-out MSE (row-weighted geometric mean, the decision's
     metric); when it does, the data reject the start value there (the bound value compensates another
     error that the model needs compensated): those parameters keep the search's values, reported as at
-    their bound with the cost measured (``bound_cost``)."""
+    their bound with the cost measured (``bound_cost``). ``fit``: the LM iterations of the subspace fits
+    (``identified_iterations``; None: the defaults)."""
+    iterations = (FitSettings() if fit is None else fit).identified_iterations
     u_star = lin.u
     u0, has = start_point(lin)
     u_ref = np.where(has, u0, u_star)
@@ -141,7 +143,7 @@ def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, search_h
     bound = lin.at_bound() & has
     if not held_dir.any() and not bound.any():
         return None
-    out = _refit(ev, start, lin, fold_of, u_ref, has, held_dir)
+    out = _refit(ev, start, lin, fold_of, u_ref, has, held_dir, iterations)
     bound = out.bound_fixed
     if search_heldout is None or n_comp is None or not bound.any():
         return out
@@ -150,7 +152,8 @@ def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, search_h
         return out
     # The data reject the start value of the bound parameters: keep them where the search put them.
     u_keep = np.where(bound, u_star, u_ref)
-    kept = _refit(ev, start, lin, fold_of, u_keep, has & ~bound, held_dir, keep=bound) if held_dir.any() else None
+    kept = (_refit(ev, start, lin, fold_of, u_keep, has & ~bound, held_dir, iterations, keep=bound)
+            if held_dir.any() else None)
     if kept is not None and geo_mse(kept.heldout, n_comp) > (1.0 + HELD_OUT_TOLERANCE) * geo_mse(search_heldout,
                                                                                                       n_comp):
         kept = None  # holding the undetermined directions costs too (not expected: the start is inside them)
@@ -180,11 +183,12 @@ HELD_OUT_TOLERANCE = 0.05  # most held-out MSE increase (share) accepted for hol
 
 
 def _refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, u_ref: np.ndarray, has: np.ndarray,
-           held_dir: np.ndarray, keep: np.ndarray | None = None) -> IdentifiedFit:
+           held_dir: np.ndarray, iterations: int, keep: np.ndarray | None = None) -> IdentifiedFit:
     """One refit: the combinations not in ``held_dir`` fitted from ``u_ref``; parameters in no fitted
     combination held at ``u_ref`` (``has``: they have a start value; ``keep``: held at ``u_ref`` whatever
     else, as the search's values); parameters the fit puts at a bound are held at the start and the fit
-    re-done (:data:`BOUND_PASSES`; ``bound_fixed`` of the result)."""
+    re-done (:data:`BOUND_PASSES`; ``bound_fixed`` of the result). ``iterations``: LM iterations of each
+    subspace fit."""
     own = lin.own_identified
     keep = np.zeros(len(u_ref), dtype=bool) if keep is None else keep
     V = lin.vt[~held_dir]  # (m, p) the combinations fitted
@@ -193,7 +197,7 @@ def _refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, u_ref: 
     fixed = has & (weight < MERGE_WEIGHT) & ~own
     kept = ~has & ~keep & (weight < MERGE_WEIGHT) & ~own
     for _ in range(1 + BOUND_PASSES):
-        fit = _subspace_fit(ev, start, lin, V, fixed | kept | keep, u_ref, fold_of)
+        fit = _subspace_fit(ev, start, lin, V, fixed | kept | keep, u_ref, fold_of, iterations)
         u = np.concatenate(fit[0])
         dims = lin.dims
         at = np.array([not d.periodic and (x <= BOUND or x >= 1.0 - BOUND) for d, x in zip(dims, u, strict=True)])
@@ -226,7 +230,7 @@ def _weights(V: np.ndarray, p: int) -> np.ndarray:
 
 
 def _subspace_fit(ev, start: SimModel, lin: Linearisation, V: np.ndarray, held: np.ndarray, u_ref: np.ndarray,
-                  fold_of: np.ndarray) -> tuple:
+                  fold_of: np.ndarray, iterations: int) -> tuple:
     """LM over c in u = u_ref + B c, B = Vᵀ with the ``held`` rows zeroed, on all runs and every fold's
     training runs. Starts: the projection of u* onto the subspace and the linearised least-squares
     solution (from the analysis' Jacobian, no simulation); each target starts from the better on its runs."""
@@ -258,7 +262,7 @@ def _subspace_fit(ev, start: SimModel, lin: Linearisation, V: np.ndarray, held: 
     for mask in masks:
         i = int(np.argmin([cost(r, mask) for r in res0]))
         states.append({"c": starts[i].copy(), "res": res0[i], "cost": cost(res0[i], mask), "lam": 1e-2})
-    for _ in range(ITERATIONS if m else 0):
+    for _ in range(iterations if m else 0):
         # Jacobian of every target in one batch
         cs = [st["c"] + STEP * e for st in states for e in np.eye(m)]
         res = simulate(cs)

@@ -122,7 +122,7 @@ def levenberg_marquardt(states: list[SearchState], iterations: int, ctx: SearchC
     Per iteration: forward-difference Jacobians (p points per search) in one batch, then three
     damping levels per search in a second batch; a search keeps the best trial if it lowers its
     training error and stops when a tiny step gains less than 0.01 % (far below what matters for
-    the decision thresholds of RULES) or the damping has grown past use.
+    the thresholds of settings.DecisionRules) or the damping has grown past use.
     """
     p = ctx.cand.n_params
     train = ctx.train

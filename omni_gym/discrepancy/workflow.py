@@ -31,13 +31,14 @@ import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from omni_gym.discrepancy import identifiability, identified_fit, plausible
 from omni_gym.discrepancy.candidates import Candidate, candidates, not_applicable
 from omni_gym.discrepancy.dataset import Dataset, load_dataset, sessions_of
-from omni_gym.discrepancy.decision import RULES, decide
+from omni_gym.discrepancy.decision import Decision, decide
 from omni_gym.discrepancy.events import EVENT_METHOD
 from omni_gym.discrepancy.finite import finite_json
 from omni_gym.discrepancy.fit_tasks import FitShared, FitTask, StepWork, run_fits, work_json
@@ -48,6 +49,7 @@ from omni_gym.discrepancy.outliers import OUTLIER_RULE, drop_outliers, find_outl
 from omni_gym.discrepancy.residuals import count_components, geo_mse
 from omni_gym.discrepancy.score import heldout_table, heldout_whole_runs
 from omni_gym.discrepancy.segments import FIT_BUDGET, check_fit_budget, fit_data
+from omni_gym.discrepancy.settings import GapSettings
 from omni_gym.discrepancy.simulate import FIT_DT
 from omni_gym.discrepancy.synth import pose_lever
 from omni_gym.outputs import Output
@@ -65,7 +67,7 @@ METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2
 def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds: int = 3,
         progress: bool | None = None, dt: float = FIT_DT, plots: bool = True, force: bool = False,
         max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET, backend: Backend = SERIAL,
-        start: str | SimModel | None = "nominal") -> dict:
+        start: str | SimModel | None = "nominal", settings: GapSettings | None = None) -> dict:
     """Run the workflow on ``dataset``; write the report folder ``out`` (if given); return the result.
 
     ``progress``: tqdm bar on stderr (None: only when stderr is a terminal). Same seed, same result.
@@ -82,6 +84,8 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     ``auto`` (kinematic when every run has wheel odometry and it predicts held-out runs better, else
     nominal), or a given :class:`SimModel` (e.g. a calibration made elsewhere: used for every fold as it is,
     its effects kept and not searched again; None: ``nominal``); :func:`start_model`.
+    ``settings``: the fit's, the event search's and the decision's settings (None: the defaults); recorded in
+    full in result.json (``settings.fit``, ``settings.event_search``, ``settings.rules``).
     """
     if start is None:  # the dataset's own model
         start = "nominal"
@@ -91,9 +95,11 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
         raise ValueError(f"max_effects must be an integer >= 1, got {max_effects!r}")
     check_fit_budget(fit_budget)
     if out is None:
-        return _gap(dataset, None, seed, folds, progress, dt, plots, max_effects, fit_budget, backend, start)
+        return _gap(dataset, None, seed, folds, progress, dt, plots, max_effects, fit_budget, backend, start,
+                    settings)
     with Output(Path(out), "dir", force=force, inputs=[dataset], marker="result.json", what="gap report") as tx:
-        return _gap(dataset, tx.path, seed, folds, progress, dt, plots, max_effects, fit_budget, backend, start)
+        return _gap(dataset, tx.path, seed, folds, progress, dt, plots, max_effects, fit_budget, backend, start,
+                    settings)
 
 
 @dataclass
@@ -101,19 +107,19 @@ class Step:
     """One step of the search: the candidates fitted on top of the current model and the decision."""
 
     fits: list[FitResult]
-    decision: dict
+    decision: Decision
     work: StepWork | None = None  # the step's measured work (fit_tasks.StepWork)
 
     @property
     def partial(self) -> bool:
         """True when the step's effect beats its baseline but, with the effects before it, explains too
         little of the nominal gap to be named on its own (``decide``'s ``partial``)."""
-        return "partial" in self.decision
+        return self.decision.partial is not None
 
     @property
     def effect(self) -> str:
         """The effect added at this step (named or partial), else ``none``/``unexplained``."""
-        return self.decision.get("partial", self.decision["effect"])
+        return self.decision.partial if self.decision.partial is not None else self.decision.effect
 
     @property
     def fit(self) -> FitResult | None:
@@ -131,21 +137,46 @@ def fit_seed(seed: int, step: int, name: str) -> np.random.SeedSequence:
     return np.random.SeedSequence(seed, spawn_key=(FIT_STREAM, step, zlib.crc32(name.encode())))
 
 
-def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: list[str], fold_of: np.ndarray,
-                 n_comp: np.ndarray, sigma: float | None, rng: np.random.Generator, bar, say, step: int,
-                 reference_excess: float | None = None, seed: int = 0, ex: Executor | None = None,
-                 shared: FitShared | None = None, refit: tuple[str, ...] = ()) -> Step:
-    """Fit every library candidate not in ``exclude`` on top of ``base`` and decide (the 70 % rule
-    measured against ``reference_excess``, the nominal gap, from the second step on).
+@dataclass(frozen=True)
+class SearchRun:
+    """What every step of one gap run's effect search shares (built once by :func:`_gap`).
 
-    The fits run on ``ex`` (None: in this process, with a progress tick per search round); the
-    decision draws from ``rng`` in this process. ``refit``: effects ``base`` carries that are refitted from
-    their current values (:func:`_from_current`), not from the effect's own null point."""
+    ``ev``: the evaluator of the fitted data; ``shared``: what every fit task needs (the evaluator, the
+    runs' folds, the settings of the fit, the event search and the decision; sent to each worker once);
+    ``n_comp``: (R,) residual components per run; ``sigma`` [m]: the decision's noise floor (None when
+    unknown); ``rng``: the driver's generator (the decisions' bootstrap draws); ``seed``: the gap seed
+    (each fit's own seed, :func:`fit_seed`); ``bar``: the tqdm progress bar; ``say``: the stage printer;
+    ``ex``: where the fits run (None: in this process, with a progress tick per search round);
+    ``refit``: effects the start model carries that are refitted from their current values
+    (:func:`_from_current`), not from the effect's own null point.
+    """
+
+    ev: Evaluator
+    shared: FitShared
+    n_comp: np.ndarray
+    sigma: float | None
+    rng: np.random.Generator
+    seed: int
+    bar: Any
+    say: Callable[[str], None]
+    ex: Executor | None = None
+    refit: tuple[str, ...] = ()
+
+
+def _search_step(search: SearchRun, base: SimModel, base_sse: np.ndarray, exclude: list[str], step: int,
+                 reference_excess: float | None = None) -> Step:
+    """Fit every library candidate not in ``exclude`` on top of ``base`` (per-run SSE ``base_sse`` [m²])
+    and decide, at search step ``step`` (1-based; the 70 % rule measured against ``reference_excess``
+    [m], the nominal gap, from the second step on).
+
+    The fits run on ``search.ex``; the decision draws from ``search.rng`` in this process."""
+    ev, n_comp, sigma, rng, refit = search.ev, search.n_comp, search.sigma, search.rng, search.refit
+    bar, say, seed, ex, shared = search.bar, search.say, search.seed, search.ex, search.shared
     cands = [_from_current(c, base) if c.name in refit else c for c in candidates(base) if c.name not in exclude]
+    cfg = shared.settings
     if step > 1:  # the bar's first total covered step 1 only
-        bar.total += 1 + sum(max_ticks(c) + 1 for c in cands)
+        bar.total += 1 + sum(max_ticks(c, cfg.fit) + 1 for c in cands)
         bar.refresh()
-    shared = FitShared(ev, fold_of) if shared is None else shared
     tasks = [FitTask(c, base, fit_seed(seed, step, c.name)) for c in cands]
     prefix = f"step {step}: " if step > 1 else ""
     start = ev.simulated
@@ -161,7 +192,7 @@ def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: l
         if not parallel:
             say(f"{prefix}fitting candidate {i + 1}/{len(cands)} {cands[i].name}")
             bar.set_postfix_str(cands[i].name)
-        ends[i] = bar.n + max_ticks(cands[i]) + 1
+        ends[i] = bar.n + max_ticks(cands[i], cfg.fit) + 1
 
     def done(i: int) -> None:
         finished[0] += 1
@@ -177,7 +208,7 @@ def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: l
     ev.simulated = start + simulated  # in place (this process) or counted by the workers
     say(f"{prefix}deciding")
     t0 = time.process_time()
-    decision = decide(base_sse, fits, n_comp, sigma, rng, reference_excess=reference_excess)
+    decision = decide(base_sse, fits, n_comp, sigma, rng, reference_excess=reference_excess, rules=cfg.rules)
     work = StepWork(fits=works, decide_s=time.process_time() - t0)
     bar.update(1)
     work.wall_s = time.perf_counter() - wall0
@@ -186,11 +217,13 @@ def _search_step(ev: Evaluator, base: SimModel, base_sse: np.ndarray, exclude: l
 
 def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress: bool | None, dt: float,
          plots: bool, max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET,
-         backend: Backend = SERIAL, start: str | SimModel = "nominal") -> dict:
+         backend: Backend = SERIAL, start: str | SimModel = "nominal", settings: GapSettings | None = None) -> dict:
     """The workflow of :func:`gap`; the report is written into ``out`` as it is (no transaction)."""
     from tqdm import tqdm
 
     cpu0, wall0 = time.process_time(), time.perf_counter()  # the work record (fit_tasks.work_json)
+    settings = GapSettings() if settings is None else settings
+    rules = settings.rules
     step_works: list[StepWork] = []
     steps_cpu = 0.0  # this process's CPU time inside the search steps (the rest is the run's serial part)
     show = sys.stderr.isatty() if progress is None else progress
@@ -236,23 +269,23 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     skipped = not_applicable(nominal)  # e.g. roller_gap on mecanum wheels: never fitted, said in result.json
     if skipped:
         say(f"not tried (does not apply to this robot): {', '.join(skipped)}")
-    total = 2 + sum(max_ticks(c) + 1 for c in cands)
+    total = 2 + sum(max_ticks(c, settings.fit) + 1 for c in cands)
     steps: list[Step] = []
     uncertainties: list[dict] = []
     ev.windows  # noqa: B018 -- computed once here, before the evaluator is sent to the workers
-    shared = FitShared(ev, fold_of)
+    shared = FitShared(ev, fold_of, settings)
     with executor(backend) as ex, \
             tqdm(total=total, desc="gap: fitting", file=sys.stderr, disable=not show, unit="batch") as bar:
         say("localising")
         where = localise(ds, nominal, lever, res0, dt=dt, sigma=tracker)  # windows: no integration drift
         bar.update(1)
         model, base_sse = nominal, sse0
+        search = SearchRun(ev, shared, n_comp, sigma, rng, seed, bar, say, ex, first.refit)
         excess0 = _excess(sse0, n_comp, sigma**2 if sigma is not None else 0.0)
         while True:
             cpu_step = time.process_time()
-            step = _search_step(ev, model, base_sse, [*first.excluded, *[s.effect for s in steps]], fold_of, n_comp,
-                                sigma, rng, bar, say, len(steps) + 1, reference_excess=excess0 if steps else None,
-                                seed=seed, ex=ex, shared=shared, refit=first.refit)
+            step = _search_step(search, model, base_sse, [*first.excluded, *[s.effect for s in steps]], len(steps) + 1,
+                                reference_excess=excess0 if steps else None)
             steps_cpu += time.process_time() - cpu_step
             step_works.append(step.work)
             fit = step.fit
@@ -269,12 +302,12 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
             base_sse = fit.sse_all
             if len(steps) == max_effects or fit.candidate.stochastic or len(steps) == len(cands):
                 break
-            if sigma is not None and geo_mse(base_sse, n_comp) <= sigma**2 * (1 + RULES["noise_margin"]):
+            if sigma is not None and geo_mse(base_sse, n_comp) <= sigma**2 * (1 + rules.noise_margin):
                 # Nothing left beyond tracker noise, even in-sample: no further effect can be warranted
                 # (the decision would call such a residual noise-level), so the search ends without a fit.
-                step = Step(fits=[], decision={
-                    "effect": "none", "why": "the residual with " + " + ".join(s.effect for s in steps)
-                    + " is at the noise floor", "ranking": []})
+                step = Step(fits=[], decision=Decision(
+                    effect="none", why="the residual with " + " + ".join(s.effect for s in steps)
+                    + " is at the noise floor", ranking=[]))
                 break
             say(f"{'named' if not step.partial else 'kept (partial)'} {step.effect}; searching the remaining gap")
         bar.update(max(bar.total - bar.n, 0))
@@ -297,7 +330,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     lin = identifiability.linearise(ev, nominal, [identifiability.Named(s.fit.candidate, s.fit.u_all)
                                                   for s in steps], sigma)
     det = [s for s in steps if not s.fit.candidate.stochastic]
-    refit = (identified_fit.refit(ev, nominal, lin, fold_of, det[-1].fit.heldout, n_comp)
+    refit = (identified_fit.refit(ev, nominal, lin, fold_of, det[-1].fit.heldout, n_comp, settings.fit)
              if lin is not None else None)
     ident_json = None
     if lin is not None:
@@ -329,7 +362,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     # answer (none/unexplained), or unexplained for a chain that ran out of candidates short of it.
     explained = bool(steps) and not steps[-1].partial
     if explained:
-        effect, why = steps[0].effect, steps[0].decision["why"] if len(steps) == 1 else _chain_why(steps)
+        effect, why = steps[0].effect, steps[0].decision.why if len(steps) == 1 else _chain_why(steps)
     elif drift["dropped"] and not steps:
         effect = "unexplained"
         why = (f"{' + '.join(drift['dropped'])} named on the fitted segments, but the whole runs replayed open loop "
@@ -339,12 +372,12 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         effect = "unexplained"
         why = (f"{' + '.join(s.effect for s in steps)} together remove only "
                f"{100 * (1 - _excess(after_sse, n_comp, noise_var) / excess0):.0f} % of the gap beyond noise on "
-               f"held-out runs (needs {100 * RULES['min_gap_reduction']:.0f} %); model.json carries them")
+               f"held-out runs (needs {100 * rules.min_gap_reduction:.0f} %); model.json carries them")
     else:
-        effect, why = decision["effect"], decision["why"]
+        effect, why = decision.effect, decision.why
     result: dict = {"effect": effect, "why": why}
-    if "ambiguous_with" in decision:
-        result["ambiguous_with"] = decision["ambiguous_with"]
+    if decision.ambiguous_with:
+        result["ambiguous_with"] = decision.ambiguous_with
     if steps:
         result["params"] = steps[0].fit.params_all
         result["uncertainty"] = uncertainties[0]
@@ -368,7 +401,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
                      "noise": tracker, "noise_floor": sigma, "noise_components": noise_parts, "heldout_runs": R,
                      "per_run": [{"run": r.name, "fold": int(k), "rms_before": _rms(a, n), "rms_after": _rms(b, n)}
                                  for r, k, a, b, n in zip(ds.runs, fold_of, sse0, after_sse, n_comp, strict=True)]}
-    result["ranking"] = decision["ranking"]
+    result["ranking"] = decision.ranking
     for entry in result["ranking"]:
         f = by_name.get(entry["effect"])
         if f is not None and f.event_fit is not None:
@@ -377,7 +410,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
             entry["events"] = f.event_fit.to_json([r.name for r in ds.runs], contact_cases(ds.n_wheels))
             if f.event_fit.note:
                 entry["events_note"] = f.event_fit.note
-        _annotate(entry, decision["nominal_excess_rms"], nominal)
+        _annotate(entry, decision.nominal_excess_rms, nominal)
     flags = [fl for s in steps for fl in plausible.check(s.effect, s.fit.params_all, nominal)]
     result["plausibility"] = {
         "flags": [fl.to_json() for fl in flags],
@@ -390,13 +423,13 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     result["heldout"] = {
         "metric": HELDOUT_METRIC, "folds_by": "session" if sessions is not None else "run",
         **heldout_table(rows), "per_run": [r.to_json() for r in rows], "drift_check": drift}
-    result["score_nominal"] = decision["score_nominal"]
+    result["score_nominal"] = decision.score_nominal
     result["where"] = where
     result["settings"] = {"seed": seed, "folds": int(fold_of.max()) + 1, "dt": dt, "lever": lever, "start": start,
                           "folds_by": "session" if sessions is not None else "run",
                           "max_effects": max_effects,
                           "fit_budget": None if math.isinf(fit_budget) else float(fit_budget),  # None: no limit
-                          "liftoff": EVENT_METHOD, "rules": RULES, "robot_runs_simulated": ev.simulated}
+                          "liftoff": EVENT_METHOD, **settings.to_json(), "robot_runs_simulated": ev.simulated}
     result["dataset"] = {"path": str(dataset), "runs": fitted.source_runs, "description": ds.description,
                          "fitted": fitted.to_json()}
     # Measured (the one part of result.json that differs from run to run): the steps' tasks, total work and
@@ -645,7 +678,7 @@ def _with_refit(steps: list[Step], lin: identifiability.Linearisation, refit: id
 def _chain_why(steps: list[Step]) -> str:
     """Why for a chain of effects: the last step's decision, which judged the whole chain."""
     names = " + ".join(s.effect for s in steps)
-    return f"{names}: {steps[-1].decision['why']} (with the effects before it in the model)"
+    return f"{names}: {steps[-1].decision.why} (with the effects before it in the model)"
 
 
 def _excess(sse: np.ndarray, n_comp: np.ndarray, noise_var: float) -> float:
@@ -662,12 +695,12 @@ def _steps_json(steps: list[Step], uncertainties: list[dict], final: Step | None
     for i, (s, u) in enumerate(zip(steps, uncertainties, strict=True), start=1):
         after = _excess(s.fit.heldout, n_comp, noise_var)
         out.append({"step": i, "effect": s.effect, "status": "partial" if s.partial else "named",
-                    "why": s.decision["why"], "params": s.fit.params_all,
+                    "why": s.decision.why, "params": s.fit.params_all,
                     "gap_before": before, "gap_after": after, "params_5_95": u["params_5_95"],
                     "ranking": _short_ranking(s)})
         before = after
     if final is not None:
-        out.append({"step": len(steps) + 1, "effect": final.effect, "status": "end", "why": final.decision["why"],
+        out.append({"step": len(steps) + 1, "effect": final.effect, "status": "end", "why": final.decision.why,
                     "gap_before": before, "gap_after": before,
                     "ranking": _short_ranking(final)})
     return out
@@ -676,7 +709,7 @@ def _steps_json(steps: list[Step], uncertainties: list[dict], final: Step | None
 def _short_ranking(step: Step) -> list[dict]:
     """A step's ranking as ``steps`` shows it: effect, held-out RMS [m], whether it beat its baseline."""
     return [{"effect": r["effect"], "heldout_rms": r["heldout_rms"], "beats_nominal": r["beats_nominal"]}
-            for r in step.decision["ranking"]]
+            for r in step.decision.ranking]
 
 
 def _rms(sse: float, n: int) -> float | None:
