@@ -49,6 +49,9 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2, help="local worker processes (with --ray: the local Ray's CPUs)")
     add_ray_option(ap, "the cases", "--jobs")
     ap.add_argument("--no-budget", action="store_true", help="skip the 10-run x 5 s timing rows")
+    ap.add_argument("--budget-only", action="store_true",
+                    help="run only the timing rows (of --effects, or of the effects that have one) and replace them "
+                         "in the committed OUT/discrepancy_recovery.{json,md}, keeping the sweep rows")
     ap.add_argument("--effects", default=None, metavar="NAME[,NAME...]",
                     help="run only these library effects' rows (sweep and budget) and merge them into the "
                          "committed OUT/discrepancy_recovery.json, replacing their old rows")
@@ -67,6 +70,14 @@ def main() -> None:
         cases += [("viscous_drag", "c=4", {"c": 4.0}, noise, 100 + s, args.runs, args.duration) for noise in NOISES
                   for s in range(args.seeds)]
     budget = [] if args.no_budget else [(e, "large", SIZES[e]["large"], 0.001, 7, 10, 5.0) for e in effects]
+    if args.budget_only:
+        if args.no_budget:
+            raise SystemExit("discrepancy_recovery.py: error: --budget-only and --no-budget exclude each other")
+        old = json.loads((out / "discrepancy_recovery.json").read_text())
+        if args.effects is None:  # the effects whose timing row the committed table has
+            budget = [c for c in budget if any(r["hidden"] == c[0] for r in old.get("budget", []))]
+        _replace_budget_rows(out, old, [_timed(c, k, len(budget)) for k, c in enumerate(budget, start=1)])
+        return
     try:
         backend = backend_from_options(args.jobs, args.ray)
     except ValueError as exc:  # BackendError: ray missing, nothing at the address, a bad --jobs/--workers
@@ -85,10 +96,7 @@ def main() -> None:
     results = parallel_map(_case, cases, backend, on_done=progress)  # in the order of the cases, any backend
     sweep_wall = time.perf_counter() - t0
     # Budget rows one at a time: each is timed alone on the machine (2 cores).
-    timed = []
-    for k, c in enumerate(budget, start=1):
-        timed.append(_case(c))
-        print(f"[budget {k}/{len(budget)}] {c[0]}: {timed[-1]['wall_s']:.0f} s", file=sys.stderr, flush=True)
+    timed = [_timed(c, k, len(budget)) for k, c in enumerate(budget, start=1)]
     runs_note = [f"full sweep: {sweep_wall / 60:.1f} min on {backend.describe()}"]
     if args.effects is not None:
         old = json.loads((out / "discrepancy_recovery.json").read_text())
@@ -103,6 +111,36 @@ def main() -> None:
     (out / "discrepancy_recovery.json").write_text(
         json.dumps({"sweep": results, "budget": timed, "runs_note": runs_note}, indent=1))
     write_table(out, results, timed, args, runs_note)
+
+
+def _timed(case: tuple, k: int, n: int) -> dict:
+    """One budget row, run alone in this process (its wall time is the row's figure)."""
+    row = _case(case)
+    print(f"[budget {k}/{n}] {case[0]}: {row['wall_s']:.0f} s", file=sys.stderr, flush=True)
+    return row
+
+
+def _budget_line(r: dict) -> str:
+    return f"| {r['hidden']} | {r['named']} | {r['reduction']:.2f} | {r['wall_s']:.1f} |"
+
+
+def _replace_budget_rows(out: Path, old: dict, timed: list[dict]) -> None:
+    """--budget-only: the new timing rows replace their effects' rows in the json and in the table's budget
+    section (the sweep rows and every note of the table stay as they are)."""
+    new = {r["hidden"]: r for r in timed}
+    budget = [new.pop(r["hidden"], r) for r in old.get("budget", [])] + list(new.values())
+    old["budget"] = budget
+    old["runs_note"] = [*old.get("runs_note", []), f"timing rows of {', '.join(r['hidden'] for r in timed)} re-run "
+                        "with --budget-only"]
+    md = (out / "discrepancy_recovery.md").read_text().split("\n")
+    rows = {r["hidden"]: _budget_line(r) for r in budget}
+    head = md.index("| effect | named | gap reduction | wall [s] |")
+    end = head + 2
+    while end < len(md) and md[end].startswith("| "):
+        end += 1
+    md[head + 2:end] = list(rows.values())
+    (out / "discrepancy_recovery.json").write_text(json.dumps(old, indent=1))
+    (out / "discrepancy_recovery.md").write_text("\n".join(md))
 
 
 def _fmt_err(effect: str, rows: list[dict]) -> str:
@@ -152,7 +190,7 @@ def write_table(out: Path, results: list[dict], timed: list[dict], args, runs_no
         lines += ["", "## Budget: one dataset of 10 runs x 5 s (σ = 1 mm, large size), run alone", "",
                   "| effect | named | gap reduction | wall [s] |", "|---|---|---|---|"]
         for r in timed:
-            lines.append(f"| {r['hidden']} | {r['named']} | {r['reduction']:.2f} | {r['wall_s']:.1f} |")
+            lines.append(_budget_line(r))
     (out / "discrepancy_recovery.md").write_text("\n".join(lines) + "\n")
     _plot(out, groups)
 
