@@ -21,3 +21,23 @@ def ray_cluster():
         yield ray.get_runtime_context().gcs_address
     finally:
         ray.shutdown()
+
+
+@pytest.fixture(scope="module")
+def lag_dataset(tmp_path_factory):
+    """A small synthetic dataset with a hidden motor lag (τ 80 ms; 3 runs of 1.5 s, tracker noise 1 mm, seed 5)."""
+    from omni_gym.discrepancy.recovery import nominal_model
+    from omni_gym.discrepancy.synth import write_synthetic
+
+    folder = tmp_path_factory.mktemp("lag") / "lag"
+    write_synthetic(folder, nominal_model(), 'motor_lag:{"tau": 0.08}', 3, 0.001, 5, 1.5)
+    return folder
+
+
+@pytest.fixture
+def only_motor_lag(monkeypatch):
+    """Fit only the motor_lag candidate (fast); the decision rules are unchanged."""
+    from omni_gym.discrepancy import candidates, workflow
+
+    monkeypatch.setattr(workflow, "candidates",
+                        lambda model: [c for c in candidates.candidates(model) if c.name == "motor_lag"])

@@ -7,24 +7,8 @@ library), which keeps each gap run to seconds.
 
 import pytest
 
-from omni_gym.discrepancy import candidates, workflow
-from omni_gym.discrepancy.recovery import nominal_model
+from omni_gym.discrepancy import workflow
 from omni_gym.discrepancy.settings import DecisionRules, EventSearchSettings, FitSettings, GapSettings
-from omni_gym.discrepancy.synth import write_synthetic
-
-
-@pytest.fixture(scope="module")
-def lag_dataset(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("settings") / "lag"
-    write_synthetic(folder, nominal_model(), 'motor_lag:{"tau": 0.08}', 3, 0.001, 5, 1.5)
-    return folder
-
-
-@pytest.fixture
-def only_motor_lag(monkeypatch):
-    """Fit only the motor_lag candidate (fast); the decision rules are unchanged."""
-    monkeypatch.setattr(workflow, "candidates",
-                        lambda model: [c for c in candidates.candidates(model) if c.name == "motor_lag"])
 
 
 def test_result_json_records_every_setting_and_a_changed_one(lag_dataset, only_motor_lag):

@@ -43,20 +43,6 @@ def _with_jump(src, dst, run: int, row: int, column: int = 0, jump: float = JUMP
     return dst
 
 
-@pytest.fixture(scope="module")
-def lag_dataset(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("gr") / "lag"
-    write_synthetic(folder, nominal_model(), 'motor_lag:{"tau": 0.08}', 3, 0.001, 5, 1.5)
-    return folder
-
-
-@pytest.fixture
-def only_motor_lag(monkeypatch):
-    """Fit only the motor_lag candidate (fast); the decision rules are unchanged."""
-    monkeypatch.setattr(workflow, "candidates",
-                        lambda model: [c for c in candidates.candidates(model) if c.name == "motor_lag"])
-
-
 # --- tracker outliers -----------------------------------------------------------------------------
 
 
