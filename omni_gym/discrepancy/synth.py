@@ -37,7 +37,7 @@ EXTRA_DEFAULTS = {"viscous_drag": {"c": 4.0}}  # N·s/m
 
 def pose_lever(model: SimModel) -> float:
     """Length [m] that turns a heading error into a displacement: the largest wheel-centre distance."""
-    return float(np.max(np.hypot(*model.robot.positions().T)))
+    return model.robot.lever()
 
 
 def default_params(name: str, model: SimModel, rng: np.random.Generator) -> dict:

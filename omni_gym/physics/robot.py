@@ -119,6 +119,11 @@ class RobotSpec:
         """Wheel centres p_i, shape (n, 2) [m], body frame."""
         return np.array([w.position for w in self.wheels], dtype=float)
 
+    def lever(self) -> float:
+        """The largest wheel-centre distance from the body origin [m]: the length that turns a heading error
+        [rad] into a displacement [m] (pose residuals) and sizes offsets from the centre."""
+        return float(np.max(np.hypot(*self.positions().T)))
+
     def drives(self) -> np.ndarray:
         """Drive directions d_i, shape (n, 2), body frame."""
         return np.array([w.drive for w in self.wheels], dtype=float)

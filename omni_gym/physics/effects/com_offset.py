@@ -34,7 +34,7 @@ class ComOffset(Effect):
         sp[SP_CX], sp[SP_CY] = np.asarray(params["com"], dtype=float)
 
     def fit_dims(self, model) -> tuple[Dim, ...]:
-        lever = float(np.max(np.hypot(*model.robot.positions().T)))
+        lever = model.robot.lever()
         c = 0.4 * lever  # the centre of mass well inside the support polygon
         return (Dim("cx", -c, c), Dim("cy", -c, c))
 
@@ -64,6 +64,6 @@ class ComOffset(Effect):
         share = float(np.min(loads) / (r.mass * model.gravity / r.n_wheels))
         if share >= MIN_LOAD_SHARE:
             return []
-        lever = float(np.max(np.hypot(*r.positions().T)))
+        lever = r.lever()
         why = f"{LOAD_SHARE_WHY}; |com| = {float(np.hypot(*com)) / lever:.2f} of the lever {lever:.3f} m"
         return [Flag(self.name, LOAD_SHARE, share, MIN_LOAD_SHARE, 1.0, why)]

@@ -18,10 +18,6 @@ import numpy as np
 from omni_gym.physics.effects.base import Dim, Effect, Param, Range
 
 
-def _lever(model) -> float:
-    return float(np.max(np.hypot(*model.robot.positions().T)))
-
-
 class TrackerOffset(Effect):
     name = "tracker_offset"
     kind = "tracker"
@@ -58,7 +54,7 @@ class TrackerOffset(Effect):
         return p, v
 
     def fit_dims(self, model) -> tuple[Dim, ...]:
-        c = _lever(model)  # a tracked point within one lever of the centre
+        c = model.robot.lever()  # a tracked point within one lever of the centre
         return (Dim("ox", -c, c), Dim("oy", -c, c), Dim("yaw", -0.2, 0.2))
 
     def from_fit(self, values, model) -> dict:
