@@ -23,6 +23,13 @@ minibatches of ``batch_size``, learning rate decaying linearly to 0), then optio
 full-batch L-BFGS. Afterwards the policy's log std is set to ``log_std`` (small: exploration noise of
 σ = e^log_std in action units, so fine-tuning starts near the clone).
 
+Teachers (``teacher``): ``"law"`` (above; a privileged agent on the ``state`` observation) or ``"ekf-pid"``
+(an agent on the EKF features, :class:`agents.wrappers.VectorEKFFeatures` with ``residual_scale`` 0: the
+label is the ekf-pid twist the features already hold, :func:`agents.wrappers.pid_twist_columns`; the data are
+driven by it plus the same action noise). The features are affine in nothing simpler, but ekf-pid's action is
+one of them: an affine actor's clone of it is exact, so such an agent starts as ``ekf-pid``, and only sees
+what a real robot's filter knows. Labelled "BC-initialised from ekf-pid".
+
 Hyperparameter files name it as a callback (RL Zoo syntax)::
 
     callback:
@@ -49,12 +56,14 @@ class BCSpec:
     log_std: float = -2.5
     lbfgs_steps: int = 0  # full-batch L-BFGS iterations after Adam, for the precision millimetres need
     actor_warmup: int = 0  # environment steps during which the actor is held at its clone (critic warm-up)
+    teacher: str = "law"  # "law" (true-state feedback law, `state` observation) or "ekf-pid" (EKF features)
 
     def as_dict(self) -> dict:
         return asdict(self)
 
 
 BC_KEYS = tuple(BCSpec.__dataclass_fields__)
+TEACHERS = {"law": "BC-initialised from the feedback law", "ekf-pid": "BC-initialised from ekf-pid"}
 
 
 def _raw_obs(venv, obs: np.ndarray) -> np.ndarray:
@@ -79,18 +88,29 @@ def _state_decoder(venv):
     return StateObsDecoder.for_env(inner)
 
 
-def collect(venv, spec: BCSpec, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Drive ``venv`` (an SB3 VecEnv over a native ``state`` env) with the noisy law for
-    ``spec.rollout_steps`` vector steps; returns (raw observations (M, D), the law's actions before clipping
-    to the action box (M, 3))."""
+def _teacher(venv, spec: BCSpec):
+    """The teacher's action before clipping, as a function of raw observations (M, D) -> (M, 3)."""
+    if spec.teacher == "ekf-pid":
+        from agents.wrappers import pid_twist_columns
+
+        cols = pid_twist_columns(int(venv.observation_space.shape[0]))
+        return lambda raw: np.asarray(raw, dtype=float)[:, cols]
     from agents.feedback_law import law_actions
 
     decode = _state_decoder(venv)
+    return lambda raw: law_actions(decode, np.asarray(raw, dtype=float), spec.gain, clip=False)
+
+
+def collect(venv, spec: BCSpec, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Drive ``venv`` (an SB3 VecEnv over a native env: ``state`` for the law, EKF features for ekf-pid) with
+    the noisy teacher for ``spec.rollout_steps`` vector steps; returns (raw observations (M, D), the
+    teacher's actions before clipping to the action box (M, 3))."""
+    teacher = _teacher(venv, spec)
     obs = venv.reset()
     xs, ys = [], []
     for _ in range(spec.rollout_steps):
         raw = _raw_obs(venv, obs)
-        label = law_actions(decode, np.asarray(raw, dtype=float), spec.gain, clip=False)
+        label = teacher(raw)
         xs.append(np.array(raw, dtype=np.float32))
         ys.append(label.astype(np.float32))
         act = np.clip(label + spec.noise * rng.standard_normal(label.shape), -1.0, 1.0)
@@ -214,4 +234,4 @@ def behaviour_clone(model, venv, spec: BCSpec, seed: int) -> dict:
         model.actor_target.load_state_dict(model.actor.state_dict())
     return {**spec.as_dict(), "samples": int(len(raw)), "mse_first_epoch": losses[0], "mse_last_epoch": losses[-1],
             "wall_s": round(time.time() - t0, 1),
-            "label": "BC-initialised from the feedback law"}
+            "label": TEACHERS[spec.teacher]}

@@ -39,27 +39,6 @@ def init_residual(model, factor: float, log_std: float | None = None) -> None:
             model.actor_target.load_state_dict(model.actor.state_dict())
 
 
-class ResidualInit(BaseCallback):
-    """At the start of training from scratch, :func:`init_residual` (see the module doc).
-
-    Args:
-        factor: scale of the actor's output layer (e.g. 0.01: the policy starts at 1 % of its output).
-        log_std: SAC's initial log std (None: SB3's default).
-    """
-
-    def __init__(self, factor: float = 0.01, log_std: float | None = None, verbose: int = 0) -> None:
-        super().__init__(verbose)
-        self.factor = float(factor)
-        self.log_std = None if log_std is None else float(log_std)
-
-    def _on_training_start(self) -> None:
-        if self.model.num_timesteps == 0:  # not when training continues from a saved agent
-            init_residual(self.model, self.factor, self.log_std)
-
-    def _on_step(self) -> bool:
-        return True
-
-
 class BehaviourCloningInit(BaseCallback):
     """At the start of training from scratch, :func:`agents.behaviour_cloning.behaviour_clone` of the actor
     on the true-state feedback law in the training environments (keywords: the fields of
@@ -141,3 +120,28 @@ class HoldActor(BaseCallback):
     def _on_training_end(self) -> None:
         if self._state is not None:  # training ended within the warm-up: undo the last updates
             self._restore()
+
+
+class ResidualInit(HoldActor):
+    """At the start of training from scratch, :func:`init_residual` (see the module doc), then (``actor_warmup``
+    > 0) the actor is held at that start for that many environment steps while the critic learns its value
+    (:class:`HoldActor`).
+
+    Args:
+        factor: scale of the actor's output layer (e.g. 0.01: the policy starts at 1 % of its output; 0: exactly
+            at the baseline).
+        log_std: SAC's initial log std (None: SB3's default).
+        actor_warmup: environment steps of the critic warm-up (0: none).
+    """
+
+    def __init__(self, factor: float = 0.01, log_std: float | None = None, actor_warmup: int = 0,
+                 verbose: int = 0) -> None:
+        super().__init__(actor_warmup, verbose)
+        self.factor = float(factor)
+        self.log_std = None if log_std is None else float(log_std)
+
+    def _on_training_start(self) -> None:
+        if self.model.num_timesteps == 0:  # not when training continues from a saved agent
+            init_residual(self.model, self.factor, self.log_std)
+            if self.steps > 0:
+                self._save()

@@ -307,6 +307,19 @@ def in_model_transaction(train_into_fn: Callable[..., dict], args: tuple, kwargs
         return train_into_fn(*bound.args, **bound.kwargs)
 
 
+def _check_bc(bc_spec, algo: str, spec: WrapperSpec, obs_mode: str | None, where: str) -> None:
+    """A behaviour-cloning warm start needs PPO or SAC and the observation its teacher reads: the law the
+    ``state`` observation with no wrapper; ekf-pid the EKF features with the whole-twist action."""
+    if algo not in ("ppo", "sac"):
+        raise ValueError(f"{where}: callback: BehaviourCloningInit needs ppo or sac, got {algo}")
+    if bc_spec.teacher == "law" and (spec.name != "none" or obs_mode != "state"):
+        raise ValueError(f"{where}: callback: BehaviourCloningInit with teacher 'law' clones the true-state law: it "
+                         "needs obs_mode 'state' and no EKF or feed-forward wrapper")
+    if bc_spec.teacher == "ekf-pid" and (spec.name != "ekf-features" or spec.residual_scale != 0):
+        raise ValueError(f"{where}: callback: BehaviourCloningInit with teacher 'ekf-pid' reads the EKF features: it "
+                         "needs the EKFFeatures wrapper with residual_scale 0 (the agent gives the whole twist)")
+
+
 def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: str | Path,
                env_kwargs: dict | None = None, hyperparams: str | Path | None = None, n_envs: int | None = None,
                vec_env: str = "native", eval_freq: int = 50_000, eval_episodes: int = 5, checkpoint_freq: int = 0,
@@ -348,12 +361,10 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
         kw["model"] = parse_model(kw["model"]).to_json()
     spec = wrapper_spec(hp, where)
     wrapper, residual_scale, noise = spec.name, spec.residual_scale, spec.sensor_noise_range
-    init_factor, init_log_std = residual_init(hp, where)
+    init_factor, init_log_std, init_warmup = residual_init(hp, where)
     bc_spec = bc_init_spec(hp, where)
-    if bc_spec is not None and (algo not in ("ppo", "sac") or spec.name != "none"
-                                or dict(hp.get("env_kwargs") or {}, **(env_kwargs or {})).get("obs_mode") != "state"):
-        raise ValueError(f"{where}: callback: BehaviourCloningInit clones the true-state law: it needs ppo or sac, "
-                         "obs_mode 'state' and no EKF or feed-forward wrapper")
+    if bc_spec is not None:
+        _check_bc(bc_spec, algo, spec, dict(hp.get("env_kwargs") or {}, **(env_kwargs or {})).get("obs_mode"), where)
     norm = _normalize(hp.get("normalize"), where)
     extra = {k: v for k, v in hp.items() if k not in OWN_KEYS}
     if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
@@ -415,10 +426,11 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
     callback = _Training(out, meta, env_id, eval_freq, eval_episodes, checkpoint_freq, n_timesteps, progress,
                          max_minutes, lambda: make_env(env_id, val_kw, obs_mode=meta["obs_mode"]))
     callbacks = [callback]
-    if bc_spec is not None and bc_spec.actor_warmup > 0:
+    warmup = bc_spec.actor_warmup if bc_spec is not None else init_warmup
+    if warmup:
         from agents.callbacks import HoldActor
 
-        callbacks.append(HoldActor(bc_spec.actor_warmup))
+        callbacks.append(HoldActor(warmup))
     t0 = time.time()
     try:
         model.learn(total_timesteps=n_timesteps, callback=callbacks, progress_bar=False,

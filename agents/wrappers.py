@@ -78,6 +78,17 @@ LOOK_SCALE = 0.5  # m
 STD_POS_SCALE = 0.01  # m: the EKF's position std is a few mm with camera fixes
 STD_HEAD_SCALE = 0.02  # rad
 CLIP = 10.0
+
+
+def pid_twist_columns(dim: int) -> slice:
+    """The columns of the EKF feature vector (length ``dim`` = 30 + 3n) that hold the PID's body twist in
+    action units: ekf-pid's action before clipping to [−1, 1] (the table in the module doc)."""
+    n, rest = divmod(dim - 30, 3)
+    if rest or n < 3:
+        raise ValueError(f"not an EKF feature vector: length {dim} (expected 30 + 3·wheels)")
+    return slice(21 + 3 * n, 24 + 3 * n)
+
+
 NOISE_SALT = 0x5E17  # mixes the reset seed into the noise-scale generator (independent of the env's draws)
 
 

@@ -101,21 +101,26 @@ def wrapper_spec(hp: dict, where: str) -> WrapperSpec:
     return spec
 
 
-def residual_init(hp: dict, where: str) -> tuple[float | None, float | None]:
-    """(factor, SAC log std) of the ``ResidualInit`` callback (or the earlier ``residual_init`` keys)."""
+def residual_init(hp: dict, where: str) -> tuple[float | None, float | None, int]:
+    """(factor, SAC log std, actor warm-up steps) of the ``ResidualInit`` callback (or the earlier
+    ``residual_init`` keys, which have no warm-up)."""
     if "callback" not in hp:
         factor, log_std = hp.get("residual_init"), hp.get("init_log_std")
-        return (None if factor is None else float(factor)), (None if log_std is None else float(log_std))
+        return (None if factor is None else float(factor)), (None if log_std is None else float(log_std)), 0
     factor = log_std = None
+    warmup = 0
     for path, kw in _zoo_entries(hp["callback"], "callback", where):
         if path == BC_INIT:
             continue  # read by bc_init_spec
         if path != RESIDUAL_INIT:
             raise ValueError(f"{where}: callback: {path!r}: this trainer knows only {RESIDUAL_INIT} and {BC_INIT}")
-        _known_keywords(path, kw, ("factor", "log_std"), "callback", where)
+        _known_keywords(path, kw, ("factor", "log_std", "actor_warmup"), "callback", where)
         factor = float(kw.get("factor", 0.01))
         log_std = None if kw.get("log_std") is None else float(kw["log_std"])
-    return factor, log_std
+        warmup = kw.get("actor_warmup", 0)
+        if isinstance(warmup, bool) or not isinstance(warmup, int) or warmup < 0:
+            raise ValueError(f"{where}: callback: {path}: actor_warmup must be an integer >= 0, got {warmup!r}")
+    return factor, log_std, warmup
 
 
 def bc_init_spec(hp: dict, where: str):
@@ -131,6 +136,11 @@ def bc_init_spec(hp: dict, where: str):
                 spec = BCSpec(**{k: type(getattr(BCSpec, k))(v) for k, v in kw.items()})
             except (TypeError, ValueError) as exc:
                 raise ValueError(f"{where}: callback: {path}: {exc}") from None
+            from agents.behaviour_cloning import TEACHERS
+
+            if spec.teacher not in TEACHERS:
+                raise ValueError(f"{where}: callback: {path}: teacher {spec.teacher!r}: choose one of "
+                                 f"{', '.join(TEACHERS)}")
             if spec.rollout_steps < 1 or spec.epochs < 1 or spec.batch_size < 1 or spec.gain < 0 or spec.noise < 0:
                 raise ValueError(f"{where}: callback: {path}: rollout_steps, epochs, batch_size must be >= 1 and "
                                  f"gain, noise >= 0")

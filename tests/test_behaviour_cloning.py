@@ -134,3 +134,78 @@ def test_bc_needs_the_state_observation_and_known_keys(tmp_path):
     with pytest.raises(ValueError, match="rollout_steps"):
         bc_init_spec(hp, "f.yml")
     assert bc_init_spec({}, "f.yml") is None
+
+
+def _features_yaml(tmp_path, warmup=10_000):
+    body = {ENV: {"env_kwargs": {"obs_mode": "sensors", "episode_seconds": 2.0},
+                  "env_wrapper": [{"agents.wrappers.EKFFeatures": {"residual_scale": 0.0, "reward": "pose"}}],
+                  "callback": [{"agents.callbacks.BehaviourCloningInit": {
+                      "teacher": "ekf-pid", "rollout_steps": 40, "noise": 0.05, "log_std": -3.0,
+                      "actor_warmup": warmup}}],
+                  "policy": "MlpPolicy", "n_envs": 4, "n_steps": 32, "batch_size": 64, "n_epochs": 1,
+                  "normalize": "{'norm_obs': False, 'norm_reward': True}",
+                  "policy_kwargs": "dict(log_std_init=-3.0, net_arch=dict(pi=[], vf=[16]))"}}
+    path = tmp_path / "ppo_features_bc.yml"
+    path.write_text(yaml.safe_dump(body))
+    return path
+
+
+def test_features_agent_cloned_from_ekf_pid_is_ekf_pid(tmp_path):
+    """Teacher 'ekf-pid': ekf-pid's action is one of the EKF features (its twist before clipping), so the
+    affine clone held through the warm-up drives exactly as ekf-pid: the same actions as the wrapper's own
+    ekf-pid on a fresh episode, within float32 rounding of a (30 + 3n)-input affine map (1e-5)."""
+    from stable_baselines3 import PPO
+
+    from agents.train import make_train_env
+
+    meta = train("ppo", ENV, 64, 0, tmp_path / "m", hyperparams=_features_yaml(tmp_path), eval_freq=0)
+    assert meta["bc_init"]["label"] == "BC-initialised from ekf-pid"
+    model = PPO.load(tmp_path / "m" / "final_model.zip", device="cpu")
+    env = make_train_env(ENV, {"episode_seconds": 2.0}, "ekf-features", 0.0, None, "env")
+    obs, _ = env.reset(seed=77)
+    worst = 0.0
+    for _ in range(150):
+        act, _ = model.predict(obs, deterministic=True)
+        worst = max(worst, float(np.abs(act - env.base_action).max()))
+        obs, _, terminated, truncated, _ = env.step(act)
+        if terminated or truncated:
+            break
+    assert worst < 1e-5
+    env.close()
+
+
+def test_ekf_pid_teacher_needs_the_features_wrapper(tmp_path):
+    path = _bc_yaml(tmp_path)  # the state observation, no wrapper
+    data = yaml.safe_load(path.read_text())
+    data[ENV]["callback"][0]["agents.callbacks.BehaviourCloningInit"]["teacher"] = "ekf-pid"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ValueError, match="teacher 'ekf-pid' reads the EKF features"):
+        train("ppo", ENV, 64, 0, tmp_path / "a", hyperparams=path, eval_freq=0)
+    with pytest.raises(ValueError, match="teacher 'pid': choose one of law, ekf-pid"):
+        bc_init_spec({"callback": [{"agents.callbacks.BehaviourCloningInit": {"teacher": "pid"}}]}, "f.yml")
+
+
+def test_residual_agent_held_at_zero_is_ekf_pid(tmp_path):
+    """ResidualInit with factor 0 and a warm-up longer than the run: the residual is exactly 0, so the agent
+    with its residual wrapper drives as ekf-pid (actions equal to float32 rounding)."""
+    from stable_baselines3 import PPO
+
+    from agents.train import make_train_env
+
+    body = {ENV: {"env_kwargs": {"obs_mode": "sensors", "episode_seconds": 2.0},
+                  "env_wrapper": [{"agents.wrappers.EKFFeatures": {"residual_scale": 0.3, "reward": "pose"}}],
+                  "callback": [{"agents.callbacks.ResidualInit": {"factor": 0.0, "actor_warmup": 10_000}}],
+                  "policy": "MlpPolicy", "n_envs": 4, "n_steps": 32, "batch_size": 64, "n_epochs": 1,
+                  "normalize": "{'norm_obs': False, 'norm_reward': True}",
+                  "policy_kwargs": "dict(log_std_init=-2.3, net_arch=dict(pi=[16], vf=[16]))"}}
+    path = tmp_path / "res.yml"
+    path.write_text(yaml.safe_dump(body))
+    train("ppo", ENV, 64, 0, tmp_path / "m", hyperparams=path, eval_freq=0)
+    model = PPO.load(tmp_path / "m" / "final_model.zip", device="cpu")
+    env = make_train_env(ENV, {"episode_seconds": 2.0}, "residual-ekf-pid", 0.3, None, "env")
+    obs, _ = env.reset(seed=78)
+    for _ in range(50):
+        act, _ = model.predict(obs, deterministic=True)
+        assert np.abs(act).max() == 0.0  # held: the zeroed output layer never received an update
+        obs, *_ = env.step(act)
+    env.close()

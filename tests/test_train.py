@@ -189,8 +189,12 @@ def test_wrapper_entries_are_checked_with_file_and_key(entry, match):
 
 def test_callback_entries_are_checked():
     assert residual_init({"callback": [{"agents.callbacks.ResidualInit": {"factor": 0.5, "log_std": -2}}]},
-                         "w") == (0.5, -2.0)
-    assert residual_init({"residual_init": 0.01}, "w") == (0.01, None)  # the earlier layout
+                         "w") == (0.5, -2.0, 0)
+    assert residual_init({"callback": [{"agents.callbacks.ResidualInit": {"factor": 0.0, "actor_warmup": 500}}]},
+                         "w") == (0.0, None, 500)
+    assert residual_init({"residual_init": 0.01}, "w") == (0.01, None, 0)  # the earlier layout
+    with pytest.raises(ValueError, match="actor_warmup must be an integer >= 0"):
+        residual_init({"callback": [{"agents.callbacks.ResidualInit": {"actor_warmup": -1}}]}, "w")
     with pytest.raises(ValueError, match="callback: 'x.Y': this trainer knows only"):
         residual_init({"callback": ["x.Y"]}, "w")
 
