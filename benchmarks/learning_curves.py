@@ -53,11 +53,13 @@ class Run:
 
 
 def agent_label(meta: dict) -> str:
-    """privileged (", BC-init" when warm-started on the feedback law) / ekf-features / residual / sensors, from a
+    """privileged / ekf-features / residual / sensors (", BC-init" when behaviour-cloned before fine-tuning), from a
     run's meta.json."""
     if meta.get("obs_mode") == "state":
-        return "privileged, BC-init" if "bc_init" in meta else "privileged"
-    return {"ekf-features": "ekf-features", "residual-ekf-pid": "residual"}.get(meta.get("wrapper"), "sensors")
+        kind = "privileged"
+    else:
+        kind = {"ekf-features": "ekf-features", "residual-ekf-pid": "residual"}.get(meta.get("wrapper"), "sensors")
+    return f"{kind}, BC-init" if "bc_init" in meta else kind
 
 
 def load_run(path: Path) -> Run:

@@ -22,8 +22,8 @@ Per metric: mean and 95 % Student-t interval; success rate with its 95 % Wilson 
 Each learned agent against ekf-pid and against ekf-pid-traction (privileged agents also against the
 feedback law; tracking RMSE): ratio of means with a 95 % paired-bootstrap interval, the share of episodes
 in which the agent is better with its 95 % paired-bootstrap interval, and a two-sided paired Wilcoxon test.
-Agents trained with a behaviour-cloning warm start (``meta.json`` ``bc_init``) are labelled
-"BC-initialised from the feedback law". Privileged agents (``obs_mode``
+Agents trained with a behaviour-cloning warm start (``meta.json`` ``bc_init``) are labelled with its teacher
+("BC-initialised from the feedback law" or "... from ekf-pid"). Privileged agents (``obs_mode``
 "state": they read the true state) are marked "privileged (upper bound)" everywhere and are never the
 "best learned agent": they show the headroom. Goals (held-out seeds):
 
@@ -261,12 +261,17 @@ def is_privileged(policy: str, metas: dict) -> bool:
 
 
 def is_bc(policy: str, metas: dict) -> bool:
-    """Trained with a behaviour-cloning warm start on the feedback law (meta.json ``bc_init``)."""
+    """Trained with a behaviour-cloning warm start (meta.json ``bc_init``)."""
     return policy in metas and "bc_init" in metas[policy]
 
 
+def bc_label(policy: str, metas: dict) -> str:
+    """"BC-initialised from <teacher>" (models from before the teacher was recorded: the feedback law)."""
+    return metas[policy]["bc_init"].get("label", "BC-initialised from the feedback law")
+
+
 def label(policy: str, metas: dict) -> str:
-    name = label_plain(policy) + (", BC-initialised from the feedback law" if is_bc(policy, metas) else "")
+    name = label_plain(policy) + (f", {bc_label(policy, metas)}" if is_bc(policy, metas) else "")
     return f"{name} ({PRIVILEGED})" if is_privileged(policy, metas) else name
 
 
@@ -285,7 +290,7 @@ def agents_table(models: list[str], metas: dict) -> list[str]:
         if is_privileged(m, metas):
             obs += f" — {PRIVILEGED}: reads the true state"
         if is_bc(m, metas):
-            obs += "; BC-initialised from the feedback law, then fine-tuned"
+            obs += f"; {bc_label(m, metas)}, then fine-tuned"
         curve = Path(m) / "curve.csv"
         val = "n/a"
         if curve.is_file():
