@@ -42,6 +42,7 @@ REF_HEADINGS = ("forward", "tangent", "random")
 REF_TURNS = ("during", "before")  # waypoints: turn while translating, or in place before each translation
 OBS_MODES = ("state", "sensors")
 ACTION_MODES = ("wheels", "twist")
+KINEMATICS = ("nominal", "model")  # the wheel matrix of twist actions and controllers (omni_gym.physics.kinematics)
 RENDER_MODES = (None, "rgb_array", "human")
 CUSTOM_ID = "OmniPathFollow-Custom-v0"  # robot, floor and lift-off all from model= (omni_gym.envs.omni_env)
 MODEL_DEFINES = ("robot", "surface", "friction")  # the keywords a model replaces
@@ -153,6 +154,12 @@ class EnvConfig:
     action_mode: str = option(
         "twist", "choice", choices=ACTION_MODES,
         doc="action: body twist (`twist`) or wheel speeds (`wheels`)",
+    )
+    kinematics: str = option(
+        "nominal", "choice", choices=KINEMATICS,
+        doc="wheel matrix that turns a `twist` action into wheel speeds and that controllers read "
+            "(`env.unwrapped.wheel_kinematics`): the robot's `nominal` one, or the `model`'s effective one "
+            "(its `wheel_radius`, `wheel_geometry`, `mecanum_lateral` effects)",
     )
     actuation: str = option(
         "ideal", "choice", choices=ACTUATIONS,

@@ -32,6 +32,7 @@ from omni_gym.envs.observations import (  # noqa: F401  (LOOKAHEAD_SECONDS, ACC_
     state_offsets,
 )
 from omni_gym.envs.references import draw_reference
+from omni_gym.physics.kinematics import WheelKinematics, effective_kinematics
 from omni_gym.physics.layout import SP_CX, SP_CY, WH_CMD
 from omni_gym.physics.liftoff import ContactProcess, contact_cases
 from omni_gym.physics.model import Actuation
@@ -284,10 +285,14 @@ class TaskCore:
         self.world = World(self.base_model, n_robots=n_robots, dt=cfg.physics_dt,
                            actuation=Actuation(kind=cfg.actuation),
                            arena=Arena(cfg.arena_half_size, cfg.walls, cfg.obstacles))
-        self.W = self.robot.wheel_matrix()
+        # The twist → wheel-speed map of twist actions and of controllers (``kinematics``); the wheel
+        # scale stays the nominal robot's, so the action and observation scales do not change with it.
+        self.kinematics = (effective_kinematics(self.base_model) if cfg.kinematics == "model"
+                           else WheelKinematics.of_robot(self.robot))
+        self.W = self.kinematics.matrix
         self.twist_scale = np.array([cfg.max_speed, cfg.max_speed, cfg.max_yaw_rate])
         corners = np.array([[sx, sy, sw] for sx in (-1, 1) for sy in (-1, 1) for sw in (-1, 1)]) * self.twist_scale
-        self.wheel_scale = float(np.abs(corners @ self.W.T).max())  # rad/s at wheel action ±1
+        self.wheel_scale = float(np.abs(corners @ self.robot.wheel_matrix().T).max())  # rad/s at wheel action ±1
         self.action_dim = 3 if cfg.action_mode == "twist" else self.n_wheels
         self.look = np.array([int(round(s * cfg.control_hz)) for s in LOOKAHEAD_SECONDS], dtype=np.int64)
         self.n_samples = cfg.episode_steps + int(self.look.max()) + 1
@@ -482,8 +487,16 @@ class RobotEnvAttributes:
 
     @property
     def wheel_matrix(self) -> np.ndarray:
-        """(n, 3) map from body twist (vx, vy [m/s], ω [rad/s], body frame) to wheel speeds [rad/s]; a copy."""
+        """(n, 3) map from body twist (vx, vy [m/s], ω [rad/s], body frame) to wheel speeds [rad/s] that
+        twist actions go through: the robot's, or the model's effective one (``kinematics="model"``); a copy."""
         return self.core.W.copy()
+
+    @property
+    def wheel_kinematics(self):
+        """The :class:`omni_gym.physics.kinematics.WheelKinematics` (wheel matrix, rolling radius [m]) that
+        twist actions go through and scripted controllers build their feed-forward and estimators from:
+        nominal, or the model's effective kinematics with ``kinematics="model"``."""
+        return self.core.kinematics
 
     @property
     def wheel_scale(self) -> float:

@@ -110,6 +110,7 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
     | `ref_turn` | `during`; Williams-v1: `before` | `during`, `before` | — | `waypoints` only: the heading turns while translating (`during`) or in place before each translation (`before`) |
     | `obs_mode` | `state` | `state`, `sensors` | — | observation: privileged `state` or what a real robot has (`sensors`) |
     | `action_mode` | `twist` | `wheels`, `twist` | — | action: body twist (`twist`) or wheel speeds (`wheels`) |
+    | `kinematics` | `nominal` | `nominal`, `model` | — | wheel matrix that turns a `twist` action into wheel speeds and that controllers read (`env.unwrapped.wheel_kinematics`): the robot's `nominal` one, or the `model`'s effective one (its `wheel_radius`, `wheel_geometry`, `mecanum_lateral` effects) |
     | `actuation` | `ideal` | `ideal`, `servo` | — | wheel drive: velocity source (`ideal`) or PI speed loop with torque limit and wheel inertia (`servo`) |
     | `control_hz` | 100 | [1, 10000] | Hz | control rate: one step is 1/control_hz |
     | `physics_dt` | 0.0005 | [1e-5, 0.002]; 1/control_hz a whole number of substeps | s | physics substep |
@@ -139,6 +140,7 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
     refused with ValueError).
 
     Public attributes for controllers (read through ``env.unwrapped``): ``robot``, ``wheel_matrix``,
+    ``wheel_kinematics`` (the wheel matrix and rolling radius twist actions go through: ``kinematics``),
     ``wheel_scale``, ``observation_layout``, ``obs_scales``, ``sensor_config`` (settable; used at the
     next reset) and ``cfg``.
 
