@@ -127,6 +127,7 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
     | `lost_distance` | 0.5 | [0.001, 10000] | m | tracking error that terminates the episode |
     | `success_distance` | 0.05 | (0, 10000] | m | final position error counted as success (`info["is_success"]`) |
     | `success_heading` | 0.1 | (0, π] | rad | final heading error counted as success |
+    | `randomize_floor` | None | None or a non-empty tuple of `paper`/`carpet`/`grip`, each optionally `:` `initial`/`roller_gap`; with `model`: the floor replaces the model's surface (and friction model), its effects stay; a `roller_gap` effect (friction coefficients of the model's own floor) is refused | — | at each reset every robot draws one floor, uniformly, from this tuple: a surface name, or `"surface:friction_model"` (e.g. `"grip:initial"`, `"carpet:roller_gap"`; without one the `friction` keyword's or the model's); `randomize_friction` scales it; `info["floor"]` names it |
     | `randomize_friction` | None | None or (lo, hi) with 0 ≤ lo ≤ hi ≤ 10 | — | every friction coefficient scaled by U(lo, hi) at each reset |
     | `randomize_mass` | None | None or (lo, hi) with 0.05 ≤ lo ≤ hi ≤ 20 | — | mass and inertia scaled by U(lo, hi) at each reset |
     | `randomize_lift_rate` | None | None or (lo, hi) with 0 ≤ lo ≤ hi ≤ 1000 | 1/s | `lift_rate` drawn from U(lo, hi) at each reset |
