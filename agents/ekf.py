@@ -75,6 +75,7 @@ from scipy.stats import chi2
 
 from agents.slip_detector import DetectorConfig, SlipDetector
 from omni_gym.angles import wrap_angle
+from omni_gym.physics.kinematics import WheelKinematics
 from omni_gym.physics.robot import RobotSpec
 
 X, Y, TH, VX, VY, OM, BG = range(7)
@@ -289,7 +290,8 @@ class OmniEKF:
     updates of the last :meth:`process` call), ``detector`` (:class:`SlipDetector`).
     """
 
-    def __init__(self, robot: RobotSpec, config: EKFConfig | None = None) -> None:
+    def __init__(self, robot: RobotSpec | WheelKinematics, config: EKFConfig | None = None) -> None:
+        # robot: its wheel matrix and wheel radius are read (a model's effective kinematics may stand in).
         self.robot = robot
         self.config = EKFConfig() if config is None else config
         self.W = robot.wheel_matrix()

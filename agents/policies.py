@@ -63,10 +63,11 @@ class ScriptedPolicy:
             raise ValueError(f"policy {self.name!r} needs obs_mode='sensors', got {cfg.obs_mode!r}")
         self.cfg = cfg
         self.robot = u.robot
+        self.kinematics = u.wheel_kinematics  # nominal, or the model's effective one (kinematics="model")
         self.decode = SensorObsDecoder.for_env(env)
         self.dt = cfg.control_dt
         self.twist_mode = cfg.action_mode == "twist"
-        self.W = self.robot.wheel_matrix()
+        self.W = self.kinematics.wheel_matrix()
         self.twist_scale = np.array([cfg.max_speed, cfg.max_speed, cfg.max_yaw_rate])
         self.wheel_scale = float(u.wheel_scale)
         self.action_shape = env.action_space.shape
@@ -217,7 +218,7 @@ class EKFPIDPolicy(PIDPolicy):
         super().__init__(env, gains)
         from agents.ekf import EKFConfig, OmniEKF
 
-        self.ekf = OmniEKF(self.robot, EKFConfig.for_env(env))
+        self.ekf = OmniEKF(self.kinematics, EKFConfig.for_env(env))
 
     def _reset(self, s: SensorObs) -> None:
         self.ekf.reset(np.array(s.ref_pose, dtype=float))

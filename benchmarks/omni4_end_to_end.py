@@ -64,7 +64,7 @@ from omni_gym.outputs import write_bytes_atomic, write_text_atomic  # noqa: E402
 
 MODEL = ROOT / "benchmarks" / "inputs" / "omni4_calibrated_model.json"
 NOMINAL, CALIBRATED = "nominal", "calibrated"
-ENV_KINEMATICS = "env"  # the policy as omni-gym evaluate builds it: twist actions, the environment's own robot
+ENV_KINEMATICS = "env"  # the policy as omni-gym evaluate builds it: twist actions, the env default kinematics="nominal"
 DESIGN_IDS = {NOMINAL: "OmniPathFollow-Mecanum-v0", CALIBRATED: "OmniPathFollow-Custom-v0"}
 P_GRID = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0)  # multipliers of kp_pos, kp_head
 I_GRID = (0.25, 0.5, 1.0, 2.0, 4.0)  # multipliers of ki_pos, ki_head
@@ -83,28 +83,6 @@ def design_model(design: str, model_path: Path = MODEL):
     from omni_gym.physics.model import load_model
 
     return load_model("optiodom_omni4") if design == NOMINAL else load_model(str(model_path))
-
-
-def controller_wheel_matrix(model) -> np.ndarray:
-    """W (n×3) [rad/s per (m/s, m/s, rad/s)]: body twist → wheel speeds as the model predicts them without slip.
-
-    The robot's wheel matrix with each row divided by the wheel's effective-radius scale (the
-    ``wheel_radius`` effect; a wheel 7 % larger turns 7 % slower for the same body speed)."""
-    W = np.array(model.robot.wheel_matrix(), dtype=float)
-    if "wheel_radius" in model.effects:
-        W = W / np.asarray(model.effects["wheel_radius"]["scale"], dtype=float)[:, None]
-    return W
-
-
-@dataclass(frozen=True)
-class _Kinematics:
-    """What :class:`agents.batched.estimation.BatchEKF` reads of a robot: W and a (mean) wheel radius [m]."""
-
-    W: np.ndarray
-    wheel_radius: float
-
-    def wheel_matrix(self) -> np.ndarray:
-        return self.W
 
 
 def make_env(design: str, num: int, seconds: float | None, action_mode: str = "wheels", obs_mode: str = "sensors",
@@ -134,18 +112,19 @@ def build_scripted(venv, spec: Scripted, model_path: Path = MODEL):
     from agents.batched.estimation import BatchEKF
     from agents.batched.policies import make_vector_policy
     from agents.ekf import EKFConfig
+    from omni_gym.physics.kinematics import effective_kinematics
 
     policy = make_vector_policy(spec.policy, venv, spec.gains)
     if spec.kinematics == ENV_KINEMATICS:
         return policy
-    model = design_model(spec.kinematics, model_path)
-    W = controller_wheel_matrix(model)
-    policy.W = W  # feed-forward and PID twist → wheel speeds
+    # The design model's effective kinematics (wheel matrix with its effects, mean effective radius).
+    kinematics = effective_kinematics(design_model(spec.kinematics, model_path))
+    policy.kinematics = kinematics
+    policy.W = kinematics.wheel_matrix()  # feed-forward and PID twist → wheel speeds
     if hasattr(policy, "ekf"):  # the encoder model of the filter and its slip detector
         cfg = policy.cfg
-        r = model.robot.wheel_radius * float(np.mean(model.effects.get("wheel_radius", {}).get("scale", [1.0])))
-        policy.ekf = BatchEKF(_Kinematics(W, r), policy.num,
-                              EKFConfig.from_sensor_config(cfg.sensor_config(), cfg.control_hz))
+        policy.ekf = BatchEKF(kinematics, policy.num, EKFConfig.from_sensor_config(cfg.sensor_config(),
+                                                                                    cfg.control_hz))
         policy.estimate = policy.ekf.pose
     return policy
 

@@ -272,7 +272,7 @@ KW = dict(obs_mode="sensors", action_mode="twist", lost_distance=0.06, max_episo
 
 class _SameStepVectorEnv(VectorEnv):
     """A SAME_STEP vector env over single envs (Gymnasium's SyncVectorEnv) with the attributes the
-    policies read from the native vector env (cfg, robot, layout, scales)."""
+    policies read from the native vector env (cfg, robot, kinematics, layout, scales)."""
 
     def __init__(self, env_id: str, num: int) -> None:
         self.sync = SyncVectorEnv([lambda: gym.make(env_id, **KW) for _ in range(num)],
@@ -284,7 +284,7 @@ class _SameStepVectorEnv(VectorEnv):
         self.action_space = self.sync.action_space
         self.metadata = {"autoreset_mode": AutoresetMode.SAME_STEP}
         u = self.sync.envs[0].unwrapped
-        for key in ("cfg", "robot", "observation_layout", "obs_scales", "wheel_scale"):
+        for key in ("cfg", "robot", "wheel_kinematics", "observation_layout", "obs_scales", "wheel_scale"):
             setattr(self, key, getattr(u, key))
 
     def reset(self, *, seed=None, options=None):

@@ -148,3 +148,60 @@ def test_roller_angle_beyond_bound_is_refused(gamma):
     wheels = (Wheel((0.1, 0.0), (0.0, 1.0), gamma), Wheel((-0.1, 0.0), (0.0, 1.0)), Wheel((0.0, -0.1), (1.0, 0.0)))
     with pytest.raises(ValueError, match="wheel 1 roller_angle must be in"):
         RobotSpec(name="bad", wheels=wheels, wheel_radius=0.03, mass=1.0, inertia=0.01)
+
+
+# --- a model's effective kinematics (effective_kinematics) -----------------------------------------
+
+
+def _model(robot, surface="grip", friction="initial", **effects):
+    from omni_gym.physics.friction import SURFACES
+    from omni_gym.physics.model import SimModel
+
+    return SimModel(robot, SURFACES[surface], friction, effects=effects)
+
+
+def test_effective_kinematics_without_kinematic_effects_is_the_robots_own_bit_for_bit():
+    """No effect, or effects that leave the no-slip rolling constraint alone (centre of mass, motor lag,
+    friction): the robot's own matrix and radius, bit for bit (so kinematics="model" changes nothing)."""
+    for robot in (williams2002(), phunopas2018(), optiodom_omni4()):
+        for effects in ({}, {"com_offset": {"com": [0.01, -0.02]}, "motor_lag": {"tau": 0.02},
+                             "kinetic_friction": {"ratio": 0.8, "v_s": 0.01}}):
+            k = kin.effective_kinematics(_model(robot, **effects))
+            np.testing.assert_array_equal(k.wheel_matrix(), robot.wheel_matrix())
+            assert k.wheel_radius == robot.wheel_radius and k.n_wheels == robot.n_wheels
+
+
+def test_effective_kinematics_divides_each_row_by_its_wheels_radius_scale():
+    """A wheel whose effective rolling radius is s × nominal turns 1/s as fast for the same body twist;
+    the radius controllers get is the mean effective one."""
+    robot = optiodom_omni4()
+    scale = np.array([1.07, 1.072, 1.0699, 1.086])
+    k = kin.effective_kinematics(_model(robot, wheel_radius={"scale": scale.tolist()}))
+    np.testing.assert_allclose(k.wheel_matrix() * scale[:, None], robot.wheel_matrix(), rtol=1e-12)
+    assert k.wheel_radius == pytest.approx(robot.wheel_radius * scale.mean(), rel=1e-12)
+
+
+def test_effective_kinematics_of_wheel_geometry_is_the_moved_robots_matrix():
+    """wheel_geometry moves wheel i to distance_i·p_i and yaws its drive by mount_i: the effective matrix is
+    the nominal matrix of a robot built with those wheels (an independent construction)."""
+    robot = williams2002()
+    distance, mount = [1.0, 1.04, 0.98], [0.0, 0.03, -0.02]
+    k = kin.effective_kinematics(_model(robot, "carpet", "roller_gap",
+                                        wheel_geometry={"distance": distance, "mount": mount}))
+    moved = []
+    for w, s, m in zip(robot.wheels, distance, mount, strict=True):
+        c, si = np.cos(m), np.sin(m)
+        moved.append(Wheel((s * w.position[0], s * w.position[1]),
+                           (c * w.drive[0] - si * w.drive[1], si * w.drive[0] + c * w.drive[1])))
+    np.testing.assert_allclose(k.wheel_matrix(), robot.with_changes(wheels=tuple(moved)).wheel_matrix(),
+                               rtol=1e-12, atol=1e-12)
+
+
+def test_effective_kinematics_of_mecanum_lateral_splits_the_radius_by_direction():
+    """mecanum_lateral (docs in its module): along the rolling direction the body moves r_lon = 2r/(1 + ratio)
+    per wheel radian, sideways r_lat = ratio·r_lon (45° rollers); the optiodom_omni4 wheels drive along body x."""
+    robot, ratio, v = optiodom_omni4(), 0.95, 0.2
+    k = kin.effective_kinematics(_model(robot, mecanum_lateral={"ratio": ratio}))
+    r_lon = robot.wheel_radius * 2.0 / (1.0 + ratio)
+    np.testing.assert_allclose(np.abs(k.wheel_matrix() @ [v, 0.0, 0.0]), v / r_lon, rtol=1e-12)
+    np.testing.assert_allclose(np.abs(k.wheel_matrix() @ [0.0, v, 0.0]), v / (ratio * r_lon), rtol=1e-12)

@@ -1,9 +1,9 @@
-"""benchmarks/omni4_end_to_end.py: a controller's kinematics from its design model, the paired statistics and
+"""benchmarks/omni4_end_to_end.py: a controller with its design model's kinematics (omni_gym.physics.kinematics
+.effective_kinematics, tested in test_kinematics.py), the paired statistics and
 the command's input checks (the benchmark's figures are in benchmarks/results/omni4_end_to_end.md)."""
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 from pathlib import Path
@@ -18,18 +18,6 @@ SCRIPT = ROOT / "benchmarks" / "omni4_end_to_end.py"
 
 def _load():
     return load_benchmark("omni4_end_to_end")
-
-
-def test_calibrated_wheel_matrix_divides_each_row_by_its_radius_scale():
-    """A wheel whose effective radius is s × nominal turns 1/s as fast for the same body twist; the nominal
-    design is the preset's matrix (no effects)."""
-    e2e = _load()
-    cal = e2e.design_model(e2e.CALIBRATED)
-    scale = np.asarray(json.loads(e2e.MODEL.read_text())["effects"]["wheel_radius"]["scale"])
-    W = e2e.controller_wheel_matrix(cal)
-    np.testing.assert_allclose(W * scale[:, None], cal.robot.wheel_matrix(), rtol=1e-12)
-    nom = e2e.design_model(e2e.NOMINAL)
-    np.testing.assert_array_equal(e2e.controller_wheel_matrix(nom), nom.robot.wheel_matrix())
 
 
 def test_open_loop_with_the_models_own_kinematics_follows_it():

@@ -27,6 +27,7 @@ from agents.ekf import NX, EKFConfig
 from agents.slip_detector import DetectorConfig
 from omni_gym.angles import wrap_angle
 from omni_gym.envs.observations import BatchSensorObs
+from omni_gym.physics.kinematics import WheelKinematics
 from omni_gym.physics.robot import RobotSpec
 
 
@@ -110,14 +111,16 @@ class BatchEKF:
     """:class:`agents.ekf.OmniEKF` for ``num`` robots of the same design and configuration.
 
     Args:
-        robot: the robot design (all robots share it).
+        robot: the robot design (all robots share it): its wheel matrix and wheel radius are read, so a
+            model's effective :class:`~omni_gym.physics.kinematics.WheelKinematics` may stand in.
         num: number of robots N.
         config: :class:`agents.ekf.EKFConfig` (the single filter's).
         threads: run blocks of robots on numba's threads (``numba.get_num_threads()`` blocks); the results
             do not change, robots being independent.
     """
 
-    def __init__(self, robot: RobotSpec, num: int, config: EKFConfig | None = None, threads: bool = False) -> None:
+    def __init__(self, robot: RobotSpec | WheelKinematics, num: int, config: EKFConfig | None = None,
+                 threads: bool = False) -> None:
         if not (isinstance(num, (int, np.integer)) and num >= 1):
             raise ValueError(f"num must be a positive integer, got {num!r}")
         self.robot = robot

@@ -61,10 +61,11 @@ class VectorPolicy:
         self.cfg = cfg
         self.num = int(env.num_envs)
         self.robot = u.robot
+        self.kinematics = u.wheel_kinematics  # nominal, or the model's effective one (kinematics="model")
         self.decode = BatchSensorObsDecoder(u.observation_layout, u.obs_scales)
         self.dt = cfg.control_dt
         self.twist_mode = cfg.action_mode == "twist"
-        self.W = self.robot.wheel_matrix()
+        self.W = self.kinematics.wheel_matrix()
         self.twist_scale = np.array([cfg.max_speed, cfg.max_speed, cfg.max_yaw_rate])
         self.wheel_scale = float(u.wheel_scale)
         self.limiter = limiter
@@ -240,8 +241,8 @@ class VectorEKFPIDPolicy(VectorPIDPolicy):
         from agents.ekf import EKFConfig
 
         cfg = self.cfg
-        self.ekf = BatchEKF(self.robot, self.num, EKFConfig.from_sensor_config(cfg.sensor_config(), cfg.control_hz),
-                            threads=threads)
+        self.ekf = BatchEKF(self.kinematics, self.num,
+                            EKFConfig.from_sensor_config(cfg.sensor_config(), cfg.control_hz), threads=threads)
         self.estimate = self.ekf.pose
 
     def body_twist_estimate(self) -> np.ndarray:

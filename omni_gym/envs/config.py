@@ -14,6 +14,11 @@ prints, effects included). It then defines the robot, surface, friction model an
 ``robot``, ``surface`` and ``friction`` keywords are ignored (the registered ids always pass them, so
 an explicit value cannot be told from the id's default). A ``wheel_liftoff`` effect sets the rates of
 the contact process in place of ``lift_rate``/``recover_rate``. Domain randomisation applies on top.
+
+``randomize_floor`` draws one floor per robot at every reset from a tuple of :class:`Floor` entries
+(``"grip"``, or ``"carpet:roller_gap"`` with its friction model); with ``model=`` the drawn floor replaces
+the model's surface (and friction model, if the entry names one) and keeps its other effects, and a model
+with an effect that holds friction coefficients of its own floor (``roller_gap``) is refused.
 """
 
 from __future__ import annotations
@@ -42,6 +47,7 @@ REF_HEADINGS = ("forward", "tangent", "random")
 REF_TURNS = ("during", "before")  # waypoints: turn while translating, or in place before each translation
 OBS_MODES = ("state", "sensors")
 ACTION_MODES = ("wheels", "twist")
+KINEMATICS = ("nominal", "model")  # the wheel matrix of twist actions and controllers (omni_gym.physics.kinematics)
 RENDER_MODES = (None, "rgb_array", "human")
 CUSTOM_ID = "OmniPathFollow-Custom-v0"  # robot, floor and lift-off all from model= (omni_gym.envs.omni_env)
 MODEL_DEFINES = ("robot", "surface", "friction")  # the keywords a model replaces
@@ -54,8 +60,22 @@ WHEEL_COUNT = wheel_count()  # (3, 16): the one wheel-count bound (omni_gym.boun
 MIN_OBSTACLE_RADIUS = 0.001  # m
 WALL_RADIUS = 0.01  # m, thickness of the wall segments (omni_gym.physics.world)
 
-# How a keyword is checked (Option.kind); the last three have checks of their own.
-KINDS = ("choice", "number", "range", "flag", "robot", "model", "obstacles")
+# How a keyword is checked (Option.kind); the last four have checks of their own.
+KINDS = ("choice", "number", "range", "flag", "robot", "model", "obstacles", "floors")
+
+
+@dataclass(frozen=True)
+class Floor:
+    """One entry of ``randomize_floor``: a surface of :data:`omni_gym.physics.friction.SURFACES` and the
+    friction model it carries (one of :data:`omni_gym.physics.friction.FRICTION_MODELS`; None: the
+    environment's own, the ``friction`` keyword or the model's). Written ``"surface"`` or
+    ``"surface:friction_model"``."""
+
+    surface: str
+    friction: str | None = None
+
+    def __str__(self) -> str:
+        return self.surface if self.friction is None else f"{self.surface}:{self.friction}"
 
 
 @dataclass(frozen=True)
@@ -68,7 +88,8 @@ class Option:
 
     ``kind``: ``choice`` (one of ``choices``), ``number`` (finite, in [``lo``, ``hi``] ``unit``, open
     at ``lo`` if ``lo_open``), ``range`` (None or a (low, high) pair inside [``lo``, ``hi``]), ``flag``
-    (True/False), or one of the keywords with their own check: ``robot``, ``model``, ``obstacles``.
+    (True/False), or one of the keywords with their own check: ``robot``, ``model``, ``obstacles``,
+    ``floors``.
     ``doc``: one line of meaning; ``also``: a condition across keywords (:func:`_check_combination`);
     ``reason``: why the bound is where it is (the keywords with one are the rows of ``docs/bounds.md``).
     """
@@ -153,6 +174,12 @@ class EnvConfig:
     action_mode: str = option(
         "twist", "choice", choices=ACTION_MODES,
         doc="action: body twist (`twist`) or wheel speeds (`wheels`)",
+    )
+    kinematics: str = option(
+        "nominal", "choice", choices=KINEMATICS,
+        doc="wheel matrix that turns a `twist` action into wheel speeds and that controllers read "
+            "(`env.unwrapped.wheel_kinematics`): the robot's `nominal` one, or the `model`'s effective one "
+            "(its `wheel_radius`, `wheel_geometry`, `mecanum_lateral` effects)",
     )
     actuation: str = option(
         "ideal", "choice", choices=ACTUATIONS,
@@ -250,6 +277,14 @@ class EnvConfig:
         doc="final heading error counted as success",
         reason="heading errors are wrapped to (−π, π]",
     )
+    randomize_floor: tuple[Floor, ...] | None = option(
+        None, "floors",
+        doc="at each reset every robot draws one floor, uniformly, from this tuple: a surface name, or "
+            "`\"surface:friction_model\"` (e.g. `\"grip:initial\"`, `\"carpet:roller_gap\"`; without one the "
+            "`friction` keyword's or the model's); `randomize_friction` scales it; `info[\"floor\"]` names it",
+        also="with `model`: the floor replaces the model's surface (and friction model), its effects stay; a "
+             "`roller_gap` effect (friction coefficients of the model's own floor) is refused",
+    )
     randomize_friction: tuple[float, float] | None = option(
         None, "range", lo=0.0, hi=10.0,
         doc="every friction coefficient scaled by U(lo, hi) at each reset",
@@ -316,7 +351,7 @@ RANDOM_BOUNDS: dict[str, tuple[float, float]] = {name: (o.lo, o.hi) for name, o 
                                                  if o.kind == "range"}
 # The order of the checks, by kind (each kind in field order): the first bad keyword is the one named,
 # and obstacles are checked last, inside the arena already checked.
-CHECK_ORDER = (("robot", "choice", "model"), ("flag",), ("number",), ("range",), ("obstacles",))
+CHECK_ORDER = (("robot", "choice", "model"), ("flag",), ("number",), ("range", "floors"), ("obstacles",))
 assert sorted(k for kinds in CHECK_ORDER for k in kinds) == sorted(KINDS)
 
 
@@ -447,6 +482,32 @@ def _obstacles(value, half_size: float) -> tuple[tuple[float, float, float], ...
     return tuple(out)
 
 
+def _floors(name: str, value) -> tuple[Floor, ...] | None:
+    """``randomize_floor``: None or a non-empty sequence of ``"surface"`` / ``"surface:friction_model"`` names."""
+    if value is None:
+        return None
+    items = _sequence(value)
+    example = "e.g. randomize_floor=('grip:initial', 'carpet:roller_gap')"
+    if items is None or not items:
+        raise ValueError(f"invalid {name}={_show(value)}; must be None or a non-empty sequence of floor names, "
+                         f"{example}")
+    surfaces, models = ", ".join(map(repr, SURFACES)), ", ".join(map(repr, FRICTION_MODELS))
+    out = []
+    for i, entry in enumerate(items):
+        if not isinstance(entry, str):
+            raise ValueError(f"invalid {name}[{i}]={_show(entry)}; each floor is a string 'surface' or "
+                             f"'surface:friction_model', {example}")
+        surface, sep, friction = str(entry).partition(":")
+        if surface not in SURFACES:
+            raise ValueError(f"invalid {name}[{i}]={_show(entry)}: unknown surface {surface!r}; choose one of "
+                             f"{surfaces}")
+        if sep and friction not in FRICTION_MODELS:
+            raise ValueError(f"invalid {name}[{i}]={_show(entry)}: unknown friction model {friction!r}; choose one "
+                             f"of {models}")
+        out.append(Floor(surface, friction if sep else None))
+    return tuple(out)
+
+
 def _read_model_file(value) -> SimModel:
     """A model JSON file (UTF-8, a byte-order mark allowed) → SimModel; errors name ``model=`` and the file."""
     path = Path(os.fsdecode(value))
@@ -531,6 +592,8 @@ def _check(opt: Option, value, checked: dict):
         return _range(name, value, opt.lo, opt.hi)
     if kind == "obstacles":
         return _obstacles(value, checked["arena_half_size"])
+    if kind == "floors":
+        return _floors(name, value)
     raise AssertionError(f"option {name!r}: unknown kind {kind!r}")  # a declaration error, not user input
 
 
@@ -549,11 +612,38 @@ def _check_combination(cfg: EnvConfig) -> None:
     if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
         raise ValueError(f"invalid physics_dt={cfg.physics_dt!r}; the control period 1/control_hz "
                          f"({1.0 / cfg.control_hz:g} s) must be a whole number of physics steps")
+    _check_floors(cfg)
     steps = cfg.episode_steps
     if not 1 <= steps <= MAX_EPISODE_STEPS:
         raise ValueError(f"invalid episode_seconds={cfg.episode_seconds!r} at control_hz={cfg.control_hz:g}: "
                          f"{steps} control steps; need 1 to {MAX_EPISODE_STEPS}")
     _check_start_clear(cfg)
+
+
+def _check_floors(cfg: EnvConfig) -> None:
+    """``randomize_floor`` against the robot and the model: every floor must make a valid model."""
+    if cfg.randomize_floor is None:
+        return
+    base = cfg.base_model()
+    if cfg.model is not None:
+        for effect in cfg.model.effects:
+            if effect_library.get(effect).has_friction_coefficients:
+                raise ValueError(f"invalid randomize_floor with model=: its effect {effect!r} holds friction "
+                                 f"coefficients fitted on the model's own floor ({base.surface.name!r}), which "
+                                 "another floor would not have; remove the effect or the keyword")
+    for i, floor in enumerate(cfg.randomize_floor):
+        friction = floor.friction or base.friction
+        if friction == "roller_gap" and base.robot.has_angled_rollers:
+            raise ValueError(f"invalid randomize_floor[{i}]={str(floor)!r}: friction model 'roller_gap' applies to "
+                             "omni wheels only and this robot has mecanum wheels; name 'initial', e.g. "
+                             f"'{floor.surface}:initial'")
+
+
+def draw_floor(cfg: EnvConfig, rng: np.random.Generator) -> Floor | None:
+    """One entry of ``randomize_floor``, uniformly, from ``rng`` (no draw if the keyword is unset)."""
+    if cfg.randomize_floor is None:
+        return None
+    return cfg.randomize_floor[int(rng.integers(len(cfg.randomize_floor)))]
 
 
 def _check_start_clear(cfg: EnvConfig) -> None:
@@ -592,31 +682,53 @@ def check_reset_options(options) -> None:
         raise ValueError(f"unsupported reset option(s) {', '.join(unknown)}; supported: {supported}")
 
 
-def randomized_model(cfg: EnvConfig, base: SimModel, rng: np.random.Generator) -> tuple[SimModel, float]:
-    """(model, lift_rate) for one episode, drawing every randomised factor from ``rng``.
+@dataclass(frozen=True)
+class ModelDraws:
+    """The physical factors of one episode drawn at reset; None where the keyword is unset."""
 
-    Draws are made in a fixed order (friction, mass, lift rate) and only for the ranges that are set,
-    so the same seed gives the same episode. The friction scale multiplies every coefficient of the
-    surface and, if the model has one, the ``roller_gap`` effect's fitted gap coefficient.
+    friction_scale: float | None
+    mass_scale: float | None
+    lift_rate: float  # [1/s]
+    floor: Floor | None = None
+
+
+def draw_model_factors(cfg: EnvConfig, rng: np.random.Generator) -> ModelDraws:
+    """Friction scale, mass scale and lift rate of one episode, drawn from ``rng`` in that fixed order and only
+    for the ranges that are set, so the same seed gives the same episode (the floor is drawn separately,
+    :func:`draw_floor`, after every other draw of the reset)."""
+    friction = None if cfg.randomize_friction is None else float(rng.uniform(*cfg.randomize_friction))
+    mass = None if cfg.randomize_mass is None else float(rng.uniform(*cfg.randomize_mass))
+    lift = cfg.contact_rates()[0]
+    if cfg.randomize_lift_rate is not None:
+        lift = float(rng.uniform(*cfg.randomize_lift_rate))
+    return ModelDraws(friction, mass, lift)
+
+
+def on_floor(base: SimModel, floor: Floor) -> SimModel:
+    """``base`` on ``floor``: its surface preset and friction model (the base's if the floor names none)."""
+    return replace(base, surface=SURFACES[floor.surface], friction=floor.friction or base.friction)
+
+
+def randomized_model(base: SimModel, draws: ModelDraws) -> SimModel:
+    """The model of one episode: ``base`` on the drawn floor, then every friction coefficient of its surface
+    (and, if the model has one, the ``roller_gap`` effect's fitted gap coefficient) times the friction scale,
+    then mass and inertia times the mass scale. ``base`` itself (the same object) when nothing is drawn.
     """
-    model = base
-    if cfg.randomize_friction is not None:
-        s = float(rng.uniform(*cfg.randomize_friction))
-        surf = base.surface
+    model = base if draws.floor is None else on_floor(base, draws.floor)
+    if draws.friction_scale is not None:
+        s = draws.friction_scale
+        surf = model.surface
         model = replace(model, surface=Surface(surf.name, surf.mu_drive * s, surf.mu_transverse * s,
                                                surf.mu_gap * s, surf.k))
         for name, params in base.effects.items():  # effects with friction coefficients (roller_gap)
             scaled = effect_library.get(name).scale_friction(params, s)
             if scaled is not params:
                 model = model.with_effect(name, scaled)
-    if cfg.randomize_mass is not None:
-        s = float(rng.uniform(*cfg.randomize_mass))
+    if draws.mass_scale is not None:
+        s = draws.mass_scale
         model = replace(model, robot=model.robot.with_changes(mass=base.robot.mass * s,
                                                               inertia=base.robot.inertia * s))
-    lift = cfg.contact_rates()[0]
-    if cfg.randomize_lift_rate is not None:
-        lift = float(rng.uniform(*cfg.randomize_lift_rate))
-    return model, lift
+    return model
 
 
 def sensor_noise_scale(cfg: EnvConfig, rng: np.random.Generator) -> float:

@@ -14,12 +14,19 @@ measures every robot in one compiled call and :func:`encode_sensor_obs` writes e
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numba
 import numpy as np
 
 from omni_gym.angles import wrap_angle_nb as _wrap  # (−π, π], compiled for the njit kernels below
-from omni_gym.envs.config import EnvConfig, randomized_model, sensor_noise_scale
+from omni_gym.envs.config import (
+    EnvConfig,
+    draw_floor,
+    draw_model_factors,
+    randomized_model,
+    sensor_noise_scale,
+)
 from omni_gym.envs.observations import (  # noqa: F401  (LOOKAHEAD_SECONDS, ACC_SCALE: re-exported)
     ACC_SCALE,
     LOOK_SCALE,
@@ -32,6 +39,7 @@ from omni_gym.envs.observations import (  # noqa: F401  (LOOKAHEAD_SECONDS, ACC_
     state_offsets,
 )
 from omni_gym.envs.references import draw_reference
+from omni_gym.physics.kinematics import WheelKinematics, effective_kinematics
 from omni_gym.physics.layout import SP_CX, SP_CY, WH_CMD
 from omni_gym.physics.liftoff import ContactProcess, contact_cases
 from omni_gym.physics.model import Actuation
@@ -284,10 +292,14 @@ class TaskCore:
         self.world = World(self.base_model, n_robots=n_robots, dt=cfg.physics_dt,
                            actuation=Actuation(kind=cfg.actuation),
                            arena=Arena(cfg.arena_half_size, cfg.walls, cfg.obstacles))
-        self.W = self.robot.wheel_matrix()
+        # The twist → wheel-speed map of twist actions and of controllers (``kinematics``); the wheel
+        # scale stays the nominal robot's, so the action and observation scales do not change with it.
+        self.kinematics = (effective_kinematics(self.base_model) if cfg.kinematics == "model"
+                           else WheelKinematics.of_robot(self.robot))
+        self.W = self.kinematics.matrix
         self.twist_scale = np.array([cfg.max_speed, cfg.max_speed, cfg.max_yaw_rate])
         corners = np.array([[sx, sy, sw] for sx in (-1, 1) for sy in (-1, 1) for sw in (-1, 1)]) * self.twist_scale
-        self.wheel_scale = float(np.abs(corners @ self.W.T).max())  # rad/s at wheel action ±1
+        self.wheel_scale = float(np.abs(corners @ self.robot.wheel_matrix().T).max())  # rad/s at wheel action ±1
         self.action_dim = 3 if cfg.action_mode == "twist" else self.n_wheels
         self.look = np.array([int(round(s * cfg.control_hz)) for s in LOOKAHEAD_SECONDS], dtype=np.int64)
         self.n_samples = cfg.episode_steps + int(self.look.max()) + 1
@@ -335,15 +347,20 @@ class TaskCore:
     def reset_robot(self, j: int, rng: np.random.Generator) -> None:
         """New episode for robot j; every draw (model, path, contacts, sensors) comes from ``rng``."""
         cfg = self.cfg
-        model, lift_rate = randomized_model(cfg, self.base_model, rng)
-        if model is not self.models[j]:
-            self.world.set_model(j, model)
-            self.models[j] = model
+        draws = draw_model_factors(cfg, rng)
         pose, vel = draw_reference(cfg, rng, self.n_samples)
         self.ref_pose[j] = pose
         self.ref_vel[j] = vel
         contact_seed, sensor_seed = rng.integers(0, 2**63 - 1, size=2)
         self.sensor_noise_scale[j] = sensor_noise_scale(cfg, rng)  # draws only if randomize_sensor_noise is set
+        # The floor is the last draw (only if randomize_floor is set): every other draw of a seed stays as
+        # it is, so a draw of floor F gives the episode of surface=F with the same seed.
+        draws = replace(draws, floor=draw_floor(cfg, rng))
+        model = randomized_model(self.base_model, draws)
+        if model is not self.models[j]:
+            self.world.set_model(j, model)
+            self.models[j] = model
+        lift_rate = draws.lift_rate
         if lift_rate > 0:
             recover_rate = cfg.contact_rates()[1]  # the model's wheel_liftoff effect, if any, else the keyword
             proc = ContactProcess(self.n_wheels, lift_rate, recover_rate, np.random.default_rng(contact_seed),
@@ -425,11 +442,16 @@ class TaskCore:
     def truncated(self) -> np.ndarray:
         return self.step_count >= self.cfg.episode_steps
 
+    def floor(self, j: int) -> str:
+        """Robot j's floor this episode, ``"surface:friction_model"`` (``info["floor"]`` with ``randomize_floor``)."""
+        model = self.models[j]
+        return f"{model.surface.name}:{model.friction}"
+
     def infos(self, robots: int | slice = slice(None)) -> dict[str, np.ndarray]:
         """Ground truth (never part of the observation) for ``robots``: arrays over robots for a slice."""
         err = self.err[robots]
         cfg = self.cfg
-        return {
+        out = {
             "pose": self.true[robots, 0:3].copy(),
             "velocity": self.true[robots, 3:6].copy(),
             "reference_pose": self.ref_pose[np.arange(self.B)[robots], self.step_count[robots]].copy(),
@@ -440,6 +462,9 @@ class TaskCore:
             "collided": self.world.collided[robots].copy(),
             "is_success": (err[..., 0] <= cfg.success_distance) & (np.abs(err[..., 1]) <= cfg.success_heading),
         }
+        if cfg.randomize_floor is not None:
+            out["floor"] = np.array([self.floor(j) for j in range(self.B)], dtype=object)[robots]
+        return out
 
     def info(self, j: int) -> dict:
         """:meth:`infos` of robot j, with plain Python scalars (built directly: a single environment
@@ -448,7 +473,7 @@ class TaskCore:
         e_theta = float(self.err[j, 1])
         true = self.true[j].copy()
         world = self.world
-        return {
+        info = {
             "pose": true[0:3],
             "velocity": true[3:6],
             "reference_pose": self.ref_pose[j, self.step_count[j]].copy(),
@@ -459,6 +484,9 @@ class TaskCore:
             "collided": bool(world.collided[j]),
             "is_success": e <= self.cfg.success_distance and abs(e_theta) <= self.cfg.success_heading,
         }
+        if self.cfg.randomize_floor is not None:
+            info["floor"] = self.floor(j)
+        return info
 
     def outcome(self, j: int) -> tuple[float, bool, bool]:
         """(reward, terminated, truncated) of robot j as Python scalars, as :meth:`rewards`,
@@ -482,8 +510,16 @@ class RobotEnvAttributes:
 
     @property
     def wheel_matrix(self) -> np.ndarray:
-        """(n, 3) map from body twist (vx, vy [m/s], ω [rad/s], body frame) to wheel speeds [rad/s]; a copy."""
+        """(n, 3) map from body twist (vx, vy [m/s], ω [rad/s], body frame) to wheel speeds [rad/s] that
+        twist actions go through: the robot's, or the model's effective one (``kinematics="model"``); a copy."""
         return self.core.W.copy()
+
+    @property
+    def wheel_kinematics(self):
+        """The :class:`omni_gym.physics.kinematics.WheelKinematics` (wheel matrix, rolling radius [m]) that
+        twist actions go through and scripted controllers build their feed-forward and estimators from:
+        nominal, or the model's effective kinematics with ``kinematics="model"``."""
+        return self.core.kinematics
 
     @property
     def wheel_scale(self) -> float:

@@ -28,6 +28,7 @@ from pathlib import Path
 from omni_gym.envs import ENV_IDS
 from omni_gym.envs.config import MAX_OBSTACLES, MIN_OBSTACLE_RADIUS, OPTIONS, WHEEL_COUNT, EnvConfig, Option
 from omni_gym.envs.observations import build_layout
+from omni_gym.physics.friction import FRICTION_MODELS, SURFACES
 from omni_gym.physics.robot import PRESETS
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -74,6 +75,10 @@ def allowed_cell(opt: Option) -> str:
         text = opt.bound().interval().replace(f"{math.pi:g}", "π")
     elif opt.kind == "range":
         text = f"None or (lo, hi) with {opt.lo:g} ≤ lo ≤ hi ≤ {opt.hi:g}"
+    elif opt.kind == "floors":
+        surfaces = "/".join(f"`{name}`" for name in SURFACES)
+        models = "/".join(f"`{name}`" for name in FRICTION_MODELS)
+        text = f"None or a non-empty tuple of {surfaces}, each optionally `:` {models}"
     elif opt.kind == "obstacles":
         text = f"at most {MAX_OBSTACLES} discs, radius ≥ {MIN_OBSTACLE_RADIUS:g}"
     else:

@@ -110,6 +110,7 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
     | `ref_turn` | `during`; Williams-v1: `before` | `during`, `before` | — | `waypoints` only: the heading turns while translating (`during`) or in place before each translation (`before`) |
     | `obs_mode` | `state` | `state`, `sensors` | — | observation: privileged `state` or what a real robot has (`sensors`) |
     | `action_mode` | `twist` | `wheels`, `twist` | — | action: body twist (`twist`) or wheel speeds (`wheels`) |
+    | `kinematics` | `nominal` | `nominal`, `model` | — | wheel matrix that turns a `twist` action into wheel speeds and that controllers read (`env.unwrapped.wheel_kinematics`): the robot's `nominal` one, or the `model`'s effective one (its `wheel_radius`, `wheel_geometry`, `mecanum_lateral` effects) |
     | `actuation` | `ideal` | `ideal`, `servo` | — | wheel drive: velocity source (`ideal`) or PI speed loop with torque limit and wheel inertia (`servo`) |
     | `control_hz` | 100 | [1, 10000] | Hz | control rate: one step is 1/control_hz |
     | `physics_dt` | 0.0005 | [1e-5, 0.002]; 1/control_hz a whole number of substeps | s | physics substep |
@@ -126,6 +127,7 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
     | `lost_distance` | 0.5 | [0.001, 10000] | m | tracking error that terminates the episode |
     | `success_distance` | 0.05 | (0, 10000] | m | final position error counted as success (`info["is_success"]`) |
     | `success_heading` | 0.1 | (0, π] | rad | final heading error counted as success |
+    | `randomize_floor` | None | None or a non-empty tuple of `paper`/`carpet`/`grip`, each optionally `:` `initial`/`roller_gap`; with `model`: the floor replaces the model's surface (and friction model), its effects stay; a `roller_gap` effect (friction coefficients of the model's own floor) is refused | — | at each reset every robot draws one floor, uniformly, from this tuple: a surface name, or `"surface:friction_model"` (e.g. `"grip:initial"`, `"carpet:roller_gap"`; without one the `friction` keyword's or the model's); `randomize_friction` scales it; `info["floor"]` names it |
     | `randomize_friction` | None | None or (lo, hi) with 0 ≤ lo ≤ hi ≤ 10 | — | every friction coefficient scaled by U(lo, hi) at each reset |
     | `randomize_mass` | None | None or (lo, hi) with 0.05 ≤ lo ≤ hi ≤ 20 | — | mass and inertia scaled by U(lo, hi) at each reset |
     | `randomize_lift_rate` | None | None or (lo, hi) with 0 ≤ lo ≤ hi ≤ 1000 | 1/s | `lift_rate` drawn from U(lo, hi) at each reset |
@@ -139,6 +141,7 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
     refused with ValueError).
 
     Public attributes for controllers (read through ``env.unwrapped``): ``robot``, ``wheel_matrix``,
+    ``wheel_kinematics`` (the wheel matrix and rolling radius twist actions go through: ``kinematics``),
     ``wheel_scale``, ``observation_layout``, ``obs_scales``, ``sensor_config`` (settable; used at the
     next reset) and ``cfg``.
 

@@ -136,8 +136,8 @@ class OmniPathVectorEnv(RobotEnvAttributes, VectorEnv):
     built from the same model; the table of keywords, defaults and bounds is in the Arguments of
     :class:`~omni_gym.envs.omni_env.OmniPathEnv` and ``docs/environments.md``, both written from
     :class:`omni_gym.envs.config.EnvConfig`).
-    The public attributes of the single environment (``robot``, ``wheel_matrix``, ``wheel_scale``,
-    ``observation_layout``, ``obs_scales``, ``sensor_config``) are available here too.
+    The public attributes of the single environment (``robot``, ``wheel_matrix``, ``wheel_kinematics``,
+    ``wheel_scale``, ``observation_layout``, ``obs_scales``, ``sensor_config``) are available here too.
 
     ## Version History
 

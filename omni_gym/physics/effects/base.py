@@ -177,6 +177,9 @@ class Effect:
     # only what the pose tracker reports (a measurement model: the simulation ignores it, the
     # discrepancy workflow applies it to simulated poses, model files keep it under "tracker").
     kind: ClassVar[str] = "physics"
+    # True when the parameters hold friction coefficients of the floor the model was fitted on: they scale
+    # with scale_friction, and moving the model to another floor would keep the old floor's values.
+    has_friction_coefficients: ClassVar[bool] = False
     # Two sizes for the recovery study ("small", "large"): parameters given on top of synth_default.
     recovery_sizes: ClassVar[dict[str, dict]] = {}
     # Largest parameter error that counts as recovered, per key of param_error (units there).

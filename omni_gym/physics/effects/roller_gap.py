@@ -22,6 +22,7 @@ from omni_gym.physics.layout import SP_GAP, SP_PITCH, WP_GAPT, WP_GAPW, WP_PHASE
 
 class RollerGap(Effect):
     name = "roller_gap"
+    has_friction_coefficients = True  # mu_gap: of the floor it was fitted on
     summary = "rigid material between the rollers (Williams et al. 2002): μ'', roller share, per-wheel phase"
     params = (
         Param("mu_gap", "scalar", "(dimensionless friction coefficient)", 0.0, 10.0, "", MU_REASON,
