@@ -295,6 +295,20 @@ class VectorSB3Policy(SB3Policy):
         return super().act(obs).reshape(np.shape(obs)[0], -1)
 
 
+def wrap_vector_for(venv, meta: dict):
+    """``venv`` (a native vector env) wrapped as the model of ``meta`` (its meta.json) was trained: the EKF
+    features (``residual-ekf-pid``: the model's residual bound; ``ekf-features``: 0) or the reference
+    feed-forward; unwrapped for ``none``."""
+    from agents.wrappers import VectorEKFFeatures, VectorFeedForwardTwist
+
+    if meta["wrapper"] == "feedforward":  # privileged: reference feed-forward + the model's correction
+        return VectorFeedForwardTwist(venv, float(meta.get("residual_scale", 0.5)))
+    if meta["wrapper"] != "none":
+        scale = float(meta.get("residual_scale", 0.3)) if meta["wrapper"] == "residual-ekf-pid" else 0.0
+        return VectorEKFFeatures(venv, scale)
+    return venv
+
+
 def build_vector(path: str | Path, num: int, env_id: str | None = None, env_kwargs: dict | None = None,
                  options: ModelOptions | None = None):
     """(vector env, :class:`VectorSB3Policy`): :func:`build` for ``num`` robots at once.
@@ -305,7 +319,6 @@ def build_vector(path: str | Path, num: int, env_id: str | None = None, env_kwar
     single :func:`build` environment's within float rounding (the batched EKF; ``tests/test_vector_rollout.py``).
     """
     from agents.vector_rollout import make_vector_env
-    from agents.wrappers import VectorEKFFeatures, VectorFeedForwardTwist
 
     meta, model, vn = load(path, options)
     env_id = env_id or meta.get("env_id")
@@ -316,12 +329,7 @@ def build_vector(path: str | Path, num: int, env_id: str | None = None, env_kwar
     if kw.get("obs_mode", obs_mode) != obs_mode:
         raise ValueError(f"model {path} was trained with obs_mode={obs_mode!r}; got obs_mode={kw['obs_mode']!r}")
     kw.pop("obs_mode", None)
-    venv = make_vector_env(env_id, num, kw, obs_mode=obs_mode)
-    if meta["wrapper"] == "feedforward":  # privileged: reference feed-forward + the model's correction
-        venv = VectorFeedForwardTwist(venv, float(meta.get("residual_scale", 0.5)))
-    elif meta["wrapper"] != "none":
-        scale = float(meta.get("residual_scale", 0.3)) if meta["wrapper"] == "residual-ekf-pid" else 0.0
-        venv = VectorEKFFeatures(venv, scale)
+    venv = wrap_vector_for(make_vector_env(env_id, num, kw, obs_mode=obs_mode), meta)
     if venv.single_observation_space.shape != model.observation_space.shape:
         venv.close()
         raise ValueError(f"model {path} expects observations of shape {model.observation_space.shape}, the "

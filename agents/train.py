@@ -70,7 +70,8 @@ from agents.algorithms import ALGORITHMS, ALGOS, algorithm_class
 from agents.options import BACKENDS, check_backend_args, check_hyperparams, check_train_args, parse_env_kwargs
 from agents.registry import Registry
 from agents.rollout import make_env, run_episode
-from agents.sb3_policy import SB3Policy
+from agents.sb3_policy import VectorSB3Policy, wrap_vector_for
+from agents.vector_rollout import make_vector_env
 from agents.wrappers import wrap_env
 from agents.zoo_config import WrapperSpec, bc_init_spec, residual_init, wrapper_spec
 from omni_gym.envs.config import parse_model
@@ -424,7 +425,8 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
     val_kw = {k: v for k, v in kw.items() if not k.startswith("randomize_") and k != "obs_mode"}
     meta["validation_env_kwargs"] = val_kw
     callback = _Training(out, meta, env_id, eval_freq, eval_episodes, checkpoint_freq, n_timesteps, progress,
-                         max_minutes, lambda: make_env(env_id, val_kw, obs_mode=meta["obs_mode"]))
+                         max_minutes, lambda num: wrap_vector_for(make_vector_env(env_id, num, val_kw,
+                                                                                  obs_mode=meta["obs_mode"]), meta))
     callbacks = [callback]
     warmup = bc_spec.actor_warmup if bc_spec is not None else init_warmup
     if warmup:
@@ -515,11 +517,11 @@ class _TrainingMixin:
         return True
 
     def _validate(self) -> None:
-        if self._eval_env is None:
-            self._eval_env = wrap_env(self._base_env(), self.meta["wrapper"], self.meta["residual_scale"])
+        if self._eval_env is None:  # all validation episodes at once, as robots of one native vector env
+            self._eval_env = self._base_env(self.eval_episodes)
         vn = self.model.get_vec_normalize_env()
-        row = validation_row(self._eval_env, SB3Policy(self.model, vn, self._eval_env), self.eval_episodes,
-                             int(self.num_timesteps), time.time() - self._t0, self._train_reward())
+        row = validation_row_vector(self._eval_env, VectorSB3Policy(self.model, vn, self._eval_env),
+                                    int(self.num_timesteps), time.time() - self._t0, self._train_reward())
         self.rows.append(row)
         rmse = row["val_tracking_rmse"]
         # The untrained policy (step 0) is a reference point on the curve, not a candidate; a behaviour-cloned
@@ -565,6 +567,20 @@ def validation_row(env, policy, episodes: int, timesteps: int, wall_s: float, tr
     the success fraction, and ``train_ep_reward`` (the backend's mean training episode return, or None).
     Every backend validates through this function, so their curves compare."""
     eps = [run_episode(env, policy, VALIDATION_SEED + i) for i in range(episodes)]
+    return _curve_row(eps, timesteps, wall_s, train_reward)
+
+
+def validation_row_vector(venv, policy, timesteps: int, wall_s: float, train_reward: float | None) -> dict:
+    """:func:`validation_row` with the validation episodes run as the robots of one native vector env ``venv``
+    (robot i from seed ``VALIDATION_SEED`` + i; ``policy`` a vector actor): the same episodes within float
+    rounding (the batched EKF, ``tests/test_vector_rollout.py``), in a fraction of the time."""
+    from agents.vector_rollout import run_episodes_vector
+
+    eps = run_episodes_vector(venv, policy, [VALIDATION_SEED + i for i in range(int(venv.num_envs))])
+    return _curve_row(eps, timesteps, wall_s, train_reward)
+
+
+def _curve_row(eps, timesteps: int, wall_s: float, train_reward: float | None) -> dict:
     return {"timesteps": int(timesteps), "wall_s": round(wall_s, 1),
             "val_tracking_rmse": float(np.mean([e.tracking_rmse for e in eps])),
             "val_final_error": float(np.mean([e.final_position_error for e in eps])),
