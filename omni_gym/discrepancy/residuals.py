@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from omni_gym.discrepancy.dataset import Dataset
-from omni_gym.discrepancy.localise import local_pose_fit, wheel_angles
+from omni_gym.discrepancy.measured_state import local_pose_fit, wheel_angles
 
 
 def shooting_windows(ds: Dataset, window: float = 1.0) -> list[tuple]:

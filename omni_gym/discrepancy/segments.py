@@ -39,7 +39,7 @@ from omni_gym.discrepancy.budget import (  # noqa: F401 -- FIT_BUDGET, MIN_FIT_B
     segment_seconds,
 )
 from omni_gym.discrepancy.dataset import Dataset, Run
-from omni_gym.discrepancy.localise import local_pose_fit, wheel_angles
+from omni_gym.discrepancy.measured_state import local_pose_fit, wheel_angles
 
 MIN_TAIL = 0.5  # shortest tail piece kept, as a share of the segment length
 GOLDEN = 0.6180339887498949  # spreads each run's first sampled piece over the run's time
