@@ -225,7 +225,8 @@ def test_fitted_model_replays_through_simulate(small_dataset, tmp_path):
 def test_progress_ticks_stay_within_each_fits_bound(small_dataset):
     """The progress bar's total is the sum of max_ticks: a fit that ticked more would overrun it."""
     from omni_gym.discrepancy.candidates import candidates
-    from omni_gym.discrepancy.fitting import Evaluator, fit_candidate, make_folds, max_ticks
+    from omni_gym.discrepancy.fitting import Evaluator, fit_candidate, max_ticks
+    from omni_gym.discrepancy.folds import make_folds
     from omni_gym.discrepancy.synth import pose_lever
 
     ds = load_dataset(small_dataset)

@@ -110,7 +110,8 @@ def test_com_offset_fit_finds_the_truth_basin_over_seeds(tmp_path, noisy_start):
     settles in another basin has a larger SSE than the truth's; measured 0.95-1.00x)."""
     from omni_gym.discrepancy.candidates import candidates
     from omni_gym.discrepancy.dataset import load_dataset
-    from omni_gym.discrepancy.fitting import fit_candidate, make_folds
+    from omni_gym.discrepancy.fitting import fit_candidate
+    from omni_gym.discrepancy.folds import make_folds
     from omni_gym.discrepancy.residuals import run_sse
 
     model = nominal_model()

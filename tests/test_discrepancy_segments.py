@@ -9,7 +9,7 @@ import pytest
 from omni_gym.cli import main
 from omni_gym.discrepancy import recovery, synth
 from omni_gym.discrepancy.dataset import Dataset, write_dataset
-from omni_gym.discrepancy.fitting import make_folds
+from omni_gym.discrepancy.folds import make_folds
 from omni_gym.discrepancy.segments import SEGMENT, fit_data
 from omni_gym.discrepancy.simulate import Job, simulate_poses
 

@@ -12,7 +12,8 @@ import pytest
 
 from omni_gym.discrepancy import synth
 from omni_gym.discrepancy.dataset import Dataset, Run, load_dataset, sessions_of, write_dataset
-from omni_gym.discrepancy.fitting import Evaluator, source_folds
+from omni_gym.discrepancy.fitting import Evaluator
+from omni_gym.discrepancy.folds import source_folds
 from omni_gym.discrepancy.importers.optiodom import nominal_model, read_sessions
 from omni_gym.discrepancy.kinematic_calibration import nominal_geometry
 from omni_gym.discrepancy.residuals import run_sse

@@ -16,7 +16,8 @@ import pytest
 from omni_gym.discrepancy import plausible, recovery, synth
 from omni_gym.discrepancy.candidates import candidates, null_point
 from omni_gym.discrepancy.dataset import Dataset
-from omni_gym.discrepancy.fitting import Evaluator, fit_candidate, make_folds
+from omni_gym.discrepancy.fitting import Evaluator, fit_candidate
+from omni_gym.discrepancy.folds import make_folds
 from omni_gym.discrepancy.measurement import measured
 from omni_gym.discrepancy.settings import FitSettings, GapSettings
 from omni_gym.physics.effects import REGISTRY, Effect, get

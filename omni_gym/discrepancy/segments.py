@@ -21,7 +21,7 @@ Short replays also keep the world's own integration error small (it grows with t
 on the OptiOdom runs 2.3 mm RMS over whole 55 s runs at 1 ms against 0.5 ms).
 
 Each segment keeps its source run as its *group*: held-out folds split by source run
-(:func:`omni_gym.discrepancy.fitting.make_folds`), so no fold is scored on a piece of a run it was fitted on.
+(:func:`omni_gym.discrepancy.folds.make_folds`), so no fold is scored on a piece of a run it was fitted on.
 A dataset within the budget is fitted as it is (``FitData.segmented`` is False).
 """
 

@@ -42,7 +42,8 @@ from omni_gym.discrepancy.decision import Decision, decide
 from omni_gym.discrepancy.events import EVENT_METHOD
 from omni_gym.discrepancy.finite import finite_json
 from omni_gym.discrepancy.fit_tasks import FitShared, FitTask, StepWork, run_fits, work_json
-from omni_gym.discrepancy.fitting import Evaluator, FitResult, max_ticks, param_intervals, source_folds
+from omni_gym.discrepancy.fitting import Evaluator, FitResult, max_ticks, param_intervals
+from omni_gym.discrepancy.folds import source_folds
 from omni_gym.discrepancy.kinematic_calibration import calibrate
 from omni_gym.discrepancy.localise import localise
 from omni_gym.discrepancy.outliers import OUTLIER_RULE, drop_outliers, find_outliers
