@@ -22,13 +22,12 @@ import pytest
 from omni_gym.cli import main
 from omni_gym.discrepancy.importers.optiodom import (
     import_optiodom,
-    kinematic_geometry,
     nominal_model_json,
     omni4_wheel_layout,
     read_metadata,
     read_sessions,
 )
-from omni_gym.discrepancy.kinematic_calibration import dead_reckon, layout_geometry
+from omni_gym.discrepancy.kinematic_calibration import dead_reckon, layout_geometry, optiodom_geometry
 from omni_gym.io import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -110,7 +109,7 @@ def test_dead_reckoning_from_the_import_is_the_readme_formula_and_tracks_motion_
     both drift 80–200 mm RMS (README), measured 98 and 97 mm on these two runs. Band [60, 250] mm: a
     wrong sign on a wheel or column gives metres, a perfect match would mean no comparison."""
     meta, runs = square_runs
-    geometry = kinematic_geometry(meta)
+    geometry = optiodom_geometry(meta)
     for run in runs:
         ours = dead_reckon(run, geometry)
         readme = readme_dead_reckoning(SQUARE / f"{run.name}.csv.gz")
@@ -135,7 +134,7 @@ def test_li_is_read_per_session(tmp_path):
     folder = copy_session(SQUARE, tmp_path / "s", rows=50, meta=meta_text)
     meta = read_metadata(folder / "080920201715_metadata.csv")
     assert meta.Li == (0.205, 0.215)
-    assert kinematic_geometry(meta).size == pytest.approx(0.42)
+    assert optiodom_geometry(meta).size == pytest.approx(0.42)
     wheels = nominal_model_json(meta)["wheels"]
     assert [w["position"] for w in wheels] == [[0.1025, 0.1075], [0.1025, -0.1075], [-0.1025, 0.1075],
                                                [-0.1025, -0.1075]]

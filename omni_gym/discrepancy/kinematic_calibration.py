@@ -36,6 +36,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from omni_gym.discrepancy.dataset import Run
+from omni_gym.discrepancy.importers.optiodom import Metadata, layout
 from omni_gym.discrepancy.simulate import pose_residual
 from omni_gym.physics import effects as effect_library
 from omni_gym.physics.model import SimModel
@@ -94,6 +95,16 @@ def layout_geometry(positions, drives, roller_angles, diameters) -> Geometry:
     gamma = np.asarray(roller_angles, dtype=float)
     e = d + np.tan(gamma)[:, None] * np.column_stack([-d[:, 1], d[:, 0]])
     return _geometry(p, e, np.asarray(diameters, dtype=float), mecanum=bool(np.any(gamma != 0)))
+
+
+def optiodom_geometry(meta: Metadata) -> Geometry:
+    """The nominal kinematic model of an OptiOdom session (its metadata, read by
+    :func:`omni_gym.discrepancy.importers.optiodom.read_metadata`): the layout of its type (as in the
+    importer's nominal model) and the metadata's diameters. Pure kinematics: it needs no physics (an omni4
+    geometry exists even where :func:`~omni_gym.discrepancy.importers.optiodom.nominal_model` refuses)."""
+    wheels = layout(meta)
+    return layout_geometry([w["position"] for w in wheels], [w["drive"] for w in wheels],
+                           [w.get("roller_angle", 0.0) for w in wheels], meta.D)
 
 
 def _geometry(p: np.ndarray, e: np.ndarray, diameters: np.ndarray, mecanum: bool) -> Geometry:
