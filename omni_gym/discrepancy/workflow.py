@@ -52,7 +52,6 @@ from omni_gym.discrepancy.score import heldout_table, heldout_whole_runs
 from omni_gym.discrepancy.segments import FIT_BUDGET, check_fit_budget, fit_data
 from omni_gym.discrepancy.settings import GapSettings
 from omni_gym.discrepancy.simulate import FIT_DT
-from omni_gym.discrepancy.synth import pose_lever
 from omni_gym.outputs import Output
 from omni_gym.parallel import SERIAL, Backend, Executor, executor
 from omni_gym.physics.liftoff import contact_cases
@@ -252,7 +251,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     elif first.kind == "given":
         say("starting from the given model" + (f" (keeping its {', '.join(first.excluded)})" if first.excluded else ""))
     nominal = first.model
-    lever = pose_lever(ds.model)  # the dataset's: the same residual metric whatever the start
+    lever = ds.model.robot.lever()  # the dataset's: the same residual metric whatever the start
     say(f"checking {R} runs for tracker outliers")
     flagged = find_outliers(ds, lever)
     ds = drop_outliers(ds, flagged)  # flagged rows count as not observed (outliers.py)
