@@ -56,7 +56,7 @@ ALLOWED_UP = {
     # Data made by an independent implementation (issue 15 item 6): the validation integrator generates
     # test datasets for the workflow. Only this generator may use it; the workflow itself never does,
     # so the integrator stays independent of what it checks.
-    ("omni_gym.discrepancy.reference_data", "omni_gym.analysis"),
+    ("omni_gym.discrepancy.synthetic.reference_data", "omni_gym.analysis"),
 }
 
 
@@ -162,11 +162,11 @@ def test_the_checks_catch_a_cycle_and_an_upward_import():
         "omni_gym.physics.model (omni_gym.physics) imports agents.train (agents)"]
     assert upward_imports({"omni_gym.physics.world": {"omni_gym.sensors"}})  # physics below core
     assert upward_imports({"omni_gym.bounds": {"omni_gym.physics.liftoff"}})  # utilities below physics
-    assert upward_imports({"omni_gym.discrepancy.synth": {"omni_gym.analysis.reference"}})
-    assert upward_imports({"omni_gym.discrepancy.synth": {"omni_gym.envs.core"}})
-    assert upward_imports({"agents.train": {"omni_gym.discrepancy.synth"}})
+    assert upward_imports({"omni_gym.discrepancy.synthetic.synth": {"omni_gym.analysis.reference"}})
+    assert upward_imports({"omni_gym.discrepancy.synthetic.synth": {"omni_gym.envs.core"}})
+    assert upward_imports({"agents.train": {"omni_gym.discrepancy.synthetic.synth"}})
     assert upward_imports({"agents.train": {"omni_gym.cli"}})
-    assert upward_imports({"omni_gym.cli": {"agents.train", "omni_gym.discrepancy.synth"}}) == []
+    assert upward_imports({"omni_gym.cli": {"agents.train", "omni_gym.discrepancy.synthetic.synth"}}) == []
 
 
 @pytest.mark.parametrize("source, expect", [

@@ -20,14 +20,14 @@ import numpy as np
 import pytest
 
 from omni_gym.cli import main
-from omni_gym.discrepancy.importers.optiodom import (
+from omni_gym.discrepancy.data.importers.optiodom import (
     import_optiodom,
     nominal_model_json,
     omni4_wheel_layout,
     read_metadata,
     read_sessions,
 )
-from omni_gym.discrepancy.kinematic_calibration import dead_reckon, layout_geometry, optiodom_geometry
+from omni_gym.discrepancy.fit.kinematic_calibration import dead_reckon, layout_geometry, optiodom_geometry
 from omni_gym.io import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -195,7 +195,7 @@ def omni4_dataset(tmp_path_factory):
     root = tmp_path_factory.mktemp("omni4")
     folder = copy_session(SQUARE, root / "session", runs=(1, 2))
     import_optiodom([folder], root / "ds")
-    from omni_gym.discrepancy.dataset import load_dataset
+    from omni_gym.discrepancy.data.dataset import load_dataset
 
     return folder, root / "ds", load_dataset(root / "ds")
 
@@ -225,7 +225,7 @@ def test_replay_reproduces_the_readme_dead_reckoning_within_1mm_on_a_stiff_floor
     0.14–0.26 mm, 0.40–0.48 mrad). Bounds: the goal's 1 mm, and 0.25 mm / 1 mrad, because the 10 ms
     cycles are short: commands shifted by one cycle are off by only 0.77 mm but 5.1 mrad (measured); a
     unit or sign error is metres."""
-    from omni_gym.discrepancy.simulate import Job, simulate_jobs
+    from omni_gym.discrepancy.replay.simulate import Job, simulate_jobs
     from omni_gym.physics.friction import Surface
 
     folder, _, ds = omni4_dataset

@@ -15,14 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from omni_gym.discrepancy.dataset import Run
-from omni_gym.discrepancy.importers.optiodom import (
+from omni_gym.discrepancy.data.dataset import Run
+from omni_gym.discrepancy.data.importers.optiodom import (
     convert_run,
     find_session,
     read_metadata,
     read_run_file,
 )
-from omni_gym.discrepancy.kinematic_calibration import calibrate, dead_reckon, optiodom_geometry, position_rms
+from omni_gym.discrepancy.fit.kinematic_calibration import calibrate, dead_reckon, optiodom_geometry, position_rms
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "optiodom-omni4"
 TRAIN = ("circular/080920201015", "square/080920201810")

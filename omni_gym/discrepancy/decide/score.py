@@ -1,0 +1,125 @@
+"""``omni-gym score``: how well models predict a dataset's runs (held-out check of a calibrated model).
+
+Every run is replayed **open loop** from its start pose with its commanded wheel speeds, as ``gap``
+replays runs, and compared with the tracked poses: the position RMS [m] over the run's tracked rows
+(Euclidean x, y error; the measure of ``benchmarks/real_optiodom.py``) and the final position error
+[m] at its last tracked row. A model that ``gap`` extended on training sessions is checked this way
+on sessions it never saw.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from omni_gym.discrepancy.data.dataset import Dataset
+from omni_gym.discrepancy.fit.kinematic_calibration import position_rms
+from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, simulate_poses
+from omni_gym.physics.model import SimModel
+
+
+@dataclass
+class RunScore:
+    """One run replayed with one model: position RMS and final position error [m] against the tracker."""
+
+    run: str
+    model: str
+    seconds: float
+    position_rms: float
+    final_error: float
+
+
+def score_models(ds: Dataset, models: dict[str, SimModel], dt: float = FIT_DT) -> list[RunScore]:
+    """Per run and model (run-major order): open-loop replay scores (module docstring).
+
+    ValueError if a model's wheel count differs from the dataset's.
+    """
+    for name, m in models.items():
+        if m.n_wheels != ds.n_wheels:
+            raise ValueError(f"model {name}: {m.n_wheels} wheels, the dataset {ds.path} has {ds.n_wheels}")
+    names = list(models)
+    poses = simulate_poses([Job(models[n], r) for r in ds.runs for n in names], dt=dt)
+    out = []
+    for i, run in enumerate(ds.runs):
+        last = int(np.flatnonzero(run.observed)[-1])
+        for j, name in enumerate(names):
+            p = poses[i * len(names) + j]
+            out.append(RunScore(run.name, name, float(run.t[-1]), position_rms(run.pose, p),
+                                float(math.hypot(*(run.pose[last, :2] - p[last, :2])))))
+    return out
+
+
+def summary(scores: list[RunScore]) -> dict[str, dict]:
+    """Per model: mean position RMS and mean final error over the runs [m], and the run count."""
+    out: dict[str, dict] = {}
+    for name in dict.fromkeys(s.model for s in scores):
+        mine = [s for s in scores if s.model == name]
+        out[name] = {"runs": len(mine), "mean_position_rms": float(np.mean([s.position_rms for s in mine])),
+                     "mean_final_error": float(np.mean([s.final_error for s in mine]))}
+    return out
+
+
+@dataclass
+class HeldOutRun:
+    """One source run replayed whole, open loop, by each compared model of the fold that did not see it.
+
+    ``fold``: the run's held-out fold (-1: the run gave no fitted segment, so no fit saw it; it is
+    replayed with the all-run models). ``position_rms`` and ``final_error``: model name → [m].
+    """
+
+    run: str
+    session: str | None
+    fold: int
+    seconds: float
+    position_rms: dict[str, float]
+    final_error: dict[str, float]
+
+    def to_json(self) -> dict:
+        return {"run": self.run, "session": self.session, "fold": self.fold, "seconds": self.seconds,
+                "position_rms": self.position_rms, "final_error": self.final_error}
+
+
+def heldout_whole_runs(ds: Dataset, fold_of: np.ndarray, fold_models: dict[str, list[SimModel]],
+                       all_models: dict[str, SimModel], dt: float = FIT_DT) -> list[HeldOutRun]:
+    """The drift-aware held-out score: every run of ``ds`` replayed **whole, open loop**, from its start
+    pose, with each compared model as fitted without the run's fold: ``fold_models[name][k]`` for a run of
+    fold ``fold_of[i] = k``, ``all_models[name]`` for a run no fit saw (fold -1). One simulation per run
+    and model, whatever the fit budget: the cost of one search point.
+    """
+    names = list(fold_models)
+    jobs = []
+    for i, run in enumerate(ds.runs):
+        k = int(fold_of[i])
+        jobs += [Job(fold_models[n][k] if k >= 0 else all_models[n], run) for n in names]
+    poses = simulate_poses(jobs, dt=dt)
+    out = []
+    for i, run in enumerate(ds.runs):
+        last = int(np.flatnonzero(run.observed)[-1])
+        rms, fin = {}, {}
+        for j, n in enumerate(names):
+            p = poses[i * len(names) + j]
+            rms[n] = position_rms(run.pose, p)
+            fin[n] = float(math.hypot(*(run.pose[last, :2] - p[last, :2])))
+        out.append(HeldOutRun(run.name, run.session, int(fold_of[i]), float(run.t[-1]), rms, fin))
+    return out
+
+
+def heldout_table(rows: list[HeldOutRun]) -> dict:
+    """Per session (in order of appearance; ``null`` where runs record none) and over all runs: the mean
+    whole-run position RMS [m] of each model, and each model's ratio to the first one after ``nominal``
+    (the start model: the kinematic calibration when there is one)."""
+    if not rows:
+        return {"per_session": [], "mean": {}}
+    names = list(rows[0].position_rms)
+
+    def block(mine: list[HeldOutRun]) -> dict:
+        mean = {n: float(np.mean([r.position_rms[n] for r in mine])) for n in names}
+        ref = names[1] if len(names) > 1 else names[0]
+        return {"runs": len(mine), "seconds": float(sum(r.seconds for r in mine)), "mean_position_rms": mean,
+                "ratio_to": ref, "ratio": {n: (mean[n] / mean[ref] if mean[ref] > 0 else None) for n in names}}
+
+    sessions = list(dict.fromkeys(r.session for r in rows))
+    return {"per_session": [{"session": s, **block([r for r in rows if r.session == s])} for s in sessions],
+            "mean": block(rows)}

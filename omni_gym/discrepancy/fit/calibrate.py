@@ -1,0 +1,65 @@
+"""``omni-gym calibrate DATASET --out model.json``: kinematic odometry calibration of an imported dataset.
+
+Fits the effective wheel diameters and the robot's length (omni wheels: the centre-to-wheel distance L;
+mecanum wheels: l1 + l2) by least squares of the runs' dead reckoning against their tracked poses
+(:mod:`omni_gym.discrepancy.fit.kinematic_calibration`), and writes the dataset's nominal model with the
+fitted values as a model JSON (``docs/formats.md``) that ``score``, ``simulate``, ``gap``-free use and
+``gym.make(..., model=...)`` read. It needs wheel odometry: every run must have the ``enc1 … encn``
+columns (an imported OptiOdom dataset has them).
+
+The output file is complete or absent (:class:`omni_gym.outputs.Output`): an existing file is refused
+without ``force``, the dataset folder itself never.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from omni_gym.discrepancy.data.dataset import load_dataset
+from omni_gym.discrepancy.fit.kinematic_calibration import KinematicCalibration, calibrate
+from omni_gym.outputs import Output, write_json_atomic
+
+
+def calibrate_dataset(dataset: str | Path, out: str | Path, force: bool = False) -> KinematicCalibration:
+    """Calibrate the nominal model of ``dataset`` on all its runs and write the result to ``out`` [JSON].
+
+    ValueError (one line, naming the dataset and the run) for a dataset without wheel odometry; an
+    :class:`omni_gym.outputs.OutputError` for an ``out`` that may not be written.
+    """
+    output = Output(out, "file", force=force, inputs=[dataset], what="model JSON")
+    output.preflight()  # a bad --out is refused before the dataset is read
+    ds = load_dataset(dataset)
+    for run in ds.runs:
+        if run.enc is None:
+            raise ValueError(f"{dataset}: run {run.name} has no wheel odometry (no enc1 … enc{ds.n_wheels} "
+                             "columns): calibrate dead-reckons from measured wheel angles")
+        if not np.all(np.isfinite(run.enc)):
+            k = int(np.nonzero(~np.all(np.isfinite(run.enc), axis=1))[0][0])
+            raise ValueError(f"{dataset}: run {run.name}: row {k + 2}: empty encoder cell; calibrate needs every "
+                             "wheel angle")
+    try:
+        cal = calibrate(ds.runs, ds.model)
+    except ValueError as exc:
+        raise ValueError(f"{dataset}: {exc}") from None
+    with output as tx:
+        write_json_atomic(tx.path, cal.model.to_json())
+    return cal
+
+
+def summary_lines(cal: KinematicCalibration, out: str | Path) -> list[str]:
+    """What ``omni-gym calibrate`` prints: the fitted values beside the nominal ones [mm] and the training
+    position RMS of dead reckoning against the tracker [mm] before and after."""
+    def mm(values) -> str:
+        return ", ".join(f"{1e3 * float(v):.2f}" for v in values)
+
+    return [
+        f"calibrated on {cal.runs} runs ({cal.rows} tracked rows): D = [{mm(cal.diameters)}] mm "
+        f"(nominal [{mm(cal.nominal_diameters)}]), {cal.size_name} = {1e3 * cal.L:.2f} mm "
+        f"(nominal {1e3 * cal.nominal_L:.2f})",
+        f"position RMS of dead reckoning against the tracker: {1e3 * cal.nominal_position_rms:.1f} mm nominal -> "
+        f"{1e3 * cal.train_position_rms:.1f} mm calibrated (these runs; check held-out runs with "
+        f"omni-gym score HELDOUT --model {out})",
+        f"wrote {out}",
+    ]

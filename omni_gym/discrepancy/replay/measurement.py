@@ -1,0 +1,62 @@
+"""The measurement model: what the pose tracker reports for a simulated motion.
+
+The simulator moves the robot's geometric centre; the tracker reports its own body point on its own
+clock. The model's tracker effects (``Effect.kind == "tracker"``: ``tracker_offset``, ``time_offset``)
+say how the two differ. This module is the one place they are applied: :func:`measured` turns
+simulated centre poses into the poses the tracker would report (used by
+:func:`omni_gym.discrepancy.replay.simulate.simulate_jobs` for every replay, so every residual of the
+workflow compares like with like), and :func:`centre_start` turns a tracked start state into the
+centre's (a replay from a measured state: a run's first pose, a segment's or a window's start).
+Physics effects pass through both unchanged.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from omni_gym.physics.effects import REGISTRY
+from omni_gym.physics.model import SimModel
+
+
+def _tracker_effects(model: SimModel) -> list[tuple]:
+    return [(REGISTRY[name], params) for name, params in model.effects.items() if REGISTRY[name].kind == "tracker"]
+
+
+def has_tracker_effects(model: SimModel) -> bool:
+    """True when ``model`` carries a measurement effect."""
+    return bool(_tracker_effects(model))
+
+
+def measured(model: SimModel, t: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """Tracker poses (K, 3) [m, m, rad] for centre poses ``pose`` (K, 3) at times ``t`` (K,) [s]: the time
+    offset first (which instant the tracker saw), then the tracked point's offset."""
+    effects = _tracker_effects(model)
+    # time shift before the body offset: the offset is rigid, it moves with the pose it is attached to
+    effects.sort(key=lambda e: 0 if e[0].name == "time_offset" else 1)
+    for effect, params in effects:
+        pose = effect.measure(params, t, pose)
+    return pose
+
+
+def centre_start(model: SimModel, pose: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The geometric centre's pose (3,) and velocity (3,) for a start state measured by the tracker
+    (the inverse of :func:`measured`, first order in the time offset)."""
+    effects = _tracker_effects(model)
+    effects.sort(key=lambda e: 0 if e[0].name == "time_offset" else 1, reverse=True)
+    pose, velocity = np.asarray(pose, dtype=float), np.asarray(velocity, dtype=float)
+    for effect, params in effects:
+        pose, velocity = effect.unmeasure(params, pose, velocity)
+    return pose, velocity
+
+
+def align_start(pose: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """``pose`` (K, 3) moved rigidly (rotated about its first row, then translated) so that its first row
+    is ``target`` (3,) [m, m, rad]. On a uniform floor the motion is equivariant under such moves."""
+    d = float(target[2] - pose[0, 2])
+    c, s = np.cos(d), np.sin(d)
+    rel = pose[:, :2] - pose[0, :2]
+    out = np.empty_like(pose)
+    out[:, 0] = target[0] + c * rel[:, 0] - s * rel[:, 1]
+    out[:, 1] = target[1] + s * rel[:, 0] + c * rel[:, 1]
+    out[:, 2] = pose[:, 2] + d
+    return out
