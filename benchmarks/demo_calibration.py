@@ -35,10 +35,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from real_optiodom import cut  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
 
-from omni_gym.discrepancy.dataset import Dataset  # noqa: E402
-from omni_gym.discrepancy.importers.optiodom import nominal_model, read_sessions  # noqa: E402
-from omni_gym.discrepancy.kinematic_calibration import calibrate  # noqa: E402
-from omni_gym.discrepancy.score import score_models  # noqa: E402
+from omni_gym.discrepancy.data.dataset import Dataset  # noqa: E402
+from omni_gym.discrepancy.data.importers.optiodom import nominal_model, read_sessions  # noqa: E402
+from omni_gym.discrepancy.decide.score import score_models  # noqa: E402
+from omni_gym.discrepancy.fit.kinematic_calibration import calibrate  # noqa: E402
 from omni_gym.outputs import write_text_atomic  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -99,7 +99,7 @@ def run_case(case: RobotCase, out: Path, quick: bool) -> CaseResult:
 
 
 def _plot(case: RobotCase, ds: Dataset, nominal, calibrated, out: Path) -> None:
-    from omni_gym.discrepancy.simulate import Job, simulate_poses
+    from omni_gym.discrepancy.replay.simulate import Job, simulate_poses
 
     run = ds.runs[0]
     sim = simulate_poses([Job(nominal, run), Job(calibrated, run)])

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.discrepancy.recovery import NOISES, SIZES, TOLERANCES, run_case
+from omni_gym.discrepancy.synthetic.recovery import NOISES, SIZES, TOLERANCES, run_case
 from omni_gym.parallel import add_ray_option, backend_from_options, parallel_map
 
 
@@ -161,7 +161,7 @@ def write_table(out: Path, results: list[dict], timed: list[dict], args, runs_no
              f"Nominal model: Williams robot, carpet, initial friction. Each case: {args.runs} runs of "
              f"{args.duration:g} s (random steps, ramps, rotations, diagonal moves at 50 Hz), tracker noise σ on x, y "
              "(σ/lever on heading), encoders quantised; `gap` with seed = data seed. Parameter errors: median over "
-             "the correctly named cases (units: see `TOLERANCES` in `omni_gym/discrepancy/recovery.py`). "
+             "the correctly named cases (units: see `TOLERANCES` in `omni_gym/discrepancy/synthetic/recovery.py`). "
              "Gap reduction: 1 − after/before of the held-out gap beyond noise (median; min in brackets).", "",
              "| effect | size | noise [mm] | correct name | other answers | parameter error (median) | params in tol "
              "| gap reduction median [min] | wall [s] |",

@@ -27,10 +27,10 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 from real_optiodom import plot_growth  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
 
-from omni_gym.discrepancy.dataset import Run  # noqa: E402
-from omni_gym.discrepancy.importers.optiodom import nominal_model, read_sessions  # noqa: E402
-from omni_gym.discrepancy.kinematic_calibration import calibrate, position_rms  # noqa: E402
-from omni_gym.discrepancy.simulate import FIT_DT, Job, simulate_poses  # noqa: E402
+from omni_gym.discrepancy.data.dataset import Run  # noqa: E402
+from omni_gym.discrepancy.data.importers.optiodom import nominal_model, read_sessions  # noqa: E402
+from omni_gym.discrepancy.fit.kinematic_calibration import calibrate, position_rms  # noqa: E402
+from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, simulate_poses  # noqa: E402
 from omni_gym.io import read_json  # noqa: E402
 from omni_gym.physics.model import SimModel  # noqa: E402
 

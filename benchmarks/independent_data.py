@@ -1,6 +1,6 @@
 """The workflow on data from an independent implementation: the right answer over many cases.
 
-Datasets from :mod:`omni_gym.discrepancy.reference_data` (the validation integrator, not the world the
+Datasets from :mod:`omni_gym.discrepancy.synthetic.reference_data` (the validation integrator, not the world the
 workflow fits with; white tracker noise 1 mm in x and y and 2 mrad in heading; random twist steps;
 Williams robot on carpet, initial friction). Categories (:func:`cases`), each case with its own seed,
 run count, run length, size and direction:
@@ -43,8 +43,8 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.discrepancy.recovery import TOLERANCES, nominal_model, param_error
-from omni_gym.discrepancy.reference_data import write_reference_dataset
+from omni_gym.discrepancy.synthetic.recovery import TOLERANCES, nominal_model, param_error
+from omni_gym.discrepancy.synthetic.reference_data import write_reference_dataset
 from omni_gym.discrepancy.workflow import gap
 from omni_gym.physics.effects import REGISTRY
 
@@ -157,7 +157,7 @@ def table(done: list[dict], command: str = "python benchmarks/independent_data.p
     right = sum(r["correct"] for r in done)
     lines = ["# Independent data: the right answer over many cases", "",
              f"`{command}` (datasets from the reference integrator, "
-             "`omni_gym.discrepancy.reference_data`; tracker noise 1 mm x/y, 2 mrad heading; 3-4 runs of "
+             "`omni_gym.discrepancy.synthetic.reference_data`; tracker noise 1 mm x/y, 2 mrad heading; 3-4 runs of "
              "2.5-3 s of random twist steps (two `none` cases: 8 runs of 5 s); Williams robot, carpet, initial "
              "friction; `gap` with at most 2 "
              "effects). Right: `none` with nothing hidden, `unexplained` for the drag outside the library, "

@@ -20,12 +20,12 @@ Robots (``data/optiodom-omni3``, ``data/optiodom-omni4``; their READMEs):
 * omni4 (four mecanum wheels): training circular/080920201015 + square/080920201810 (24 runs, day 1); held out
   square/080920201715 (day 1), circular/231220200440 and circular/231220200502 (day 2).
 
-The training sessions are imported together with ``omni_gym.discrepancy.importers.optiodom`` (nominal model
+The training sessions are imported together with ``omni_gym.discrepancy.data.importers.optiodom`` (nominal model
 from the metadata and the importer's documented assumptions for mass, inertia and surface). Models, all
 fitted on the robot's training runs only:
 
-* (a) nominal: simulated in our world (``omni_gym.discrepancy.simulate``) at the workflow's FIT_DT;
-* (b) kinematic: ``omni_gym.discrepancy.kinematic_calibration`` (least squares over the wheel diameters and
+* (a) nominal: simulated in our world (``omni_gym.discrepancy.replay.simulate``) at the workflow's FIT_DT;
+* (b) kinematic: ``omni_gym.discrepancy.fit.kinematic_calibration`` (least squares over the wheel diameters and
   L for omni3, l1 + l2 for omni4), dead-reckoned from the encoders (an arc per control cycle);
 * (c) kinematic, simulated: the calibration's SimModel in our world, as (a);
 * (d) extended: the ``model`` that ``omni_gym.discrepancy.workflow.gap`` returns on the training
@@ -56,16 +56,16 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from omni_gym.angles import wrap_angle  # noqa: E402
-from omni_gym.discrepancy.dataset import Run, write_dataset  # noqa: E402
-from omni_gym.discrepancy.importers.optiodom import describe, nominal_model, read_sessions  # noqa: E402
-from omni_gym.discrepancy.kinematic_calibration import (  # noqa: E402
+from omni_gym.discrepancy.data.dataset import Run, write_dataset  # noqa: E402
+from omni_gym.discrepancy.data.importers.optiodom import describe, nominal_model, read_sessions  # noqa: E402
+from omni_gym.discrepancy.data.segments import FIT_BUDGET  # noqa: E402
+from omni_gym.discrepancy.fit.kinematic_calibration import (  # noqa: E402
     KinematicCalibration,
     calibrate,
     dead_reckon,
     position_rms,
 )
-from omni_gym.discrepancy.segments import FIT_BUDGET  # noqa: E402
-from omni_gym.discrepancy.simulate import FIT_DT, Job, simulate_poses  # noqa: E402
+from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, simulate_poses  # noqa: E402
 from omni_gym.io import read_json  # noqa: E402
 from omni_gym.physics.model import SimModel  # noqa: E402
 
@@ -475,7 +475,7 @@ def table(robot: Robot, stem: str, command: str, quick: bool, nominal: SimModel,
             cells.append(f"{r.name.split('_')[-1]} ({r.t[-1]:.0f} s): " + " / ".join(mm(x) for x in v))
         lines.append(f"- {s.name}: " + "; ".join(cells))
     lines += ["", "## The models", "",
-              f"**Kinematic calibration** (`omni_gym.discrepancy.kinematic_calibration`): D = "
+              f"**Kinematic calibration** (`omni_gym.discrepancy.fit.kinematic_calibration`): D = "
               f"{', '.join(f'{1000 * d:.2f}' for d in cal.diameters)} mm (nominal "
               f"{', '.join(f'{1000 * d:.1f}' for d in cal.nominal_diameters)}), L = {1000 * cal.L:.2f} mm (nominal "
               f"{1000 * cal.nominal_L:.1f}); training position RMS {mm(cal.nominal_position_rms)} → "

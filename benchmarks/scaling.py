@@ -28,8 +28,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from omni_gym.discrepancy.fit_tasks import WORKERS
-from omni_gym.discrepancy.recovery import SIZES, run_case
+from omni_gym.discrepancy.fit.fit_tasks import WORKERS
+from omni_gym.discrepancy.synthetic.recovery import SIZES, run_case
 from omni_gym.parallel import Backend, parallel_map
 
 EFFECT = "motor_lag"
@@ -124,7 +124,7 @@ def write(out: Path, args: argparse.Namespace, timings: list[Timing], identical:
 
 def gap_work_table(result: dict, command: str) -> str:
     """Markdown: per search step and for the whole run, tasks, total work, critical path, longest task and
-    the speed-up reachable with W workers (``result['work']``, :func:`omni_gym.discrepancy.fit_tasks.work_json`),
+    the speed-up reachable with W workers (``result['work']``, :func:`omni_gym.discrepancy.fit.fit_tasks.work_json`),
     then each step's candidate fits."""
     work = result["work"]
     heads = " | ".join(f"W = {w}" for w in WORKERS)

@@ -15,14 +15,14 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import spearmanr
 
-from omni_gym.discrepancy.dataset import Dataset
-from omni_gym.discrepancy.fitting import Evaluator
-from omni_gym.discrepancy.importers.optiodom import nominal_model, read_sessions
-from omni_gym.discrepancy.kinematic_calibration import calibrate, calibrated_model
-from omni_gym.discrepancy.residuals import run_sse
-from omni_gym.discrepancy.score import heldout_whole_runs
-from omni_gym.discrepancy.segments import FIT_BUDGET, fit_data
-from omni_gym.discrepancy.synth import pose_lever
+from omni_gym.discrepancy.data.dataset import Dataset
+from omni_gym.discrepancy.data.importers.optiodom import nominal_model, read_sessions
+from omni_gym.discrepancy.data.segments import FIT_BUDGET, fit_data
+from omni_gym.discrepancy.decide.score import heldout_whole_runs
+from omni_gym.discrepancy.fit.fitting import Evaluator
+from omni_gym.discrepancy.fit.kinematic_calibration import calibrate, calibrated_model
+from omni_gym.discrepancy.replay.residuals import run_sse
+from omni_gym.discrepancy.synthetic.synth import pose_lever
 
 ROOT = Path(__file__).resolve().parents[1] / "data"
 ROBOTS = {"omni3": ("optiodom-omni3", ("circular/221220201701", "square/221220201953")),

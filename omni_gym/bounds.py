@@ -1,7 +1,7 @@
 """Bounds of the physical inputs read from files and the command line, in one place.
 
-The validators (:mod:`omni_gym.physics.model`, :mod:`omni_gym.io`, :mod:`omni_gym.discrepancy.dataset`,
-:mod:`omni_gym.discrepancy.synth`, :mod:`omni_gym.cli`) check values against these tables, and
+The validators (:mod:`omni_gym.physics.model`, :mod:`omni_gym.io`, :mod:`omni_gym.discrepancy.data.dataset`,
+:mod:`omni_gym.discrepancy.synthetic.synth`, :mod:`omni_gym.cli`) check values against these tables, and
 ``docs/bounds.md`` shows the same tables (rendered by :func:`markdown_table`; a test compares them),
 so the documented bounds and the checked bounds cannot drift apart.
 
@@ -155,7 +155,7 @@ FILES: dict[str, Bound] = {b.name: b for b in (
 )}
 
 # Rates no wheeled robot of this kind reaches, read from a dataset run as a whole (not per cell): a run
-# beyond them is in other units (omni_gym.discrepancy.units). 20 m/s (72 km/h) is beyond the fastest
+# beyond them is in other units (omni_gym.discrepancy.data.units). 20 m/s (72 km/h) is beyond the fastest
 # omnidirectional bases (RoboCup small-size robots reach about 5 m/s); 30 rad/s is near the range of
 # common MEMS gyros (35 rad/s) and 5 turns a second. A pose in millimetres of a robot moving at
 # 2 cm/s, or a heading in degrees of a robot turning at 0.6 rad/s, already exceeds them.

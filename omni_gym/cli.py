@@ -14,8 +14,8 @@ import numpy as np
 
 from omni_gym import __version__
 from omni_gym.bounds import CLI as CLI_BOUNDS
-from omni_gym.discrepancy.budget import FIT_BUDGET, MIN_FIT_BUDGET, MIN_SEGMENT, SEGMENT, check_fit_budget
-from omni_gym.discrepancy.importers import FORMATS as IMPORT_FORMATS
+from omni_gym.discrepancy.data.budget import FIT_BUDGET, MIN_FIT_BUDGET, MIN_SEGMENT, SEGMENT, check_fit_budget
+from omni_gym.discrepancy.data.importers import FORMATS as IMPORT_FORMATS
 from omni_gym.interrupts import EXIT_INTERRUPTED, main_handler
 from omni_gym.interrupts import MESSAGE as INTERRUPTED
 from omni_gym.parallel import add_ray_option, backend_from_options, usable_cores
@@ -246,8 +246,8 @@ def _cmd_model_show(args: argparse.Namespace) -> int:
 
 
 def _effect_param_lines(name: str, params: dict) -> list[tuple[str, str]]:
-    """(parameter, "value unit") of one model effect (units from omni_gym.discrepancy.plausible)."""
-    from omni_gym.discrepancy.plausible import UNITS
+    """(parameter, "value unit") of one model effect (units from omni_gym.discrepancy.fit.plausible)."""
+    from omni_gym.discrepancy.fit.plausible import UNITS
 
     units = UNITS.get(name, {})
     out = []
@@ -398,8 +398,8 @@ def _cmd_gap(args: argparse.Namespace) -> int:
 def _cmd_score(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
-    from omni_gym.discrepancy.dataset import load_dataset
-    from omni_gym.discrepancy.score import score_models, summary
+    from omni_gym.discrepancy.data.dataset import load_dataset
+    from omni_gym.discrepancy.decide.score import score_models, summary
     from omni_gym.physics.model import load_model
 
     ds = load_dataset(args.dataset)
@@ -429,7 +429,7 @@ def _cmd_synth(args: argparse.Namespace) -> int:
 
     # Refuse a bad --out before the slow imports; write_synthetic checks again (with the truth file).
     Output(args.out, "dir", force=args.force, inputs=[args.model], marker="dataset.json", what="dataset").preflight()
-    from omni_gym.discrepancy.synth import truth_path, write_synthetic
+    from omni_gym.discrepancy.synthetic.synth import truth_path, write_synthetic
     from omni_gym.physics.model import load_model
 
     check_option("--seed", args.seed)
@@ -445,7 +445,7 @@ def _cmd_import(args: argparse.Namespace) -> int:
 
     # Refuse a bad --out before reading the logs; import_optiodom checks again under the lock.
     Output(args.out, "dir", force=args.force, inputs=args.sessions, marker="dataset.json", what="dataset").preflight()
-    from omni_gym.discrepancy.importers import optiodom
+    from omni_gym.discrepancy.data.importers import optiodom
 
     surface = optiodom.SURFACE if args.surface is None else args.surface
     # mass None: the default of the sessions' robot type (omni3 8 kg, omni4 4 kg; docs/formats.md)
@@ -457,7 +457,7 @@ def _cmd_import(args: argparse.Namespace) -> int:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    from omni_gym.discrepancy.calibrate import calibrate_dataset, summary_lines
+    from omni_gym.discrepancy.fit.calibrate import calibrate_dataset, summary_lines
 
     cal = calibrate_dataset(args.dataset, args.out, force=args.force)
     print("\n".join(summary_lines(cal, args.out)))

@@ -26,8 +26,8 @@ def ray_cluster():
 @pytest.fixture(scope="module")
 def lag_dataset(tmp_path_factory):
     """A small synthetic dataset with a hidden motor lag (τ 80 ms; 3 runs of 1.5 s, tracker noise 1 mm, seed 5)."""
-    from omni_gym.discrepancy.recovery import nominal_model
-    from omni_gym.discrepancy.synth import write_synthetic
+    from omni_gym.discrepancy.synthetic.recovery import nominal_model
+    from omni_gym.discrepancy.synthetic.synth import write_synthetic
 
     folder = tmp_path_factory.mktemp("lag") / "lag"
     write_synthetic(folder, nominal_model(), 'motor_lag:{"tau": 0.08}', 3, 0.001, 5, 1.5)
@@ -37,7 +37,8 @@ def lag_dataset(tmp_path_factory):
 @pytest.fixture
 def only_motor_lag(monkeypatch):
     """Fit only the motor_lag candidate (fast); the decision rules are unchanged."""
-    from omni_gym.discrepancy import candidates, workflow
+    from omni_gym.discrepancy import workflow
+    from omni_gym.discrepancy.fit import candidates
 
     monkeypatch.setattr(workflow, "candidates",
                         lambda model: [c for c in candidates.candidates(model) if c.name == "motor_lag"])

@@ -22,6 +22,10 @@ Layers (a module belongs to the longest prefix in :data:`LAYERS` that names it),
 * ``omni_gym.cli``: the command line, on top of everything.
 
 A new layer is one entry in :data:`LAYERS` (and its name in :data:`CORE` when core may import it).
+
+Inside ``omni_gym.discrepancy`` the sub-packages are the stages of ``gap`` in the order the data flows
+(:data:`STAGES`): a module imports its own stage and earlier ones, never a later one, so the folders read
+in order (data in, replay, fit, decide, report; the workflow walks them; the synthetic test bench runs it).
 """
 
 from __future__ import annotations
@@ -56,8 +60,14 @@ ALLOWED_UP = {
     # Data made by an independent implementation (issue 15 item 6): the validation integrator generates
     # test datasets for the workflow. Only this generator may use it; the workflow itself never does,
     # so the integrator stays independent of what it checks.
-    ("omni_gym.discrepancy.reference_data", "omni_gym.analysis"),
+    ("omni_gym.discrepancy.synthetic.reference_data", "omni_gym.analysis"),
 }
+
+
+# The discrepancy workflow's parts, first to last (docs/architecture.md): a module may import only its own
+# part and earlier ones. The settings come first: every stage reads its own, and they import no stage.
+STAGES = tuple(f"omni_gym.discrepancy.{part}" for part in (
+    "settings", "data", "replay", "fit", "decide", "report", "workflow", "synthetic"))
 
 
 def _modules() -> dict[str, tuple[Path, bool]]:
@@ -139,6 +149,23 @@ def upward_imports(graph: dict[str, set[str]]) -> list[str]:
     return bad
 
 
+def stage(mod: str) -> int | None:
+    """Index in :data:`STAGES` of the part that holds ``mod`` (None: outside them, e.g. the package ``__init__``)."""
+    found = [i for i, s in enumerate(STAGES) if mod == s or mod.startswith(s + ".")]
+    return found[0] if found else None
+
+
+def later_stage_imports(graph: dict[str, set[str]]) -> list[str]:
+    """Every import from a discrepancy module to a later stage than its own."""
+    bad = []
+    for mod, targets in sorted(graph.items()):
+        own = stage(mod)
+        for t in sorted(targets):
+            if own is not None and (other := stage(t)) is not None and other > own:
+                bad.append(f"{mod} ({STAGES[own]}) imports {t} ({STAGES[other]}), a later stage")
+    return bad
+
+
 def test_no_import_cycle():
     assert find_cycle(import_graph()) is None, " -> ".join(find_cycle(import_graph()))
 
@@ -162,11 +189,39 @@ def test_the_checks_catch_a_cycle_and_an_upward_import():
         "omni_gym.physics.model (omni_gym.physics) imports agents.train (agents)"]
     assert upward_imports({"omni_gym.physics.world": {"omni_gym.sensors"}})  # physics below core
     assert upward_imports({"omni_gym.bounds": {"omni_gym.physics.liftoff"}})  # utilities below physics
-    assert upward_imports({"omni_gym.discrepancy.synth": {"omni_gym.analysis.reference"}})
-    assert upward_imports({"omni_gym.discrepancy.synth": {"omni_gym.envs.core"}})
-    assert upward_imports({"agents.train": {"omni_gym.discrepancy.synth"}})
+    assert upward_imports({"omni_gym.discrepancy.synthetic.synth": {"omni_gym.analysis.reference"}})
+    assert upward_imports({"omni_gym.discrepancy.synthetic.synth": {"omni_gym.envs.core"}})
+    assert upward_imports({"agents.train": {"omni_gym.discrepancy.synthetic.synth"}})
     assert upward_imports({"agents.train": {"omni_gym.cli"}})
-    assert upward_imports({"omni_gym.cli": {"agents.train", "omni_gym.discrepancy.synth"}}) == []
+    assert upward_imports({"omni_gym.cli": {"agents.train", "omni_gym.discrepancy.synthetic.synth"}}) == []
+
+
+def test_the_discrepancy_stages_import_only_earlier_stages():
+    assert later_stage_imports(import_graph()) == []
+
+
+def test_every_discrepancy_module_sits_in_a_stage():
+    """A module added beside the stages would escape the order check: only the package itself may."""
+    loose = [m for m in _modules() if m.startswith("omni_gym.discrepancy") and stage(m) is None]
+    assert loose == ["omni_gym.discrepancy"]
+
+
+def test_the_stage_check_catches_an_import_of_a_later_stage():
+    """On made-up graphs: fit importing decide, data importing replay, a stage importing the workflow."""
+    fit_to_decide = {"omni_gym.discrepancy.fit.events": {"omni_gym.discrepancy.decide.decision"}}
+    assert later_stage_imports(fit_to_decide) == [
+        "omni_gym.discrepancy.fit.events (omni_gym.discrepancy.fit) imports omni_gym.discrepancy.decide.decision "
+        "(omni_gym.discrepancy.decide), a later stage"]
+    assert later_stage_imports({"omni_gym.discrepancy.data.segments": {"omni_gym.discrepancy.replay.localise"}})
+    assert later_stage_imports({"omni_gym.discrepancy.report.report": {"omni_gym.discrepancy.workflow"}})
+    assert later_stage_imports({"omni_gym.discrepancy.workflow": {"omni_gym.discrepancy.synthetic.synth"}})
+    assert later_stage_imports({"omni_gym.discrepancy.settings": {"omni_gym.discrepancy.data.dataset"}})
+    assert later_stage_imports({  # earlier stages, the own stage and modules outside the stages are fine
+        "omni_gym.discrepancy.decide.decision": {"omni_gym.discrepancy.fit.candidates",
+                                                 "omni_gym.discrepancy.settings"},
+        "omni_gym.discrepancy.fit.fitting": {"omni_gym.discrepancy.fit.search", "omni_gym.physics.world"},
+        "omni_gym.discrepancy.synthetic.recovery": {"omni_gym.discrepancy.workflow"},
+        "omni_gym.cli": {"omni_gym.discrepancy.synthetic.synth"}}) == []
 
 
 @pytest.mark.parametrize("source, expect", [

@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from omni_gym.discrepancy.dataset import load_dataset, write_dataset
-from omni_gym.discrepancy.importers.optiodom import import_optiodom
-from omni_gym.discrepancy.kinematic_calibration import dead_reckon, layout_geometry
+from omni_gym.discrepancy.data.dataset import load_dataset, write_dataset
+from omni_gym.discrepancy.data.importers.optiodom import import_optiodom
+from omni_gym.discrepancy.fit.kinematic_calibration import dead_reckon, layout_geometry
 from omni_gym.physics.layout import WP_DX, WP_DY, WP_PX, WP_PY, WP_R
 from omni_gym.physics.model import load_model
 

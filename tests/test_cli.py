@@ -349,7 +349,7 @@ def test_gap_jobs_beyond_the_cores_is_capped_with_a_warning(tmp_path, capsys, mo
 
 
 def test_gap_fit_budget_below_the_minimum_says_the_minimum(tmp_path, capsys, monkeypatch):
-    from omni_gym.discrepancy.budget import MIN_FIT_BUDGET, MIN_SEGMENT
+    from omni_gym.discrepancy.data.budget import MIN_FIT_BUDGET, MIN_SEGMENT
 
     seen = _fake_gap(monkeypatch)
     assert main(["gap", str(tmp_path / "ds"), "--out", str(tmp_path / "rep"), "--fit-budget", "0.5"]) == 2
@@ -362,7 +362,7 @@ def test_gap_fit_budget_below_the_minimum_says_the_minimum(tmp_path, capsys, mon
 
 
 def test_gap_help_states_the_segment_length_gap_uses(capsys):
-    from omni_gym.discrepancy.budget import FIT_BUDGET, segment_seconds
+    from omni_gym.discrepancy.data.budget import FIT_BUDGET, segment_seconds
 
     with pytest.raises(SystemExit):
         main(["gap", "--help"])

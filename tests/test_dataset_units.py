@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from omni_gym.discrepancy.dataset import Run, load_dataset, write_dataset
-from omni_gym.discrepancy.units import tracked_rates
+from omni_gym.discrepancy.data.dataset import Run, load_dataset, write_dataset
+from omni_gym.discrepancy.data.units import tracked_rates
 from omni_gym.io import InputError
 from omni_gym.physics.model import load_model
 

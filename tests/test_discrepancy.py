@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from omni_gym.cli import main
-from omni_gym.discrepancy.dataset import Run, load_dataset, write_dataset
-from omni_gym.discrepancy.recovery import nominal_model, run_case
-from omni_gym.discrepancy.synth import truth_path, write_synthetic
+from omni_gym.discrepancy.data.dataset import Run, load_dataset, write_dataset
+from omni_gym.discrepancy.synthetic.recovery import nominal_model, run_case
+from omni_gym.discrepancy.synthetic.synth import truth_path, write_synthetic
 from omni_gym.discrepancy.workflow import gap
 from omni_gym.physics.effects import REGISTRY
 from omni_gym.physics.model import SimModel, load_model
@@ -224,9 +224,10 @@ def test_fitted_model_replays_through_simulate(small_dataset, tmp_path):
 
 def test_progress_ticks_stay_within_each_fits_bound(small_dataset):
     """The progress bar's total is the sum of max_ticks: a fit that ticked more would overrun it."""
-    from omni_gym.discrepancy.candidates import candidates
-    from omni_gym.discrepancy.fitting import Evaluator, fit_candidate, make_folds, max_ticks
-    from omni_gym.discrepancy.synth import pose_lever
+    from omni_gym.discrepancy.data.folds import make_folds
+    from omni_gym.discrepancy.fit.candidates import candidates
+    from omni_gym.discrepancy.fit.fitting import Evaluator, fit_candidate, max_ticks
+    from omni_gym.discrepancy.synthetic.synth import pose_lever
 
     ds = load_dataset(small_dataset)
     ev = Evaluator(ds, pose_lever(ds.model))

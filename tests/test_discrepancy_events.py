@@ -1,4 +1,4 @@
-"""Lift-event inference for the wheel_liftoff candidate (omni_gym.discrepancy.events)."""
+"""Lift-event inference for the wheel_liftoff candidate (omni_gym.discrepancy.fit.events)."""
 
 import math
 from pathlib import Path
@@ -6,14 +6,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from omni_gym.discrepancy.dataset import Dataset, Run
-from omni_gym.discrepancy.events import PARAMS_PER_EVENT, EventProblem, infer_events
-from omni_gym.discrepancy.fitting import Evaluator
-from omni_gym.discrepancy.recovery import nominal_model
-from omni_gym.discrepancy.residuals import count_components, noise_estimate, run_sse
+from omni_gym.discrepancy.data.dataset import Dataset, Run
+from omni_gym.discrepancy.fit.events import PARAMS_PER_EVENT, EventProblem, infer_events
+from omni_gym.discrepancy.fit.fitting import Evaluator
+from omni_gym.discrepancy.replay.residuals import count_components, noise_estimate, run_sse
+from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, simulate_jobs
 from omni_gym.discrepancy.settings import DecisionRules, EventSearchSettings
-from omni_gym.discrepancy.simulate import FIT_DT, Job, simulate_jobs
-from omni_gym.discrepancy.synth import pose_lever
+from omni_gym.discrepancy.synthetic.recovery import nominal_model
+from omni_gym.discrepancy.synthetic.synth import pose_lever
 from omni_gym.physics.liftoff import ScheduledContactProcess, contact_cases
 from omni_gym.physics.world import DEFAULT_DT, World
 
@@ -143,7 +143,7 @@ def test_events_must_beat_the_noise_level(monkeypatch):
     (check_evidence a no-op: the BIC keep test alone) an event was inferred at 0.68 s, half a second
     from the true lift, trimming the run to 0.95 σ̂²: fitted noise. A 100 ms lift at the same speed
     (1.46 σ̂²) beats the noise and is still found, at its time."""
-    import omni_gym.discrepancy.events as events
+    import omni_gym.discrepancy.fit.events as events
 
     ds, lever = _slow_lift_dataset(0.05)
     fit, mse0 = _infer(ds, lever)
@@ -171,8 +171,8 @@ def test_a_stochastic_candidate_must_remove_most_of_the_gap_even_at_noise_level(
     noise level: within 1.3 σ²; 35 % of the gap beyond noise removed)."""
     from dataclasses import dataclass
 
-    from omni_gym.discrepancy.candidates import Candidate
-    from omni_gym.discrepancy.decision import decide
+    from omni_gym.discrepancy.decide.decision import decide
+    from omni_gym.discrepancy.fit.candidates import Candidate
     from omni_gym.physics.effects import Dim
 
     @dataclass

@@ -16,13 +16,13 @@ import math
 import numpy as np
 import pytest
 
-from omni_gym.discrepancy.dataset import Dataset
-from omni_gym.discrepancy.fitting import Evaluator
-from omni_gym.discrepancy.recovery import TOLERANCES, nominal_model, param_error
-from omni_gym.discrepancy.reference_data import reference_runs, write_reference_dataset
-from omni_gym.discrepancy.residuals import noise_estimate
-from omni_gym.discrepancy.simulate import FIT_DT, Job, pose_residual, simulate_poses
-from omni_gym.discrepancy.synth import pose_lever
+from omni_gym.discrepancy.data.dataset import Dataset
+from omni_gym.discrepancy.fit.fitting import Evaluator
+from omni_gym.discrepancy.replay.residuals import noise_estimate
+from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, pose_residual, simulate_poses
+from omni_gym.discrepancy.synthetic.recovery import TOLERANCES, nominal_model, param_error
+from omni_gym.discrepancy.synthetic.reference_data import reference_runs, write_reference_dataset
+from omni_gym.discrepancy.synthetic.synth import pose_lever
 from omni_gym.discrepancy.workflow import gap
 
 SIGMA = np.array([1e-3, 1e-3, 0.18e-3])  # m: x, y, heading x lever (2 mrad x 0.09 m)
@@ -108,10 +108,11 @@ def test_com_offset_fit_finds_the_truth_basin_over_seeds(tmp_path, noisy_start):
     """The com_offset fit alone (no decision) on 6 seeds of independent data, 16 mm in a random
     direction: every fit within the documented tolerance, at most the truth's SSE plus 1 % (a fit that
     settles in another basin has a larger SSE than the truth's; measured 0.95-1.00x)."""
-    from omni_gym.discrepancy.candidates import candidates
-    from omni_gym.discrepancy.dataset import load_dataset
-    from omni_gym.discrepancy.fitting import fit_candidate, make_folds
-    from omni_gym.discrepancy.residuals import run_sse
+    from omni_gym.discrepancy.data.dataset import load_dataset
+    from omni_gym.discrepancy.data.folds import make_folds
+    from omni_gym.discrepancy.fit.candidates import candidates
+    from omni_gym.discrepancy.fit.fitting import fit_candidate
+    from omni_gym.discrepancy.replay.residuals import run_sse
 
     model = nominal_model()
     cand = next(c for c in candidates(model) if c.name == "com_offset")
@@ -172,8 +173,8 @@ def test_identifiability_needs_rotation_to_place_a_tracked_point():
     must say so: without rotation the offset is not identified and the yaw is; with rotation all are.
     On a gripping floor (no slip), so that translation commands do not turn the robot (on carpet with
     the initial friction, slip turned a "straight" run by 0.37 rad, which places the point too)."""
-    from omni_gym.discrepancy.candidates import candidates
-    from omni_gym.discrepancy.identifiability import Named, analyse
+    from omni_gym.discrepancy.fit.candidates import candidates
+    from omni_gym.discrepancy.fit.identifiability import Named, analyse
     from omni_gym.physics.model import load_model
 
     model = load_model("williams2002", surface="grip", friction="initial")

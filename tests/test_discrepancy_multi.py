@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from omni_gym.cli import main
-from omni_gym.discrepancy import recovery, synth
-from omni_gym.discrepancy.dataset import write_dataset
+from omni_gym.discrepancy.data.dataset import write_dataset
+from omni_gym.discrepancy.synthetic import recovery, synth
 from omni_gym.discrepancy.workflow import gap
 
 # Two effects that act on different things: wheel radii (a steady kinematic error) and a motor lag (an

@@ -1,7 +1,7 @@
 """``gap`` end to end on real logs (issue 15 item 7): a small subset of the bundled OptiOdom runs.
 
 Four runs of the training sessions (two clockwise circles, two squares; 220 s of
-robot time), fitted within a 20 s budget (one 5 s segment of each run, ``segments.py``), one search
+robot time), fitted within a 20 s budget (one 5 s segment of each run, ``data/segments.py``), one search
 step (``max_effects=1``): about a minute on this machine. The full study is
 ``benchmarks/real_optiodom.py``.
 """
@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from omni_gym.discrepancy.dataset import load_dataset, write_dataset
-from omni_gym.discrepancy.importers.optiodom import import_optiodom
+from omni_gym.discrepancy.data.dataset import load_dataset, write_dataset
+from omni_gym.discrepancy.data.importers.optiodom import import_optiodom
 from omni_gym.discrepancy.workflow import gap
 from omni_gym.physics.effects import REGISTRY
 

@@ -1,7 +1,7 @@
 """``gap`` end to end on the four-wheeled (mecanum) OptiOdom robot: a small subset of its bundled runs.
 
 Four runs of the two day-1 training sessions (two circles, two squares, about 350 s of robot time),
-fitted within a 20 s budget (one 5 s segment of each run, ``segments.py``), one search step
+fitted within a 20 s budget (one 5 s segment of each run, ``data/segments.py``), one search step
 (``max_effects=1``): about a minute on this machine. The two-robot study is ``benchmarks/real_optiodom.py``.
 """
 
@@ -11,11 +11,11 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.discrepancy.candidates import candidates, not_applicable
-from omni_gym.discrepancy.dataset import load_dataset, write_dataset
-from omni_gym.discrepancy.importers.optiodom import import_optiodom
-from omni_gym.discrepancy.kinematic_calibration import nominal_geometry
-from omni_gym.discrepancy.report import markdown
+from omni_gym.discrepancy.data.dataset import load_dataset, write_dataset
+from omni_gym.discrepancy.data.importers.optiodom import import_optiodom
+from omni_gym.discrepancy.fit.candidates import candidates, not_applicable
+from omni_gym.discrepancy.fit.kinematic_calibration import nominal_geometry
+from omni_gym.discrepancy.report.report import markdown
 from omni_gym.discrepancy.workflow import gap
 from omni_gym.physics.effects import REGISTRY
 from omni_gym.physics.model import SimModel

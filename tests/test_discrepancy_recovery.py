@@ -13,14 +13,14 @@ Two tiers, the same assertions:
   full sweep.
 
 Thresholds are the issue's: the right name in >= 90 % of cases (quick sweep: each case), parameters
-within the documented tolerances (omni_gym.discrepancy.recovery.TOLERANCES, docs/discrepancy.md),
+within the documented tolerances (omni_gym.discrepancy.synthetic.recovery.TOLERANCES, docs/discrepancy.md),
 the held-out gap beyond tracker noise reduced by >= 70 %. The committed benchmark
 (benchmarks/discrepancy_recovery.py) runs the study on larger datasets and reports wall times.
 """
 
 import pytest
 
-from omni_gym.discrepancy.recovery import NOISES, SIZES, TOLERANCES, run_case
+from omni_gym.discrepancy.synthetic.recovery import NOISES, SIZES, TOLERANCES, run_case
 
 RUNS, DURATION = 4, 2.5
 # wheel_geometry fits 6 dimensions (3 distances, 3 mounting yaws): on 4 runs of 2.5 s its fold fits (2-3

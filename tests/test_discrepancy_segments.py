@@ -1,4 +1,4 @@
-"""Fitting on a budget (omni_gym.discrepancy.segments): long datasets are fitted on segments of their runs,
+"""Fitting on a budget (omni_gym.discrepancy.data.segments): long datasets are fitted on segments of their runs,
 each replayed from the tracked state at its start; folds split by source run."""
 
 from __future__ import annotations
@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from omni_gym.cli import main
-from omni_gym.discrepancy import recovery, synth
-from omni_gym.discrepancy.dataset import Dataset, write_dataset
-from omni_gym.discrepancy.fitting import make_folds
-from omni_gym.discrepancy.segments import SEGMENT, fit_data
-from omni_gym.discrepancy.simulate import Job, simulate_poses
+from omni_gym.discrepancy.data.dataset import Dataset, write_dataset
+from omni_gym.discrepancy.data.folds import make_folds
+from omni_gym.discrepancy.data.segments import SEGMENT, fit_data
+from omni_gym.discrepancy.replay.simulate import Job, simulate_poses
+from omni_gym.discrepancy.synthetic import recovery, synth
 
 RUNS, DURATION = 3, 24.0  # three 24 s runs: two full 10 s segments and a 4 s tail each
 

@@ -10,16 +10,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from omni_gym.discrepancy import synth
-from omni_gym.discrepancy.dataset import Dataset, Run, load_dataset, sessions_of, write_dataset
-from omni_gym.discrepancy.fitting import Evaluator, source_folds
-from omni_gym.discrepancy.importers.optiodom import nominal_model, read_sessions
-from omni_gym.discrepancy.kinematic_calibration import nominal_geometry
-from omni_gym.discrepancy.residuals import run_sse
-from omni_gym.discrepancy.score import heldout_whole_runs
-from omni_gym.discrepancy.segments import fit_data
-from omni_gym.discrepancy.simulate import Job, simulate_poses
-from omni_gym.discrepancy.synth import pose_lever
+from omni_gym.discrepancy.data.dataset import Dataset, Run, load_dataset, sessions_of, write_dataset
+from omni_gym.discrepancy.data.folds import source_folds
+from omni_gym.discrepancy.data.importers.optiodom import nominal_model, read_sessions
+from omni_gym.discrepancy.data.segments import fit_data
+from omni_gym.discrepancy.decide.score import heldout_whole_runs
+from omni_gym.discrepancy.fit.fitting import Evaluator
+from omni_gym.discrepancy.fit.kinematic_calibration import nominal_geometry
+from omni_gym.discrepancy.replay.residuals import run_sse
+from omni_gym.discrepancy.replay.simulate import Job, simulate_poses
+from omni_gym.discrepancy.synthetic import synth
+from omni_gym.discrepancy.synthetic.synth import pose_lever
 from omni_gym.discrepancy.workflow import gap
 from omni_gym.io import InputError
 
@@ -142,9 +143,9 @@ def test_gap_starts_from_the_kinematic_calibration(tmp_path, omni3):
 
 def _step(model, name: str, params: dict, K: int):
     """A search step that named ``name`` with ``params`` on all runs and in every fold."""
-    from omni_gym.discrepancy.candidates import candidates
-    from omni_gym.discrepancy.decision import Decision
-    from omni_gym.discrepancy.fitting import FitResult
+    from omni_gym.discrepancy.decide.decision import Decision
+    from omni_gym.discrepancy.fit.candidates import candidates
+    from omni_gym.discrepancy.fit.fitting import FitResult
     from omni_gym.discrepancy.workflow import Step
 
     cand = next(c for c in candidates(model) if c.name == name)

@@ -13,12 +13,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from omni_gym.discrepancy import plausible, recovery, synth
-from omni_gym.discrepancy.candidates import candidates, null_point
-from omni_gym.discrepancy.dataset import Dataset
-from omni_gym.discrepancy.fitting import Evaluator, fit_candidate, make_folds
-from omni_gym.discrepancy.measurement import measured
+from omni_gym.discrepancy.data.dataset import Dataset
+from omni_gym.discrepancy.data.folds import make_folds
+from omni_gym.discrepancy.fit import plausible
+from omni_gym.discrepancy.fit.candidates import candidates, null_point
+from omni_gym.discrepancy.fit.fitting import Evaluator, fit_candidate
+from omni_gym.discrepancy.replay.measurement import measured
 from omni_gym.discrepancy.settings import FitSettings, GapSettings
+from omni_gym.discrepancy.synthetic import recovery, synth
 from omni_gym.physics.effects import REGISTRY, Effect, get
 from omni_gym.physics.model import MODEL_BOUNDS, SimModel
 from omni_gym.physics.replay import simulate_commands

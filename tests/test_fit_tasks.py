@@ -1,4 +1,4 @@
-"""gap's candidate fits as tasks finer than a candidate (omni_gym.discrepancy.fit_tasks), and the work record.
+"""gap's candidate fits as tasks finer than a candidate (omni_gym.discrepancy.fit.fit_tasks), and the work record.
 
 A round of a fit is cut into chunk tasks of contiguous jobs; put back together they give the one-batch
 residuals bit for bit (a robot's simulation does not depend on the other robots of its world). ``gap`` on
@@ -16,13 +16,14 @@ import numpy as np
 import pytest
 from benchmark_loader import load_benchmark
 
-from omni_gym.discrepancy import candidates, workflow
-from omni_gym.discrepancy.candidates import candidates as library
-from omni_gym.discrepancy.dataset import load_dataset
-from omni_gym.discrepancy.fit_tasks import WORKERS, FitShared, chunk_task, chunks, reachable_speedup
-from omni_gym.discrepancy.fitting import Evaluator
-from omni_gym.discrepancy.recovery import nominal_model
-from omni_gym.discrepancy.synth import pose_lever, write_synthetic
+from omni_gym.discrepancy import workflow
+from omni_gym.discrepancy.data.dataset import load_dataset
+from omni_gym.discrepancy.fit import candidates
+from omni_gym.discrepancy.fit.candidates import candidates as library
+from omni_gym.discrepancy.fit.fit_tasks import WORKERS, FitShared, chunk_task, chunks, reachable_speedup
+from omni_gym.discrepancy.fit.fitting import Evaluator
+from omni_gym.discrepancy.synthetic.recovery import nominal_model
+from omni_gym.discrepancy.synthetic.synth import pose_lever, write_synthetic
 from omni_gym.parallel import Backend
 
 # Three candidates: a plain LM fit, a valley search, and the stochastic one (lift events: its own jobs).
@@ -137,7 +138,7 @@ def test_reachable_speedup_is_the_critical_path_bound() -> None:
 def test_work_json_and_the_scaling_table_of_a_known_record() -> None:
     """One step of 100 s of work with a 10 s critical path, 10 s of serial driver work around it."""
 
-    from omni_gym.discrepancy.fit_tasks import FitWork, StepWork, work_json
+    from omni_gym.discrepancy.fit.fit_tasks import FitWork, StepWork, work_json
 
     fit = FitWork("a")
     for _ in range(9):  # 9 rounds of ten 1-s tasks: 90 s of work, a 9 s chain

@@ -17,12 +17,13 @@ import numpy as np
 import pytest
 
 from omni_gym.cli import main
-from omni_gym.discrepancy import candidates, plausible, workflow
-from omni_gym.discrepancy.dataset import load_dataset, write_dataset
-from omni_gym.discrepancy.finite import dumps_strict, finite_json
-from omni_gym.discrepancy.outliers import drop_outliers, find_outliers
-from omni_gym.discrepancy.recovery import nominal_model
-from omni_gym.discrepancy.synth import pose_lever, write_synthetic
+from omni_gym.discrepancy import workflow
+from omni_gym.discrepancy.data.dataset import load_dataset, write_dataset
+from omni_gym.discrepancy.data.outliers import drop_outliers, find_outliers
+from omni_gym.discrepancy.fit import candidates, plausible
+from omni_gym.discrepancy.report.finite import dumps_strict, finite_json
+from omni_gym.discrepancy.synthetic.recovery import nominal_model
+from omni_gym.discrepancy.synthetic.synth import pose_lever, write_synthetic
 from omni_gym.physics.effects import REGISTRY
 
 JUMP = 3.0  # m, the issue's outlier: one tracked row 3 m off
@@ -307,7 +308,7 @@ def test_commands_taken_from_the_encoders_drop_the_actuation_figures(lag_dataset
 
 def _record_figures(monkeypatch) -> dict:
     """Capture every figure the report saves, by file name (and still save it)."""
-    from omni_gym.discrepancy import report
+    from omni_gym.discrepancy.report import report
 
     figures = {}
     save = report._save

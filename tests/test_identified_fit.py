@@ -1,4 +1,4 @@
-"""The final fit restricted to what the data determine (omni_gym.discrepancy.identified_fit).
+"""The final fit restricted to what the data determine (omni_gym.discrepancy.fit.identified_fit).
 
 A linear stand-in for the simulator, so the test runs in milliseconds and the truth is known exactly:
 residual = y − (a + b)·X − c·Z − e·W per run, with a dimension d that changes nothing and a regressor W
@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from omni_gym.discrepancy.candidates import Candidate
-from omni_gym.discrepancy.identifiability import Named, linearise, summary
-from omni_gym.discrepancy.identified_fit import refit, statuses
+from omni_gym.discrepancy.fit.candidates import Candidate
+from omni_gym.discrepancy.fit.identifiability import Named, linearise, summary
+from omni_gym.discrepancy.fit.identified_fit import refit, statuses
 from omni_gym.physics.effects import Dim
 
 SIGMA = 1e-3  # white noise per residual component [m]
@@ -109,7 +109,7 @@ def test_a_bound_value_the_data_need_is_kept_and_said_to_be_at_its_bound():
     the data demand it): the search stops at the bound. Holding e at its start value (0.1) would predict
     every run worse by far more than the 5 % tolerance, so the search's value stays, and the status says
     it sits at its bound with the held-out cost of holding it."""
-    from omni_gym.discrepancy.residuals import run_sse
+    from omni_gym.discrepancy.replay.residuals import run_sse
 
     cand = _candidate()
     ev = _Evaluator()
@@ -139,7 +139,7 @@ def test_a_bound_value_the_data_need_is_kept_and_said_to_be_at_its_bound():
 def test_report_never_shows_a_bound_value_as_a_measurement():
     """report.md's fitted parameters: a value at its fit bound, or one the data determine only together with
     others, carries what it is; an identified one stands alone."""
-    from omni_gym.discrepancy.report import _not_measured_lines, _param_lines
+    from omni_gym.discrepancy.report.report import _not_measured_lines, _param_lines
 
     status = {"identified": ["distance1"], "merged": [], "loose": {"mount1": 0.12}, "fixed": {"mount2": 0.0},
               "bound_fixed": {}, "kept": {}, "at_bound": [], "combinations": [], "bound_cost": {"distance2": 8.4},

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from omni_gym.cli import main
-from omni_gym.discrepancy.dataset import load_dataset
-from omni_gym.discrepancy.importers import optiodom
-from omni_gym.discrepancy.importers.optiodom import import_optiodom, read_sessions
-from omni_gym.discrepancy.simulate import Job, simulate_jobs
+from omni_gym.discrepancy.data.dataset import load_dataset
+from omni_gym.discrepancy.data.importers import optiodom
+from omni_gym.discrepancy.data.importers.optiodom import import_optiodom, read_sessions
+from omni_gym.discrepancy.replay.simulate import Job, simulate_jobs
 from omni_gym.io import InputError
 from omni_gym.physics.friction import Surface
 from omni_gym.physics.kinematics import forward

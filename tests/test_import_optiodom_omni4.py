@@ -20,15 +20,14 @@ import numpy as np
 import pytest
 
 from omni_gym.cli import main
-from omni_gym.discrepancy.importers.optiodom import (
+from omni_gym.discrepancy.data.importers.optiodom import (
     import_optiodom,
-    kinematic_geometry,
     nominal_model_json,
     omni4_wheel_layout,
     read_metadata,
     read_sessions,
 )
-from omni_gym.discrepancy.kinematic_calibration import dead_reckon, layout_geometry
+from omni_gym.discrepancy.fit.kinematic_calibration import dead_reckon, layout_geometry, optiodom_geometry
 from omni_gym.io import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -110,7 +109,7 @@ def test_dead_reckoning_from_the_import_is_the_readme_formula_and_tracks_motion_
     both drift 80–200 mm RMS (README), measured 98 and 97 mm on these two runs. Band [60, 250] mm: a
     wrong sign on a wheel or column gives metres, a perfect match would mean no comparison."""
     meta, runs = square_runs
-    geometry = kinematic_geometry(meta)
+    geometry = optiodom_geometry(meta)
     for run in runs:
         ours = dead_reckon(run, geometry)
         readme = readme_dead_reckoning(SQUARE / f"{run.name}.csv.gz")
@@ -135,7 +134,7 @@ def test_li_is_read_per_session(tmp_path):
     folder = copy_session(SQUARE, tmp_path / "s", rows=50, meta=meta_text)
     meta = read_metadata(folder / "080920201715_metadata.csv")
     assert meta.Li == (0.205, 0.215)
-    assert kinematic_geometry(meta).size == pytest.approx(0.42)
+    assert optiodom_geometry(meta).size == pytest.approx(0.42)
     wheels = nominal_model_json(meta)["wheels"]
     assert [w["position"] for w in wheels] == [[0.1025, 0.1075], [0.1025, -0.1075], [-0.1025, 0.1075],
                                                [-0.1025, -0.1075]]
@@ -196,7 +195,7 @@ def omni4_dataset(tmp_path_factory):
     root = tmp_path_factory.mktemp("omni4")
     folder = copy_session(SQUARE, root / "session", runs=(1, 2))
     import_optiodom([folder], root / "ds")
-    from omni_gym.discrepancy.dataset import load_dataset
+    from omni_gym.discrepancy.data.dataset import load_dataset
 
     return folder, root / "ds", load_dataset(root / "ds")
 
@@ -226,7 +225,7 @@ def test_replay_reproduces_the_readme_dead_reckoning_within_1mm_on_a_stiff_floor
     0.14–0.26 mm, 0.40–0.48 mrad). Bounds: the goal's 1 mm, and 0.25 mm / 1 mrad, because the 10 ms
     cycles are short: commands shifted by one cycle are off by only 0.77 mm but 5.1 mrad (measured); a
     unit or sign error is metres."""
-    from omni_gym.discrepancy.simulate import Job, simulate_jobs
+    from omni_gym.discrepancy.replay.simulate import Job, simulate_jobs
     from omni_gym.physics.friction import Surface
 
     folder, _, ds = omni4_dataset

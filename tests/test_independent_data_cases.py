@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from benchmark_loader import load_benchmark
 
-from omni_gym.discrepancy.recovery import TOLERANCES, nominal_model, param_error
-from omni_gym.discrepancy.reference_data import write_reference_dataset
+from omni_gym.discrepancy.synthetic.recovery import TOLERANCES, nominal_model, param_error
+from omni_gym.discrepancy.synthetic.reference_data import write_reference_dataset
 from omni_gym.discrepancy.workflow import gap
 from omni_gym.physics.effects import REGISTRY
 

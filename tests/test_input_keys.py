@@ -12,7 +12,7 @@ import pytest
 
 import omni_gym  # noqa: F401  (registers the ids)
 from omni_gym.cli import main
-from omni_gym.discrepancy.dataset import load_dataset, write_dataset
+from omni_gym.discrepancy.data.dataset import load_dataset, write_dataset
 from omni_gym.io import InputError
 from omni_gym.physics.model import SimModel, load_model
 

@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 
 from omni_gym.bounds import FILES
 from omni_gym.cli import main
-from omni_gym.discrepancy.dataset import load_dataset, run_header
+from omni_gym.discrepancy.data.dataset import load_dataset, run_header
 from omni_gym.io import column_bound, read_commands
 from omni_gym.physics.model import load_model
 
@@ -171,7 +171,7 @@ def _run_rows(rng: np.random.Generator, k: int, encoders: bool, gyro: bool) -> l
     header = run_header(N_WHEELS, encoders, gyro)
     t = np.concatenate([[0.0], np.cumsum(rng.uniform(0.01, 0.1, k - 1))])
     # Poses walk at up to 1 m/s and 1 rad/s per axis from a random start: a run a robot can drive
-    # (faster poses are refused as other units, omni_gym.discrepancy.units).
+    # (faster poses are refused as other units, omni_gym.discrepancy.data.units).
     steps = rng.uniform(-1.0, 1.0, (k, 3)) * np.diff(t, prepend=0.0)[:, None]
     poses = rng.normal(0, 0.5, 3) + np.cumsum(steps, axis=0)
     rows = [header]

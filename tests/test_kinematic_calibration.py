@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from omni_gym.discrepancy.dataset import Run
-from omni_gym.discrepancy.importers.optiodom import nominal_model, read_sessions
-from omni_gym.discrepancy.kinematic_calibration import (
+from omni_gym.discrepancy.data.dataset import Run
+from omni_gym.discrepancy.data.importers.optiodom import nominal_model, read_sessions
+from omni_gym.discrepancy.fit.kinematic_calibration import (
     calibrate,
     calibrated_model,
     dead_reckon,

@@ -15,15 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from omni_gym.discrepancy.dataset import Run
-from omni_gym.discrepancy.importers.optiodom import (
+from omni_gym.discrepancy.data.dataset import Run
+from omni_gym.discrepancy.data.importers.optiodom import (
     convert_run,
     find_session,
-    kinematic_geometry,
     read_metadata,
     read_run_file,
 )
-from omni_gym.discrepancy.kinematic_calibration import calibrate, dead_reckon, position_rms
+from omni_gym.discrepancy.fit.kinematic_calibration import calibrate, dead_reckon, optiodom_geometry, position_rms
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "optiodom-omni4"
 TRAIN = ("circular/080920201015", "square/080920201810")
@@ -37,7 +36,7 @@ QUANTUM = 1 / 256  # rev: coarser than the bundled files' count resolution (1/11
 def nominal():
     """The nominal omni4 geometry (l1 = l2 = 0.2 m, D = 60 mm) from a bundled session's metadata."""
     meta = read_metadata(DATA / "square" / "080920201715" / "080920201715_metadata.csv")
-    return kinematic_geometry(meta)
+    return optiodom_geometry(meta)
 
 
 def inverse(D: np.ndarray, l1: float, l2: float) -> np.ndarray:
@@ -131,7 +130,7 @@ def _heldout_rms(cal, sessions, numbers=None) -> dict[str, tuple[float, float]]:
     out = {}
     for s in sessions:
         meta, runs = read_runs(s, numbers)
-        nominal = kinematic_geometry(meta)
+        nominal = optiodom_geometry(meta)
         out[s] = (float(np.mean([position_rms(r.pose, dead_reckon(r, nominal)) for r in runs])),
                   float(np.mean([position_rms(r.pose, dead_reckon(r, cal.geometry)) for r in runs])))
     return out

@@ -18,8 +18,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from omni_gym.discrepancy.dataset import load_dataset
-from omni_gym.discrepancy.synth import read_truth, truth_path
+from omni_gym.discrepancy.data.dataset import load_dataset
+from omni_gym.discrepancy.synthetic.synth import read_truth, truth_path
 from omni_gym.outputs import Output, OutputError, is_temporary
 
 ENV = "OmniPathFollow-Phunopas-v0"

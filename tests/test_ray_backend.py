@@ -24,9 +24,10 @@ import pytest
 
 from omni_gym import parallel
 from omni_gym.cli import main
-from omni_gym.discrepancy import candidates, workflow
-from omni_gym.discrepancy.recovery import nominal_model
-from omni_gym.discrepancy.synth import write_synthetic
+from omni_gym.discrepancy import workflow
+from omni_gym.discrepancy.fit import candidates
+from omni_gym.discrepancy.synthetic.recovery import nominal_model
+from omni_gym.discrepancy.synthetic.synth import write_synthetic
 from omni_gym.parallel import Backend, BackendError, parallel_map
 
 FAST = ("motor_lag", "wheel_radius")  # two cheap candidates: enough for a decision, seconds per gap run
@@ -128,7 +129,7 @@ def test_gap_cli_with_ray_address_equals_the_local_run(dataset, local_report, ra
     ``ray.init`` is sent, RAY_AUTH_MODE=token being inherited). The subprocess applies the same
     candidate patch as ``fast_library`` before calling the CLI's main."""
     out = tmp_path / "rep"
-    code = ("import sys; from omni_gym.discrepancy import candidates, workflow; "
+    code = ("import sys; from omni_gym.discrepancy import workflow; from omni_gym.discrepancy.fit import candidates; "
             f"workflow.candidates = lambda m: [c for c in candidates.candidates(m) if c.name in {FAST!r}]; "
             "from omni_gym.cli import main; sys.exit(main(sys.argv[1:]))")
     proc = subprocess.run([sys.executable, "-c", code, "gap", str(dataset), "--out", str(out), "--no-plots",

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from omni_gym.analysis.reference import reference_trajectory
-from omni_gym.discrepancy.reference_data import lift_schedule
+from omni_gym.discrepancy.synthetic.reference_data import lift_schedule
 from omni_gym.physics.liftoff import ScheduledContactProcess, contact_cases
 from omni_gym.physics.model import SimModel, load_model
 from omni_gym.physics.world import World

@@ -8,8 +8,8 @@ import math
 import pytest
 
 from omni_gym.cli import main
-from omni_gym.discrepancy import recovery, synth
-from omni_gym.discrepancy.dataset import write_dataset
+from omni_gym.discrepancy.data.dataset import write_dataset
+from omni_gym.discrepancy.synthetic import recovery, synth
 
 NOISE = 0.001  # m, tracker noise per axis
 

@@ -32,7 +32,7 @@ e^{−(v/v_s)²}], along e and f alike (and for mu_gap).
 
 With the ``wheel_liftoff`` effect the contact process is random in the world; here its realisation
 is given as a deterministic list of lift events (t_start, t_end, contact mask), e.g. drawn by
-:func:`omni_gym.discrepancy.reference_data.lift_schedule`, and the loads switch exactly at the event
+:func:`omni_gym.discrepancy.synthetic.reference_data.lift_schedule`, and the loads switch exactly at the event
 times (the event times are interval boundaries, like the roller/gap switches).
 
 In the ``roller_gap`` friction model the wheel rests on rigid material while |(φ_i mod p) − p/2| <

@@ -1,10 +1,10 @@
 """Settings of the discrepancy workflow: one frozen dataclass per stage, recorded in full in result.json.
 
 - :class:`EventSearchSettings`: the lift-event search of the stochastic candidate
-  (:mod:`omni_gym.discrepancy.events`, its module docstring names the steps).
+  (:mod:`omni_gym.discrepancy.fit.events`, its module docstring names the steps).
 - :class:`FitSettings`: the search rounds of a deterministic candidate's fit
-  (:func:`omni_gym.discrepancy.fitting.fit_candidate`).
-- :class:`DecisionRules`: the thresholds of the decision (:func:`omni_gym.discrepancy.decision.decide`;
+  (:func:`omni_gym.discrepancy.fit.fitting.fit_candidate`).
+- :class:`DecisionRules`: the thresholds of the decision (:func:`omni_gym.discrepancy.decide.decision.decide`;
   why each value, ``docs/discrepancy.md``).
 - :class:`GapSettings`: the three together, as ``gap`` takes them and ``result.json`` records them
   (``settings.event_search``, ``settings.fit``, ``settings.rules``; :meth:`GapSettings.to_json`).
@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass, field, fields
 
 @dataclass(frozen=True)
 class EventSearchSettings:
-    """Lift-event search (:class:`omni_gym.discrepancy.events.EventInference`); times in seconds.
+    """Lift-event search (:class:`omni_gym.discrepancy.fit.events.EventInference`); times in seconds.
 
     Attributes:
         grid_dt: s, start grid of the window search (half the shortest duration).
@@ -65,7 +65,7 @@ class EventSearchSettings:
 
 @dataclass(frozen=True)
 class FitSettings:
-    """Search rounds of :func:`omni_gym.discrepancy.fitting.fit_candidate` (counts, no units).
+    """Search rounds of :func:`omni_gym.discrepancy.fit.fitting.fit_candidate` (counts, no units).
 
     Attributes:
         iterations: Levenberg–Marquardt iterations of the all-run fit (also bounds the progress ticks).
@@ -80,7 +80,7 @@ class FitSettings:
             design points instead of ``starts``.
         low_dim_starts: see ``low_dim``.
         identified_iterations: LM iterations of the final refit in the identified subspace
-            (:func:`omni_gym.discrepancy.identified_fit.refit`), on all runs and per fold.
+            (:func:`omni_gym.discrepancy.fit.identified_fit.refit`), on all runs and per fold.
     """
 
     iterations: int = 6
@@ -98,7 +98,7 @@ class FitSettings:
 
 @dataclass(frozen=True)
 class DecisionRules:
-    """Thresholds of :func:`omni_gym.discrepancy.decision.decide` (shares are 0-1, dimensionless).
+    """Thresholds of :func:`omni_gym.discrepancy.decide.decision.decide` (shares are 0-1, dimensionless).
 
     Attributes:
         significance: bootstrap share of run resamples in which the candidate beats nominal.

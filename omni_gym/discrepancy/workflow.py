@@ -14,7 +14,7 @@ the final model.
 
 Each step's candidate fits are independent, run on the chosen backend (:mod:`omni_gym.parallel`: this
 process by default, local processes or Ray); on a parallel backend side by side, each fit's simulation
-batches split into tasks finer than a candidate (:mod:`omni_gym.discrepancy.fit_tasks`, which also
+batches split into tasks finer than a candidate (:mod:`omni_gym.discrepancy.fit.fit_tasks`, which also
 records each step's work and critical path in ``result.json``'s ``work``). A fit draws its random
 numbers from its own generator, seeded from the gap seed, the step and the candidate's name
 (:func:`fit_seed`), never from the worker or the order the fits finish in, so the result is the same
@@ -35,23 +35,23 @@ from typing import Any
 
 import numpy as np
 
-from omni_gym.discrepancy import identifiability, identified_fit, plausible
-from omni_gym.discrepancy.candidates import Candidate, candidates, not_applicable
-from omni_gym.discrepancy.dataset import Dataset, load_dataset, sessions_of
-from omni_gym.discrepancy.decision import Decision, decide
-from omni_gym.discrepancy.events import EVENT_METHOD
-from omni_gym.discrepancy.finite import finite_json
-from omni_gym.discrepancy.fit_tasks import FitShared, FitTask, StepWork, run_fits, work_json
-from omni_gym.discrepancy.fitting import Evaluator, FitResult, max_ticks, param_intervals, source_folds
-from omni_gym.discrepancy.kinematic_calibration import calibrate
-from omni_gym.discrepancy.localise import localise
-from omni_gym.discrepancy.outliers import OUTLIER_RULE, drop_outliers, find_outliers
-from omni_gym.discrepancy.residuals import count_components, geo_mse
-from omni_gym.discrepancy.score import heldout_table, heldout_whole_runs
-from omni_gym.discrepancy.segments import FIT_BUDGET, check_fit_budget, fit_data
+from omni_gym.discrepancy.data.dataset import Dataset, load_dataset, sessions_of
+from omni_gym.discrepancy.data.folds import source_folds
+from omni_gym.discrepancy.data.outliers import OUTLIER_RULE, drop_outliers, find_outliers
+from omni_gym.discrepancy.data.segments import FIT_BUDGET, check_fit_budget, fit_data
+from omni_gym.discrepancy.decide.decision import Decision, decide
+from omni_gym.discrepancy.decide.score import heldout_table, heldout_whole_runs
+from omni_gym.discrepancy.fit import identifiability, identified_fit, plausible
+from omni_gym.discrepancy.fit.candidates import Candidate, candidates, not_applicable
+from omni_gym.discrepancy.fit.events import EVENT_METHOD
+from omni_gym.discrepancy.fit.fit_tasks import FitShared, FitTask, StepWork, run_fits, work_json
+from omni_gym.discrepancy.fit.fitting import Evaluator, FitResult, max_ticks, param_intervals
+from omni_gym.discrepancy.fit.kinematic_calibration import calibrate
+from omni_gym.discrepancy.replay.localise import localise
+from omni_gym.discrepancy.replay.residuals import count_components, geo_mse
+from omni_gym.discrepancy.replay.simulate import FIT_DT
+from omni_gym.discrepancy.report.finite import finite_json
 from omni_gym.discrepancy.settings import GapSettings
-from omni_gym.discrepancy.simulate import FIT_DT
-from omni_gym.discrepancy.synth import pose_lever
 from omni_gym.outputs import Output
 from omni_gym.parallel import SERIAL, Backend, Executor, executor
 from omni_gym.physics.liftoff import contact_cases
@@ -73,7 +73,7 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     ``progress``: tqdm bar on stderr (None: only when stderr is a terminal). Same seed, same result.
     ``max_effects`` (>= 1): most effects named one after another (module docstring).
     ``fit_budget`` [s]: most robot time fitted; a longer dataset is fitted on an even sample of its
-    runs' segments (:mod:`omni_gym.discrepancy.segments`; ``math.inf``: always the whole runs).
+    runs' segments (:mod:`omni_gym.discrepancy.data.segments`; ``math.inf``: always the whole runs).
     ``out`` is checked and locked before the work starts and appears complete or not at all
     (:class:`omni_gym.outputs.Output`): an existing report is refused unless ``force``; a report that
     is, contains or lies inside the dataset is refused.
@@ -251,7 +251,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     elif first.kind == "given":
         say("starting from the given model" + (f" (keeping its {', '.join(first.excluded)})" if first.excluded else ""))
     nominal = first.model
-    lever = pose_lever(ds.model)  # the dataset's: the same residual metric whatever the start
+    lever = ds.model.robot.lever()  # the dataset's: the same residual metric whatever the start
     say(f"checking {R} runs for tracker outliers")
     flagged = find_outliers(ds, lever)
     ds = drop_outliers(ds, flagged)  # flagged rows count as not observed (outliers.py)
@@ -441,7 +441,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     if bad:
         result["non_finite"] = bad
     if out is not None:
-        from omni_gym.discrepancy.report import write_report
+        from omni_gym.discrepancy.report.report import write_report
 
         say("writing report")
         write_report(Path(out), result, ds, nominal, model, lever, dt, plots=plots)
@@ -521,7 +521,7 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
     """The first model of the search (``start``: ``nominal``, ``kinematic`` or ``auto``) on the source runs
     ``ds`` with folds ``fold_src`` (-1: a run in no fold).
 
-    The kinematic calibration (:func:`omni_gym.discrepancy.kinematic_calibration.calibrate`: effective wheel
+    The kinematic calibration (:func:`omni_gym.discrepancy.fit.kinematic_calibration.calibrate`: effective wheel
     diameters and L or l1 + l2 by dead reckoning) is fitted on all runs for the model the search extends,
     and on each fold's training runs for that fold's held-out scores, so no held-out run informs the
     kinematic model it is scored with. ValueError (one line) for ``kinematic`` without wheel odometry.

@@ -17,7 +17,7 @@ astronomically late ``next_switch``, which the world treats as never (see
 :meth:`omni_gym.physics.world.World._schedule_switch`).
 
 :class:`ScheduledContactProcess` is the deterministic counterpart: it replays a fixed list of lift
-events (the events inferred by :mod:`omni_gym.discrepancy.events`) through the same interface.
+events (the events inferred by :mod:`omni_gym.discrepancy.fit.events`) through the same interface.
 """
 
 from __future__ import annotations

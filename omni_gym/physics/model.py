@@ -13,7 +13,7 @@ Effects are extensions of the nominal model, each defined in one module of
 :mod:`omni_gym.physics.effects` (its parameters, their bounds and validation, and what it changes).
 An effect changes the numbers the force kernel reads (:meth:`SimModel.kernel_params`), or supplies a
 wheel contact process that the world's user installs (:meth:`SimModel.contact_process`: ``replay``,
-the environments, ``omni_gym.discrepancy.simulate``), or both. Tracker effects (``tracker_offset``,
+the environments, ``omni_gym.discrepancy.replay.simulate``), or both. Tracker effects (``tracker_offset``,
 ``time_offset``) change neither: they say how the data's pose tracker measures the robot, live in
 :attr:`SimModel.effects` like the others and are written under their own ``tracker`` key.
 """

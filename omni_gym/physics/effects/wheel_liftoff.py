@@ -3,7 +3,7 @@
 No kernel numbers: the effect installs a seeded :class:`~omni_gym.physics.liftoff.ContactProcess`
 in the world (rates ``lift_rate``/``recover_rate`` [1/s]). Stochastic: a dataset holds one
 realisation of it, so the discrepancy workflow fits it by lift-event inference, not by a parameter
-search (``omni_gym.discrepancy.events``).
+search (``omni_gym.discrepancy.fit.events``).
 """
 
 from __future__ import annotations

@@ -6,9 +6,9 @@ then runs the batched local searches of :mod:`.search` (roller-phase sweeps, Lev
 valley line searches) from the best design points. A fit on a set of runs is the point with the
 least SSE over those runs among everything simulated for it.
 
-Held-out errors: K folds by run (:func:`make_folds`), or by recording session where the dataset records
-several (:func:`source_folds`). Fold k's fit sees only the other runs; its SSE on
-the runs of fold k is that candidate's held-out error there (scored by :func:`.decision.decide`).
+Held-out errors: K folds by run or by recording session (:mod:`omni_gym.discrepancy.data.folds`), given by
+the caller as each run's fold index. Fold k's fit sees only the other runs; its SSE on the runs of fold k
+is that candidate's held-out error there (scored by :func:`omni_gym.discrepancy.decide.decision.decide`).
 The stochastic ``wheel_liftoff`` is fitted by lift-event inference instead (:mod:`.events`).
 """
 
@@ -21,25 +21,25 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.stats import qmc
 
-from omni_gym.discrepancy.candidates import Candidate, null_point, prior_point
-from omni_gym.discrepancy.dataset import Dataset
-from omni_gym.discrepancy.events import PARAMS_PER_EVENT, EventFit, EventProblem, infer_events
-from omni_gym.discrepancy.residuals import (
-    channel_noise,
-    count_components,
-    noise_estimate,
-    run_sse,
-    shooting_windows,
-)
-from omni_gym.discrepancy.search import (
+from omni_gym.discrepancy.data.dataset import Dataset
+from omni_gym.discrepancy.fit.candidates import Candidate, null_point, prior_point
+from omni_gym.discrepancy.fit.events import PARAMS_PER_EVENT, EventFit, EventProblem, infer_events
+from omni_gym.discrepancy.fit.search import (
     SearchContext,
     SearchState,
     levenberg_marquardt,
     phase_search,
     valley_search,
 )
+from omni_gym.discrepancy.replay.residuals import (
+    channel_noise,
+    count_components,
+    noise_estimate,
+    run_sse,
+    shooting_windows,
+)
+from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, pose_residual, simulate_poses
 from omni_gym.discrepancy.settings import FitSettings, GapSettings
-from omni_gym.discrepancy.simulate import FIT_DT, Job, pose_residual, simulate_poses
 from omni_gym.physics.model import SimModel
 
 # The search rounds of fit_candidate (LM iterations, starts, phase sweeps, valley rounds; also the progress
@@ -77,7 +77,7 @@ class Evaluator:
 
     def noise_floor(self, nominal: SimModel) -> tuple[float | None, dict]:
         """The decision's noise floor [m] and its parts: sqrt(σ̂² + ε²), σ̂ the tracker noise
-        (:func:`~omni_gym.discrepancy.residuals.noise_estimate`) and ε the RMS integration error of the
+        (:func:`~omni_gym.discrepancy.replay.residuals.noise_estimate`) and ε the RMS integration error of the
         fitting step ``dt`` itself (:meth:`integration_error`). Even an exact model leaves both in the
         residual, so both belong to the floor a candidate cannot go below. None when σ̂ is unknown.
 
@@ -125,7 +125,7 @@ class Evaluator:
 
         The same as :meth:`assemble` of :meth:`job_residuals` over all :meth:`jobs`: a job's result does not
         depend on the other robots of its world, so the jobs may be simulated in any grouping (the
-        parallel fit tasks of :mod:`omni_gym.discrepancy.fit_tasks` split them) with the same bits.
+        parallel fit tasks of :mod:`omni_gym.discrepancy.fit.fit_tasks` split them) with the same bits.
         """
         jobs = self.jobs(models, shooting)
         flat = self.job_residuals(jobs, shooting)
@@ -173,7 +173,7 @@ class Evaluator:
         return bool(self.windows)
 
     def simulate(self, jobs: list[Job], dt: float, max_batch: int) -> list[np.ndarray]:
-        """Poses of any ``jobs`` (:func:`~omni_gym.discrepancy.simulate.simulate_poses`), for searches that
+        """Poses of any ``jobs`` (:func:`~omni_gym.discrepancy.replay.simulate.simulate_poses`), for searches that
         build their own jobs (the lift-event inference); not counted in ``simulated`` (the caller counts)."""
         return simulate_poses(jobs, dt, max_batch)
 
@@ -191,46 +191,9 @@ class FitResult:
     pool_u: np.ndarray  # points available to the all-run fit
     pool_sse: np.ndarray  # their (P, R) SSE
     # Stochastic candidate only: effective parameter count for the BIC penalty (2 rates + 3 per
-    # inferred lift event) and the inferred events (omni_gym.discrepancy.events.EventFit).
+    # inferred lift event) and the inferred events (omni_gym.discrepancy.fit.events.EventFit).
     n_params_eff: int | None = None
     event_fit: EventFit | None = None
-
-
-def make_folds(n_runs: int, rng: np.random.Generator, k: int = 3, groups: np.ndarray | None = None) -> np.ndarray:
-    """(R,) fold index of each run: K = min(k, R) folds of near-equal size, seeded order.
-
-    ``groups`` (R,) (optional): runs of one group (segments of one source run,
-    :mod:`omni_gym.discrepancy.segments`) share a fold, so no fold is scored on a piece of a run it
-    was fitted on; the folds are then near-equal in groups.
-    """
-    if groups is not None:
-        ids, inverse = np.unique(np.asarray(groups), return_inverse=True)
-        return make_folds(len(ids), rng, k)[inverse]
-    k = min(k, n_runs)
-    order = rng.permutation(n_runs)
-    folds = np.empty(n_runs, dtype=int)
-    folds[order] = np.arange(n_runs) % k
-    return folds
-
-
-def source_folds(n_runs: int, rng: np.random.Generator, k: int = 3, sessions: list[str] | None = None) -> np.ndarray:
-    """(R,) fold of each source run of a dataset (whole runs, before segmenting).
-
-    Without ``sessions`` (None): :func:`make_folds` by run. With ``sessions`` (R,) (the runs' recording
-    sessions, at least two distinct): folds split by session, never within one, so every fold is scored
-    on sessions its fit never saw: leave-one-session-out when there are at most ``k`` sessions, else K
-    folds of near-equal session counts (grouped K-fold, seeded order). Sessions are numbered in order of
-    first appearance, so the folds do not depend on how the ids sort.
-    """
-    if sessions is None:
-        return make_folds(n_runs, rng, k)
-    if len(sessions) != n_runs:
-        raise ValueError(f"sessions: {len(sessions)} entries for {n_runs} runs")
-    ids = np.array([list(dict.fromkeys(sessions)).index(s) for s in sessions])
-    n_sessions = int(ids.max()) + 1
-    if n_sessions <= k:
-        return ids  # leave one session out
-    return make_folds(n_runs, rng, k, groups=ids)
 
 
 def max_ticks(cand: Candidate, fit: FitSettings | None = None) -> int:
@@ -386,7 +349,7 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
 
 def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray,
                 settings: GapSettings) -> FitResult:
-    """wheel_liftoff by MAP lift-event inference (omni_gym.discrepancy.events).
+    """wheel_liftoff by MAP lift-event inference (omni_gym.discrepancy.fit.events).
 
     Every run's events are inferred with the BIC cost 3·ln N per event (N residual components of the
     dataset); the candidate's per-run SSE is the open-loop replay of the run with its events. Rates

@@ -2,7 +2,7 @@
 
 Fits the effective wheel diameters and the robot's length (omni wheels: the centre-to-wheel distance L;
 mecanum wheels: l1 + l2) by least squares of the runs' dead reckoning against their tracked poses
-(:mod:`omni_gym.discrepancy.kinematic_calibration`), and writes the dataset's nominal model with the
+(:mod:`omni_gym.discrepancy.fit.kinematic_calibration`), and writes the dataset's nominal model with the
 fitted values as a model JSON (``docs/formats.md``) that ``score``, ``simulate``, ``gap``-free use and
 ``gym.make(..., model=...)`` read. It needs wheel odometry: every run must have the ``enc1 … encn``
 columns (an imported OptiOdom dataset has them).
@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.discrepancy.dataset import load_dataset
-from omni_gym.discrepancy.kinematic_calibration import KinematicCalibration, calibrate
+from omni_gym.discrepancy.data.dataset import load_dataset
+from omni_gym.discrepancy.fit.kinematic_calibration import KinematicCalibration, calibrate
 from omni_gym.outputs import Output, write_json_atomic
 
 

@@ -3,7 +3,7 @@
 The multiple-shooting windows of a dataset, the per-run sum of squared pose residuals, the
 decision's metric (row-weighted geometric mean of per-run MSE), the component count and the
 tracker-noise estimate. Residual components are metres (heading scaled by the lever arm, see
-:func:`omni_gym.discrepancy.simulate.pose_residual`).
+:func:`omni_gym.discrepancy.replay.simulate.pose_residual`).
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
-from omni_gym.discrepancy.dataset import Dataset
-from omni_gym.discrepancy.localise import local_pose_fit, wheel_angles
+from omni_gym.discrepancy.data.dataset import Dataset
+from omni_gym.discrepancy.data.measured_state import local_pose_fit, wheel_angles
 
 
 def shooting_windows(ds: Dataset, window: float = 1.0) -> list[tuple]:

@@ -9,11 +9,11 @@ import numpy as np
 
 from omni_gym import outputs
 from omni_gym.angles import wrap_angle
-from omni_gym.discrepancy.dataset import Dataset
-from omni_gym.discrepancy.finite import dumps_strict
-from omni_gym.discrepancy.localise import WINDOW
-from omni_gym.discrepancy.plausible import UNITS
-from omni_gym.discrepancy.simulate import Job, simulate_jobs
+from omni_gym.discrepancy.data.dataset import Dataset
+from omni_gym.discrepancy.fit.plausible import UNITS
+from omni_gym.discrepancy.replay.localise import WINDOW
+from omni_gym.discrepancy.replay.simulate import Job, simulate_jobs
+from omni_gym.discrepancy.report.finite import dumps_strict
 from omni_gym.physics.effects import REGISTRY
 from omni_gym.physics.model import SimModel
 

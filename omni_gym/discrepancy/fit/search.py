@@ -18,7 +18,7 @@ from typing import Protocol
 
 import numpy as np
 
-from omni_gym.discrepancy.candidates import Candidate, to_cube
+from omni_gym.discrepancy.fit.candidates import Candidate, to_cube
 
 
 class Evaluate(Protocol):

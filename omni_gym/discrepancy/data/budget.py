@@ -1,4 +1,4 @@
-"""The fit budget of ``omni-gym gap`` and the segment length it gives (:mod:`omni_gym.discrepancy.segments`).
+"""The fit budget of ``omni-gym gap`` and the segment length it gives (:mod:`omni_gym.discrepancy.data.segments`).
 
 Kept apart from the segmenting itself so that the command line can show and check them without loading the
 workflow (numba, the physics): ``omni-gym gap --help`` prints these numbers.

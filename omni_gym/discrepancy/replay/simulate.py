@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from omni_gym.angles import wrap_angle
-from omni_gym.discrepancy.dataset import Run
-from omni_gym.discrepancy.measurement import align_start, centre_start, has_tracker_effects, measured
+from omni_gym.discrepancy.data.dataset import Run
+from omni_gym.discrepancy.replay.measurement import align_start, centre_start, has_tracker_effects, measured
 from omni_gym.physics.liftoff import ScheduledContactProcess
 from omni_gym.physics.model import SimModel
 from omni_gym.physics.world import World
@@ -107,7 +107,7 @@ def simulate_jobs(jobs: list[Job], dt: float = FIT_DT) -> list[tuple[np.ndarray,
             world.substeps(steps)
     poses = [pose_ev[pos, b] for b, pos in enumerate(rows_at)]
     for b, job in enumerate(jobs):
-        if tracked[b]:  # what the tracker would report (omni_gym.discrepancy.measurement)
+        if tracked[b]:  # what the tracker would report (omni_gym.discrepancy.replay.measurement)
             poses[b] = measured(job.model, job.run.t[job.k0:ends[b] + 1], poses[b])
             # The first row is the tracked start, as in a replay without tracker effects. centre_start
             # is first order in a time offset: a negative delay (the tracker's first row shows the robot
@@ -130,7 +130,7 @@ def simulate_poses(jobs: list[Job], dt: float = FIT_DT, max_batch: int = 1500) -
 
 def _centre_state0(job: Job) -> tuple:
     """``job``'s start state (pose, velocity, wheel angles, wheel speeds) with the tracked pose and
-    velocity turned into the geometric centre's (:func:`~omni_gym.discrepancy.measurement.centre_start`)."""
+    velocity turned into the geometric centre's (:func:`~omni_gym.discrepancy.replay.measurement.centre_start`)."""
     n = job.model.n_wheels
     st = job.state0 if job.state0 is not None else (job.run.start_pose, np.zeros(3), np.zeros(n), np.zeros(n))
     pose, vel = centre_start(job.model, st[0], st[1])

@@ -24,7 +24,7 @@ Dead reckoning (:func:`dead_reckon`), per control cycle (t_{k-1}, t_k]:
 3. exact integration of that twist held constant over the cycle (an arc), from the pose at t_{k-1}.
 
 Every run starts at its start pose (the first row). The cost (:func:`calibrate`) is the pose residual
-of :func:`omni_gym.discrepancy.simulate.pose_residual` (x, y and heading × lever [m]) on every observed
+of :func:`omni_gym.discrepancy.replay.simulate.pose_residual` (x, y and heading × lever [m]) on every observed
 row of every training run, minimised with :func:`scipy.optimize.least_squares`.
 """
 
@@ -35,8 +35,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from omni_gym.discrepancy.dataset import Run
-from omni_gym.discrepancy.simulate import pose_residual
+from omni_gym.discrepancy.data.dataset import Run
+from omni_gym.discrepancy.data.importers.optiodom import Metadata, layout
+from omni_gym.discrepancy.replay.simulate import pose_residual
 from omni_gym.physics import effects as effect_library
 from omni_gym.physics.model import SimModel
 
@@ -94,6 +95,16 @@ def layout_geometry(positions, drives, roller_angles, diameters) -> Geometry:
     gamma = np.asarray(roller_angles, dtype=float)
     e = d + np.tan(gamma)[:, None] * np.column_stack([-d[:, 1], d[:, 0]])
     return _geometry(p, e, np.asarray(diameters, dtype=float), mecanum=bool(np.any(gamma != 0)))
+
+
+def optiodom_geometry(meta: Metadata) -> Geometry:
+    """The nominal kinematic model of an OptiOdom session (its metadata, read by
+    :func:`omni_gym.discrepancy.data.importers.optiodom.read_metadata`): the layout of its type (as in the
+    importer's nominal model) and the metadata's diameters. Pure kinematics: it needs no physics (an omni4
+    geometry exists even where :func:`~omni_gym.discrepancy.data.importers.optiodom.nominal_model` refuses)."""
+    wheels = layout(meta)
+    return layout_geometry([w["position"] for w in wheels], [w["drive"] for w in wheels],
+                           [w.get("roller_angle", 0.0) for w in wheels], meta.D)
 
 
 def _geometry(p: np.ndarray, e: np.ndarray, diameters: np.ndarray, mecanum: bool) -> Geometry:
@@ -227,7 +238,7 @@ def calibrate(runs: list[Run], nominal: SimModel | Geometry, lever: float | None
     start at ``nominal`` (a model, or a bare :class:`Geometry`: then the result has no ``model``).
 
     ``lever`` [m] weighs the heading error as the workflow does (default: the largest nominal wheel-centre
-    distance, :func:`omni_gym.discrepancy.synth.pose_lever`, held fixed during the fit).
+    distance, :func:`omni_gym.discrepancy.synthetic.synth.pose_lever`, held fixed during the fit).
     ValueError (naming the run) if a run has no encoder columns or no observed row after its start.
     """
     from scipy.optimize import least_squares

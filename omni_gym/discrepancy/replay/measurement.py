@@ -4,7 +4,7 @@ The simulator moves the robot's geometric centre; the tracker reports its own bo
 clock. The model's tracker effects (``Effect.kind == "tracker"``: ``tracker_offset``, ``time_offset``)
 say how the two differ. This module is the one place they are applied: :func:`measured` turns
 simulated centre poses into the poses the tracker would report (used by
-:func:`omni_gym.discrepancy.simulate.simulate_jobs` for every replay, so every residual of the
+:func:`omni_gym.discrepancy.replay.simulate.simulate_jobs` for every replay, so every residual of the
 workflow compares like with like), and :func:`centre_start` turns a tracked start state into the
 centre's (a replay from a measured state: a run's first pose, a segment's or a window's start).
 Physics effects pass through both unchanged.

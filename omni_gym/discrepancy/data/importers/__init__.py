@@ -1,6 +1,6 @@
 """Importers: robot logs in other formats → a dataset folder (``docs/formats.md`` "Dataset").
 
-Each importer reads one log format and writes a dataset with :func:`omni_gym.discrepancy.dataset.write_dataset`
+Each importer reads one log format and writes a dataset with :func:`omni_gym.discrepancy.data.dataset.write_dataset`
 inside an :class:`omni_gym.outputs.Output` transaction (complete or absent, ``--force`` as ``omni-gym synth``).
 
 * :mod:`.optiodom`: the OptiOdom dataset's synchronised runs (encoder ticks per cycle + motion capture),

@@ -1,7 +1,7 @@
 """Decision: rank the fitted candidates by held-out score and name the effect, or none, or unexplained.
 
 A candidate's held-out score is Σ_r n_r·ln(SSE_r/n_r) + p·ln(N) (BIC form; SSE_r the held-out error of run r
-from :mod:`.fitting`, n_r its residual components, N their sum, p parameters). Thresholds in
+from :mod:`omni_gym.discrepancy.fit.fitting`, n_r its residual components, N their sum, p parameters). Thresholds in
 :class:`omni_gym.discrepancy.settings.DecisionRules`, why in ``docs/discrepancy.md``: a candidate must
 improve the held-out error significantly (paired bootstrap over runs); it is named if it removes most of the
 gap beyond tracker noise, else the outcome is ``unexplained``; ``none`` when nothing improves and the
@@ -16,12 +16,12 @@ from typing import Protocol
 
 import numpy as np
 
-from omni_gym.discrepancy.candidates import Candidate
+from omni_gym.discrepancy.fit.candidates import Candidate
 from omni_gym.discrepancy.settings import DecisionRules
 
 
 class HeldOutFit(Protocol):
-    """What :func:`decide` reads of a fit (:class:`omni_gym.discrepancy.fitting.FitResult`; a protocol here
+    """What :func:`decide` reads of a fit (:class:`omni_gym.discrepancy.fit.fitting.FitResult`; a protocol here
     so that the decision does not depend on how a fit is made)."""
 
     candidate: Candidate
@@ -73,7 +73,7 @@ def decide(nominal_sse: np.ndarray, fits: list[HeldOutFit], n_comp: np.ndarray, 
     ``nominal_sse``: the baseline's per-run SSE (the nominal model, or in a multi-effect search the
     model with the effects named so far). ``sigma`` [m]: the noise floor, RMS per residual component
     that even an exact model leaves (the workflow passes sqrt(tracker noise² + the fitting step's
-    integration error²), :meth:`omni_gym.discrepancy.fitting.Evaluator.noise_floor`); None when unknown.
+    integration error²), :meth:`omni_gym.discrepancy.fit.fitting.Evaluator.noise_floor`); None when unknown.
     ``reference_excess`` [m]: the gap beyond noise the
     ``min_gap_reduction`` rule is measured against (default: the baseline's own; a multi-effect search
     passes the nominal model's). When the best candidate beats the baseline but falls short of that

@@ -26,7 +26,7 @@ import numpy as np
 
 from omni_gym import outputs
 from omni_gym.checks import known_keys
-from omni_gym.discrepancy.units import check_run_units
+from omni_gym.discrepancy.data.units import check_run_units
 from omni_gym.io import InputError, check_times, parse_cell, read_csv_rows, read_json
 from omni_gym.physics.model import SimModel
 
@@ -39,7 +39,7 @@ class Run:
     observed, encoders (K, n) [rad] or None, gyro (K,) [rad/s] or None.
 
     ``state0``: None for a run as the format defines it (starting at rest at ``start_pose``); the
-    segments the workflow cuts from long runs (:mod:`omni_gym.discrepancy.segments`) start moving, from
+    segments the workflow cuts from long runs (:mod:`omni_gym.discrepancy.data.segments`) start moving, from
     (pose (3,), geometric-centre world velocity (3,) [m/s, m/s, rad/s], wheel angles (n,) [rad], wheel
     speeds (n,) [rad/s]). Not part of the file format.
     """
@@ -65,7 +65,7 @@ class Run:
         return p.copy() if np.all(np.isfinite(p)) else np.zeros(3)
 
     def start_state(self, angles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The replay state at row 0 (a :class:`~omni_gym.discrepancy.simulate.Job`'s ``state0``): the
+        """The replay state at row 0 (a :class:`~omni_gym.discrepancy.replay.simulate.Job`'s ``state0``): the
         run's own ``state0`` for a segment, else at rest at ``start_pose`` with wheel ``angles`` (n,) [rad]."""
         if self.state0 is not None:
             return self.state0

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from omni_gym.discrepancy.candidates import Candidate
+from omni_gym.discrepancy.fit.candidates import Candidate
 from omni_gym.physics.model import SimModel
 
 IDENTIFIED = 0.05  # largest 95 % half-width (share of the fit range) of an identified combination
@@ -119,7 +119,7 @@ def linearise(ev, nominal: SimModel, named: list[Named], sigma: float | None) ->
     """Linearise the final fit (module docstring); None when there is nothing to analyse (no
     deterministic named effect or no noise estimate).
 
-    ``ev``: the workflow's :class:`~omni_gym.discrepancy.fitting.Evaluator`; ``sigma`` [m]: the noise
+    ``ev``: the workflow's :class:`~omni_gym.discrepancy.fit.fitting.Evaluator`; ``sigma`` [m]: the noise
     floor per residual component. Costs one batch of 1 + (fitted dimensions) simulations of every run.
     """
     named = [n for n in named if not n.candidate.stochastic]
@@ -176,7 +176,7 @@ def combination_text(lin: Linearisation, k: int) -> tuple[str, list[tuple[str, f
 
 def summary(lin: Linearisation, used: dict | None = None) -> dict:
     """The JSON of ``result.json``'s ``identifiability``: per parameter, combinations, confounded pairs and
-    one line per effect. ``used``: what the identified refit did (:func:`omni_gym.discrepancy.identified_fit.
+    one line per effect. ``used``: what the identified refit did (:func:`omni_gym.discrepancy.fit.identified_fit.
     refit`'s per-effect status); the lines then say which parameters were fixed or merged."""
     labels, dims, sd, half = lin.labels, lin.dims, lin.sd, lin.half
     u_all = lin.u

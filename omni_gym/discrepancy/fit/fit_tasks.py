@@ -1,6 +1,6 @@
 """The candidate fits of one ``gap`` search step as tasks finer than a candidate, and their work record.
 
-A candidate fit (:func:`~omni_gym.discrepancy.fitting.fit_candidate`) is a chain of search rounds; each
+A candidate fit (:func:`~omni_gym.discrepancy.fit.fitting.fit_candidate`) is a chain of search rounds; each
 round simulates a batch of parameter points on every run (or every shooting window). On a parallel
 backend (:mod:`omni_gym.parallel`: local processes or Ray) the fits run side by side in threads of the
 driver, and each round's batch is split into **chunk tasks** of about :data:`CHUNK_ROBOT_S` seconds of
@@ -31,10 +31,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from omni_gym.discrepancy.candidates import Candidate
-from omni_gym.discrepancy.fitting import Evaluator, FitResult, fit_candidate
+from omni_gym.discrepancy.fit.candidates import Candidate
+from omni_gym.discrepancy.fit.fitting import Evaluator, FitResult, fit_candidate
+from omni_gym.discrepancy.replay.simulate import Job, simulate_poses
 from omni_gym.discrepancy.settings import GapSettings
-from omni_gym.discrepancy.simulate import Job, simulate_poses
 from omni_gym.parallel import Executor
 from omni_gym.physics.model import SimModel
 
@@ -272,7 +272,7 @@ def work_json(steps: list[StepWork], serial_s: float, wall_s: float, backend: st
                 "decision; driver_cpu_s: the driver process's own CPU time (on a parallel backend: the serial part, "
                 "the fits' search arithmetic and the tasks' dispatch); reachable_speedup with W workers: total / "
                 "(serial + sum over steps of max(critical path, total / W)), the bound the dependencies allow "
-                "(omni_gym.discrepancy.fit_tasks)",
+                "(omni_gym.discrepancy.fit.fit_tasks)",
     }
 
 

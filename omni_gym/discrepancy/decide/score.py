@@ -14,9 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from omni_gym.discrepancy.dataset import Dataset
-from omni_gym.discrepancy.kinematic_calibration import position_rms
-from omni_gym.discrepancy.simulate import FIT_DT, Job, simulate_poses
+from omni_gym.discrepancy.data.dataset import Dataset
+from omni_gym.discrepancy.fit.kinematic_calibration import position_rms
+from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, simulate_poses
 from omni_gym.physics.model import SimModel
 
 

@@ -5,7 +5,7 @@ realisation of it, which no rate pair can reproduce by simulation. The held-out 
 rates marginalises the unobserved events. We approximate that integral by its largest term (MAP /
 Laplace): the most likely event sequence of each run, plus a BIC cost of 3·ln N per inferred event
 (start, end, lifted case) in the per-run likelihood units n_r·ln(SSE_r/n_r) of
-:func:`omni_gym.discrepancy.decision.decide` (N = residual components of the dataset).
+:func:`omni_gym.discrepancy.decide.decision.decide` (N = residual components of the dataset).
 
 Search (all runs batched; :class:`EventInference`, one method per step, :func:`infer_events` runs it):
 
@@ -63,10 +63,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from omni_gym.discrepancy.dataset import Dataset, Run
-from omni_gym.discrepancy.residuals import geo_mse, run_sse, shooting_windows
+from omni_gym.discrepancy.data.dataset import Dataset, Run
+from omni_gym.discrepancy.replay.residuals import geo_mse, run_sse, shooting_windows
+from omni_gym.discrepancy.replay.simulate import Job, pose_residual, simulate_poses
 from omni_gym.discrepancy.settings import EventSearchSettings
-from omni_gym.discrepancy.simulate import Job, pose_residual, simulate_poses
 from omni_gym.physics.liftoff import OVERLAP_TOL, contact_cases
 from omni_gym.physics.model import SimModel
 
@@ -238,7 +238,7 @@ class EventInference:
             (:class:`EventProblem`).
         settings: the search's grids, shifts, rounds and test levels (None: the defaults).
         simulate: optional ``simulate(jobs, dt, max_batch)`` to use instead of ``simulate_poses`` (the same
-            poses, e.g. simulated as parallel tasks: :mod:`omni_gym.discrepancy.fit_tasks`).
+            poses, e.g. simulated as parallel tasks: :mod:`omni_gym.discrepancy.fit.fit_tasks`).
         counter: optional one-element list to which the number of simulated robot-runs is added.
         max_batch: most jobs per simulate call.
     """

@@ -53,8 +53,7 @@ import numpy as np
 
 from omni_gym.bounds import FILES
 from omni_gym.bounds import MODEL as MODEL_BOUNDS
-from omni_gym.discrepancy.dataset import Run, write_dataset
-from omni_gym.discrepancy.kinematic_calibration import Geometry, layout_geometry
+from omni_gym.discrepancy.data.dataset import Run, write_dataset
 from omni_gym.io import InputError, read_text
 from omni_gym.outputs import Output
 from omni_gym.physics.friction import surface_preset
@@ -581,12 +580,3 @@ def import_optiodom(folders: list[str | Path], out: str | Path, force: bool = Fa
     return ImportSummary(sessions=tuple(m.session for m in metas), runs=len(runs),
                          duration=float(sum(r.t[-1] for r in runs)), out=out, mass=model.robot.mass,
                          inertia=model.robot.inertia, surface=surface, kind=metas[0].kind)
-
-
-def kinematic_geometry(meta: Metadata) -> Geometry:
-    """The nominal kinematic model of a session for :mod:`omni_gym.discrepancy.kinematic_calibration`: the
-    layout of its type (as in the nominal model) and the metadata's diameters. Pure kinematics: it needs
-    no physics (an omni4 geometry exists even where :func:`nominal_model` refuses)."""
-    wheels = layout(meta)
-    return layout_geometry([w["position"] for w in wheels], [w["drive"] for w in wheels],
-                           [w.get("roller_angle", 0.0) for w in wheels], meta.D)

@@ -21,8 +21,8 @@ import numpy as np
 
 from omni_gym.bounds import CLI
 from omni_gym.checks import unknown_key
-from omni_gym.discrepancy.dataset import Run, write_dataset
-from omni_gym.discrepancy.simulate import Job, simulate_jobs
+from omni_gym.discrepancy.data.dataset import Run, write_dataset
+from omni_gym.discrepancy.replay.simulate import Job, simulate_jobs
 from omni_gym.outputs import Output
 from omni_gym.physics.effects import REGISTRY
 from omni_gym.physics.model import EFFECT_PARAMS, SimModel

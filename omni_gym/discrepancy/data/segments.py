@@ -21,7 +21,7 @@ Short replays also keep the world's own integration error small (it grows with t
 on the OptiOdom runs 2.3 mm RMS over whole 55 s runs at 1 ms against 0.5 ms).
 
 Each segment keeps its source run as its *group*: held-out folds split by source run
-(:func:`omni_gym.discrepancy.fitting.make_folds`), so no fold is scored on a piece of a run it was fitted on.
+(:func:`omni_gym.discrepancy.data.folds.make_folds`), so no fold is scored on a piece of a run it was fitted on.
 A dataset within the budget is fitted as it is (``FitData.segmented`` is False).
 """
 
@@ -31,15 +31,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from omni_gym.discrepancy.budget import (  # noqa: F401 -- FIT_BUDGET, MIN_FIT_BUDGET, check_fit_budget: re-exported
+from omni_gym.discrepancy.data.budget import (  # noqa: F401 -- FIT_BUDGET, MIN_FIT_BUDGET, check_fit_budget: re-exported
     FIT_BUDGET,
     MIN_FIT_BUDGET,
     SEGMENT,
     check_fit_budget,
     segment_seconds,
 )
-from omni_gym.discrepancy.dataset import Dataset, Run
-from omni_gym.discrepancy.localise import local_pose_fit, wheel_angles
+from omni_gym.discrepancy.data.dataset import Dataset, Run
+from omni_gym.discrepancy.data.measured_state import local_pose_fit, wheel_angles
 
 MIN_TAIL = 0.5  # shortest tail piece kept, as a share of the segment length
 GOLDEN = 0.6180339887498949  # spreads each run's first sampled piece over the run's time

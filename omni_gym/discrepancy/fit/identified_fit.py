@@ -53,9 +53,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from omni_gym.discrepancy.candidates import to_cube
-from omni_gym.discrepancy.identifiability import BOUND, MERGE_WEIGHT, Linearisation, combination_text
-from omni_gym.discrepancy.residuals import geo_mse, run_sse
+from omni_gym.discrepancy.fit.candidates import to_cube
+from omni_gym.discrepancy.fit.identifiability import BOUND, MERGE_WEIGHT, Linearisation, combination_text
+from omni_gym.discrepancy.replay.residuals import geo_mse, run_sse
 from omni_gym.discrepancy.settings import FitSettings
 from omni_gym.physics.model import SimModel
 

@@ -10,7 +10,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from omni_gym.discrepancy.synth import write_synthetic
+from omni_gym.discrepancy.synthetic.synth import write_synthetic
 from omni_gym.discrepancy.workflow import gap
 from omni_gym.physics.effects import REGISTRY
 from omni_gym.physics.model import SimModel, load_model

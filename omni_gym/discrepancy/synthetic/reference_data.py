@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from omni_gym.analysis.reference import SUPPORTED_EFFECTS, WheelMotion, reference_trajectory
-from omni_gym.discrepancy.dataset import Run, write_dataset
-from omni_gym.discrepancy.synth import COUNTS_PER_REV, RATE
+from omni_gym.discrepancy.data.dataset import Run, write_dataset
+from omni_gym.discrepancy.synthetic.synth import COUNTS_PER_REV, RATE
 from omni_gym.physics.model import SimModel
 
 NOISE_XY = 0.001  # m: tracker noise in x and y (issue 15 item 6)
@@ -92,7 +92,7 @@ def reference_runs(model: SimModel, hidden: dict | None, runs: int, duration: fl
     """``runs`` runs of random twist steps integrated by the reference with ``hidden`` effects
     (``{name: params}``, names from :data:`~omni_gym.analysis.reference.SUPPORTED_EFFECTS`; None: the
     nominal model), tracker noise ``noise_xy`` [m] in x and y and ``noise_heading`` [rad] in heading,
-    encoders quantised to :data:`~omni_gym.discrepancy.synth.COUNTS_PER_REV`. ``noisy_start``: the first
+    encoders quantised to :data:`~omni_gym.discrepancy.synthetic.synth.COUNTS_PER_REV`. ``noisy_start``: the first
     row is measured with the same noise as the others, as a real tracker's is (default: exact, as in
     ``omni-gym synth``; the workflow takes a run's first pose as its start). Seeded by ``seed``;
     ``twist``: keywords of :func:`twist_steps` (``max_speed``, ``max_yaw_rate``)."""

@@ -44,7 +44,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from omni_gym.discrepancy.dataset import Dataset, Run
+from omni_gym.discrepancy.data.dataset import Dataset, Run
 
 Z = 6.0  # robust standard deviations of tracker noise (see the module docstring)
 A_MAX = 2.0 * 9.81  # m/s², the largest acceleration floor friction can give (mu <= 2)
