@@ -30,6 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.ticker import FuncFormatter  # noqa: E402
 from scipy import stats  # noqa: E402
 
 from omni_gym.outputs import write_bytes_atomic, write_text_atomic  # noqa: E402
@@ -116,9 +117,11 @@ def plot(path: Path, groups: dict) -> None:
                 ax.plot(grid, mean, color=f"C{i}", label=f"{agent} / {algo.upper()} ({len(runs)} seeds)")
                 # An RMSE is positive: the band is cut at 1 mm (with 2 seeds t(1) = 12.7 makes it very wide).
                 ax.fill_between(grid, np.maximum(mean - half, FLOOR), mean + half, color=f"C{i}", alpha=0.2)
-        for col, xlabel in enumerate(("environment steps", "wall-clock [min]")):
+        for col, xlabel in enumerate(("environment steps [thousands]", "wall-clock [min]")):
             ax = axes[row, col]
             ax.set_xlabel(xlabel)
+            if col == 0:  # 50000100000… ran together as plain tick labels
+                ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x / 1e3:g}"))
             ax.set_ylabel("validation tracking RMSE [m]")
             ax.set_yscale("log")
             ax.set_title(env_id)
