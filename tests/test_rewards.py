@@ -88,6 +88,12 @@ def test_reward_modes_and_bad_names():
     np.testing.assert_allclose(p, [1.5, 1.0 + 0.25 * np.exp(-1) + 0.25 * np.exp(-0.01), 1.0 + 0.25 * np.exp(-225)])
     with pytest.raises(ValueError, match="'pose' reward needs the heading error"):
         tracking_reward("pose", np.zeros(3), e, a, np.zeros(3, bool), 0.5)
+    # pose_fine: 1.5 on the path; at 1 mm its narrowest position term is e^-1 of its weight (1/3), the 1 cm and
+    # 10 cm terms nearly 1: so it still rewards going from 1 mm to 0 by ~0.2, where pose gains only ~0.005
+    f = tracking_reward("pose_fine", np.zeros(2), [0.0, 0.001], a[:2], np.zeros(2, bool), 0.5, heading=[0.0, 0.0])
+    np.testing.assert_allclose(f, [1.5, 0.5 + (np.exp(-1) + np.exp(-0.01) + np.exp(-1e-4)) / 3])
+    p1 = tracking_reward("pose", np.zeros(2), [0.0, 0.001], a[:2], np.zeros(2, bool), 0.5, heading=[0.0, 0.0])
+    assert f[0] - f[1] > 30 * (p1[0] - p1[1])
     with pytest.raises(ValueError, match="unknown reward 'quadratic'; choose one of env, tracking, squared"):
         TrackingReward(gym.make(ENV, **KW), "quadratic")
     with pytest.raises(ValueError, match="TrackingReward needs an omni-gym environment"):
