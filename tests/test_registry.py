@@ -65,7 +65,7 @@ def test_agent_tables_keep_their_names_and_messages():
     assert VECTOR_POLICIES.names() == POLICIES.names()  # every scripted policy has its batched twin
     assert all(cls.name == name for name, cls in (*POLICIES.items(), *VECTOR_POLICIES.items()))
     assert WRAPPERS.names() == ("none", "residual-ekf-pid", "ekf-features", "feedforward")
-    assert REWARDS.names() == ("env", "tracking", "squared", "gaussian", "pose")
+    assert REWARDS.names() == ("env", "tracking", "squared", "gaussian", "pose", "pose_fine")
     assert ALGORITHMS.names() == ("ppo", "sac", "td3")
     assert VEC_ENV_KINDS.names() == ("native", "dummy", "subproc")
     assert MODES.names() == ("static", "moving")
