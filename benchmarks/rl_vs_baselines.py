@@ -461,7 +461,7 @@ def write_markdown(path: Path, command: str, env_ids: list[str], policies: dict,
 def plot(path: Path, env_ids: list[str], policies: dict, sets: list[str], summ: dict, metas: dict) -> None:
     """Bars with 95 % whiskers: one row of four metric panels per id and set, conditions on the x axis."""
     rows = [(e, s) for e in env_ids for s in sets]
-    fig, axes = plt.subplots(len(rows), 4, figsize=(19, 4.3 * len(rows)), squeeze=False)
+    fig, axes = plt.subplots(len(rows), 4, figsize=(22, 4.3 * len(rows)), squeeze=False)
     conds = list(CONDITIONS)
     for (env_id, s), row in zip(rows, axes, strict=True):
         pols = policies[env_id]
@@ -486,10 +486,10 @@ def plot(path: Path, env_ids: list[str], policies: dict, sets: list[str], summ: 
             else:
                 ax.set_yscale("log")
             ax.grid(axis="y", alpha=0.3, which="both")
-        row[0].legend(loc="upper left", fontsize=7)
+        row[-1].legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7)  # outside: bars stay visible
     fig.suptitle("Trained agents vs scripted baselines: means with 95 % intervals (t; Wilson for the success rate)")
     fig.tight_layout(rect=(0, 0, 1, 0.98))
-    fig.savefig(path, dpi=100)
+    fig.savefig(path, dpi=100, bbox_inches="tight")
     plt.close(fig)
 
 
