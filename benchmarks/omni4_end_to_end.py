@@ -65,6 +65,8 @@ from omni_gym.outputs import write_bytes_atomic, write_text_atomic  # noqa: E402
 MODEL = ROOT / "benchmarks" / "inputs" / "omni4_calibrated_model.json"
 NOMINAL, CALIBRATED = "nominal", "calibrated"
 ENV_KINEMATICS = "env"  # the policy as omni-gym evaluate builds it: twist actions, the env default kinematics="nominal"
+ENV_MODEL_KINEMATICS = "env-model"  # the same with the env keyword kinematics="model" (the model's wheel matrix)
+ENV_BUILT = (ENV_KINEMATICS, ENV_MODEL_KINEMATICS)  # policies the environment builds (twist actions)
 DESIGN_IDS = {NOMINAL: "OmniPathFollow-Mecanum-v0", CALIBRATED: "OmniPathFollow-Custom-v0"}
 P_GRID = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0)  # multipliers of kp_pos, kp_head
 I_GRID = (0.25, 0.5, 1.0, 2.0, 4.0)  # multipliers of ki_pos, ki_head
@@ -86,13 +88,14 @@ def design_model(design: str, model_path: Path = MODEL):
 
 
 def make_env(design: str, num: int, seconds: float | None, action_mode: str = "wheels", obs_mode: str = "sensors",
-             model_path: Path = MODEL):
+             model_path: Path = MODEL, extra: dict | None = None):
     """A native vector env (``next_step`` autoreset, episodes end with the reference) of a design model."""
     import gymnasium as gym
 
     import omni_gym  # noqa: F401  (registers the ids)
 
-    kw = {**env_kwargs(design, model_path), **({} if seconds is None else {"episode_seconds": seconds})}
+    kw = {**env_kwargs(design, model_path), **({} if seconds is None else {"episode_seconds": seconds}),
+          **(extra or {})}
     return gym.make_vec(DESIGN_IDS[design], num_envs=num, vectorization_mode="vector_entry_point",
                         autoreset_mode="next_step", max_episode_steps=None, obs_mode=obs_mode,
                         action_mode=action_mode, **kw)
@@ -103,7 +106,7 @@ class Scripted:
     """A scripted controller: policy name, the design model its kinematics come from, its gains."""
 
     policy: str  # open-loop or ekf-pid
-    kinematics: str  # NOMINAL or CALIBRATED, or ENV_KINEMATICS
+    kinematics: str  # NOMINAL or CALIBRATED, or one of ENV_BUILT
     gains: PIDGains | None = None
 
 
@@ -115,7 +118,7 @@ def build_scripted(venv, spec: Scripted, model_path: Path = MODEL):
     from omni_gym.physics.kinematics import effective_kinematics
 
     policy = make_vector_policy(spec.policy, venv, spec.gains)
-    if spec.kinematics == ENV_KINEMATICS:
+    if spec.kinematics in ENV_BUILT:
         return policy
     # The design model's effective kinematics (wheel matrix with its effects, mean effective radius).
     kinematics = effective_kinematics(design_model(spec.kinematics, model_path))
@@ -134,8 +137,9 @@ def run_scripted(args: tuple) -> list[dict]:
     from agents.vector_rollout import run_episodes_vector
 
     design, spec, seeds, seconds, model_path = args
-    mode = "twist" if spec.kinematics == ENV_KINEMATICS else "wheels"
-    venv = make_env(design, len(seeds), seconds, action_mode=mode, model_path=model_path)
+    mode = "twist" if spec.kinematics in ENV_BUILT else "wheels"
+    extra = {"kinematics": "model"} if spec.kinematics == ENV_MODEL_KINEMATICS else None
+    venv = make_env(design, len(seeds), seconds, action_mode=mode, model_path=model_path, extra=extra)
     try:
         return [e.metrics() for e in run_episodes_vector(venv, build_scripted(venv, spec, model_path), seeds)]
     finally:
@@ -263,6 +267,9 @@ def main(argv: list[str] | None = None) -> int:
         "ekf-pid, nominal kinematics, default gains": (CALIBRATED, Scripted("ekf-pid", NOMINAL)),
         "ekf-pid as `omni-gym evaluate` runs it on the calibrated model (twist actions; the model's wheel "
         "layout, the nominal wheel radius), default gains": (CALIBRATED, Scripted("ekf-pid", ENV_KINEMATICS)),
+        "ekf-pid as `omni-gym evaluate` runs it with `kinematics=\"model\"` (twist actions through the model's "
+        "wheel matrix, effective radii included), default gains": (CALIBRATED, Scripted("ekf-pid",
+                                                                                         ENV_MODEL_KINEMATICS)),
         "ekf-pid designed on nominal (nominal kinematics, gains tuned on nominal)":
             (CALIBRATED, Scripted("ekf-pid", NOMINAL, gains[NOMINAL])),
         "ekf-pid, nominal kinematics, gains tuned on calibrated": (CALIBRATED, Scripted("ekf-pid", NOMINAL,
