@@ -138,11 +138,18 @@ def _actor_params(model):
 
 
 def _linear_actor(model) -> bool:
-    """PPO with no hidden layer in the actor (``net_arch=dict(pi=[], ...)``): its mean is affine in the
-    observation, as the law is."""
+    """PPO with no hidden layer in the actor (``net_arch=dict(pi=[], ...)``) on the observation itself or on
+    :class:`agents.networks.AffineSkip`'s ``[x, mlp(x)]``: its mean is affine in the observation (plus, for
+    the latter, a nonlinear term that the clone sets to zero), as the law is."""
     from stable_baselines3 import PPO
 
-    return isinstance(model, PPO) and len(list(model.policy.mlp_extractor.policy_net.parameters())) == 0
+    if not isinstance(model, PPO) or len(list(model.policy.mlp_extractor.policy_net.parameters())) > 0:
+        return False
+    from stable_baselines3.common.torch_layers import FlattenExtractor
+
+    from agents.networks import AffineSkip
+
+    return isinstance(model.policy.pi_features_extractor, (FlattenExtractor, AffineSkip))
 
 
 def fit_linear(model, x: np.ndarray, y: np.ndarray) -> float:
@@ -154,8 +161,11 @@ def fit_linear(model, x: np.ndarray, y: np.ndarray) -> float:
     X = np.column_stack([x.astype(float), np.ones(len(x))])
     coef, *_ = np.linalg.lstsq(X, y.astype(float), rcond=None)
     layer = model.policy.action_net
+    d = x.shape[1]
     with torch.no_grad():
-        layer.weight.copy_(torch.as_tensor(coef[:-1].T, dtype=layer.weight.dtype))
+        # Features [x, mlp(x)] (agents.networks.AffineSkip): the clone on x, the nonlinear part starts at 0.
+        layer.weight.zero_()
+        layer.weight[:, :d] = torch.as_tensor(coef[:-1].T, dtype=layer.weight.dtype)
         layer.bias.copy_(torch.as_tensor(coef[-1], dtype=layer.bias.dtype))
     return float(np.mean((np.clip(X @ coef, -1, 1) - np.clip(y, -1, 1)) ** 2))
 

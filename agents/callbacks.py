@@ -79,7 +79,10 @@ class HoldActor(BaseCallback):
 
         if isinstance(self.model, PPO):
             p = self.model.policy
-            return {"policy_net": p.mlp_extractor.policy_net, "action_net": p.action_net}
+            held = {"policy_net": p.mlp_extractor.policy_net, "action_net": p.action_net}
+            if not p.share_features_extractor:  # the actor's own extractor (e.g. agents.networks.AffineSkip)
+                held["pi_features_extractor"] = p.pi_features_extractor
+            return held
         return {"actor": self.model.actor}
 
     def _save(self) -> None:

@@ -152,21 +152,25 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
 
 
 def _policy_kwargs(text, where: str) -> dict:
-    """Evaluate an RL-Zoo ``policy_kwargs`` string with only ``dict``, ``nn`` and literals in scope."""
+    """Evaluate an RL-Zoo ``policy_kwargs`` string with only ``dict``, ``nn``, the actor networks of
+    :mod:`agents.networks` (``AffineSkip``) and literals in scope."""
     if text is None:
         return {}
     if isinstance(text, dict):
         return dict(text)
     import torch.nn as nn
 
+    from agents.networks import AffineSkip
+
+    scope = {"dict": dict, "nn": nn, "AffineSkip": AffineSkip}
     try:
         tree = ast.parse(str(text), mode="eval")
-        for node in ast.walk(tree):  # names allowed: dict, nn, True/False/None; attributes only on nn
-            if isinstance(node, ast.Name) and node.id not in ("dict", "nn"):
+        for node in ast.walk(tree):  # names allowed: the scope's, True/False/None; attributes only on nn
+            if isinstance(node, ast.Name) and node.id not in scope:
                 raise ValueError(f"name {node.id!r} not allowed")
             if isinstance(node, ast.Call) and not (isinstance(node.func, ast.Name) and node.func.id == "dict"):
                 raise ValueError("only dict(...) calls are allowed")
-        value = eval(compile(tree, where, "eval"), {"__builtins__": {}}, {"dict": dict, "nn": nn})  # noqa: S307
+        value = eval(compile(tree, where, "eval"), {"__builtins__": {}}, scope)  # noqa: S307
     except (SyntaxError, ValueError, AttributeError) as exc:
         raise ValueError(f"{where}: policy_kwargs {text!r}: {exc}") from None
     if not isinstance(value, dict):

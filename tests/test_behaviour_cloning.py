@@ -209,3 +209,27 @@ def test_residual_agent_held_at_zero_is_ekf_pid(tmp_path):
         assert np.abs(act).max() == 0.0  # held: the zeroed output layer never received an update
         obs, *_ = env.step(act)
     env.close()
+
+
+def test_affine_skip_actor_clones_the_law_exactly_and_starts_its_mlp_at_zero(tmp_path):
+    """agents.networks.AffineSkip: features [x, mlp(x)] under an affine actor. The least-squares clone puts the
+    law on x and zero on mlp(x), so, held through the warm-up, the actor is the law on unseen observations
+    (float32 rounding, 1e-5) and its nonlinear weights are exactly 0; the MLP exists (64 features)."""
+    from stable_baselines3 import PPO
+
+    path = _bc_yaml(tmp_path)
+    data = yaml.safe_load(path.read_text())
+    data[ENV]["callback"][0]["agents.callbacks.BehaviourCloningInit"]["actor_warmup"] = 10_000
+    data[ENV]["policy_kwargs"] = ("dict(features_extractor_class=AffineSkip, features_extractor_kwargs=dict(hidden=64),"
+                                  " share_features_extractor=False, log_std_init=-3.0, net_arch=dict(pi=[], vf=[16]))")
+    path.write_text(yaml.safe_dump(data))
+    meta = train("ppo", ENV, 64, 0, tmp_path / "m", hyperparams=path, eval_freq=0)
+    assert meta["bc_init"]["mse_last_epoch"] < 1e-10
+    model = PPO.load(tmp_path / "m" / "final_model.zip", device="cpu")
+    w = model.policy.action_net.weight.detach().numpy()
+    d = model.observation_space.shape[0]
+    assert w.shape == (3, d + 64) and np.all(w[:, d:] == 0.0)
+    venv, obs = _state_obs(n=6, steps=25, seed=13)
+    act, _ = model.predict(obs, deterministic=True)
+    assert np.abs(act - law_actions(StateObsDecoder.for_env(venv), obs.astype(float))).max() < 1e-5
+    venv.close()
