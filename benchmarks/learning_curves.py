@@ -60,7 +60,10 @@ def agent_label(meta: dict) -> str:
         kind = "privileged"
     else:
         kind = {"ekf-features": "ekf-features", "residual-ekf-pid": "residual"}.get(meta.get("wrapper"), "sensors")
-    return f"{kind}, BC-init" if "bc_init" in meta else kind
+    label = f"{kind}, BC-init" if "bc_init" in meta else kind
+    # Runs of different hyperparameter files are different agents even with the same observation and start.
+    stem = Path(str(meta.get("hyperparams_file") or "")).stem
+    return f"{label} [{stem}]" if stem else label
 
 
 def load_run(path: Path) -> Run:
