@@ -298,15 +298,11 @@ class VectorSB3Policy(SB3Policy):
 def wrap_vector_for(venv, meta: dict):
     """``venv`` (a native vector env) wrapped as the model of ``meta`` (its meta.json) was trained: the EKF
     features (``residual-ekf-pid``: the model's residual bound; ``ekf-features``: 0) or the reference
-    feed-forward; unwrapped for ``none``."""
-    from agents.wrappers import VectorEKFFeatures, VectorFeedForwardTwist
+    feed-forward; unwrapped for ``none`` (:func:`agents.wrappers.wrap_vector_env`, the environment's reward)."""
+    from agents.wrappers import wrap_vector_env
 
-    if meta["wrapper"] == "feedforward":  # privileged: reference feed-forward + the model's correction
-        return VectorFeedForwardTwist(venv, float(meta.get("residual_scale", 0.5)))
-    if meta["wrapper"] != "none":
-        scale = float(meta.get("residual_scale", 0.3)) if meta["wrapper"] == "residual-ekf-pid" else 0.0
-        return VectorEKFFeatures(venv, scale)
-    return venv
+    default = 0.5 if meta["wrapper"] == "feedforward" else 0.3  # meta.json without the key (older models)
+    return wrap_vector_env(venv, meta["wrapper"], float(meta.get("residual_scale", default)))
 
 
 def build_vector(path: str | Path, num: int, env_id: str | None = None, env_kwargs: dict | None = None,
