@@ -1,33 +1,31 @@
-"""The workflow on data from an independent implementation: the right answer over many cases.
+"""`omni-gym gap` with its command-line defaults on data from a second, separately written integrator.
 
-Datasets from :mod:`omni_gym.discrepancy.synthetic.reference_data` (the validation integrator, not the world the
-workflow fits with; white tracker noise 1 mm in x and y and 2 mrad in heading; random twist steps;
-Williams robot on carpet, initial friction). Categories (:func:`cases`), each case with its own seed,
-run count, run length, size and direction:
+What users run is validated here: every case writes a dataset with
+:func:`omni_gym.analysis.second_generator.write_second_dataset` (an integrator of the documented equations
+written apart from the world that ``gap`` fits with: scipy ``solve_ivp`` with events at every roller/gap
+and lift switch) and runs ``omni-gym gap DATASET --out REPORT --json`` as a subprocess, with no option.
+``--generator reference`` uses the first independent integrator instead
+(:mod:`omni_gym.discrepancy.synthetic.reference_data`: random twist steps, Williams robot only).
+
+Cases (:func:`cases`), each with its own seed, over both robot types (``williams2002``: three omni wheels;
+``optiodom_omni4``: four mecanum wheels; carpet, ``initial`` friction):
 
 * ``none``: nothing hidden (right: ``none``);
-* every library effect the reference integrator implements, plus the tracker effects it applies
-  itself: ``com_offset`` (5-25 mm in a random direction), ``wheel_radius`` (one random wheel 3-6 %
-  off), ``wheel_geometry`` (one random wheel's distance 2-5 % off and another's mount 0.02-0.04 rad),
-  ``tracker_offset`` (10-30 mm in a random direction, yaw ±0.01-0.03 rad), ``time_offset`` (±20-60 ms),
-  and, within the effect's own recovery sizes (``recovery_sizes`` of its module, small to large):
-  ``motor_lag`` (τ 40-80 ms), ``kinetic_friction`` (ratio 0.6-0.75 at v_s 0.02 m/s),
-  ``wheel_liftoff`` (lift rate 0.4-1.0 /s, recover rate 5 /s; which wheels lift and when is drawn per
-  run by the documented process), ``roller_gap`` (μ'' 0.4-0.56, the robot's roller share 0.9, a
-  random phase per wheel) (right: the effect named first, its parameters within the effect's
-  recovery tolerance);
-* ``drag``: a viscous drag of 2-4 N·s/m, outside the library (right: ``unexplained``).
+* every library effect that applies to the robot, random size and direction (:func:`hidden_effect`):
+  right when it is named first with its parameters within the effect's recovery tolerance;
+* ``drag``: a viscous body drag, outside the library (right: ``unexplained``).
 
-Seeds: case i of the kind at index k of :data:`KINDS` has seed ``seed0 + 100 k + i + 1`` whatever
-``--kinds`` selects, so a subset run repeats the full study's cases; ``--seed0`` draws held-out sets
-(0: the study's own).
+Each case draws its run count (3-12), run length (2.5-10 s, at most 40 s of robot time in all),
+manoeuvre family (steps with rests, smooth paths, turns in place), tracker noise (0.5-3 mm in x and y,
+heading noise 2 mrad per mm) and encoder resolution (512-4096 counts per turn) from its seed. Case i of
+category k has seed ``seed0 + 1000·robot + 100·k + i + 1`` whatever ``--kinds`` selects.
 
-One JSON line per case on stdout (flushed: a log shows the progress), then the table, written to
+One JSON line per case on stdout (flushed: a log shows the progress), then the tables, written to
 ``--out`` (markdown) with the cases beside it (``.json``).
 
     python benchmarks/independent_data.py --jobs 2 --out benchmarks/results/independent_data.md
     python benchmarks/independent_data.py --per-kind 1 --kinds none com_offset     # a quick look
-    python benchmarks/independent_data.py --jobs 8 --seed0 5000 --out /tmp/held_out.md  # another set
+    python benchmarks/independent_data.py --jobs 2 --seed0 50000 --out /tmp/held_out.md  # another set
 """
 
 from __future__ import annotations
@@ -35,6 +33,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import subprocess
+import sys
 import tempfile
 import time
 from collections.abc import Iterator
@@ -43,17 +44,29 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.discrepancy.synthetic.recovery import TOLERANCES, nominal_model, param_error
-from omni_gym.discrepancy.synthetic.reference_data import write_reference_dataset
-from omni_gym.discrepancy.workflow import gap
+from omni_gym.analysis.second_generator import MANOEUVRES, write_second_dataset
+from omni_gym.discrepancy.synthetic.recovery import TOLERANCES, param_error
 from omni_gym.physics.effects import REGISTRY
+from omni_gym.physics.model import SimModel, load_model
 
-# New kinds go at the end: a kind's index in KINDS sets its cases' seeds (see cases()).
+ROBOTS = ("williams2002", "optiodom_omni4")
+# New kinds go at the end: a kind's index sets its cases' seeds (see cases()).
 KINDS = ("none", "com_offset", "wheel_radius", "wheel_geometry", "tracker_offset", "time_offset", "drag",
-         "motor_lag", "kinetic_friction", "wheel_liftoff", "roller_gap")
-PER_KIND = {"none": 8, "com_offset": 8, "wheel_radius": 5, "wheel_geometry": 5, "tracker_offset": 5,
-            "time_offset": 5, "drag": 5, "motor_lag": 5, "kinetic_friction": 5, "wheel_liftoff": 5,
-            "roller_gap": 5}
+         "motor_lag", "kinetic_friction", "wheel_liftoff", "roller_gap", "mecanum_lateral")
+PER_KIND = 3  # cases per effect and robot
+PER_NONE = 15  # nothing-hidden cases per robot
+MAX_ROBOT_TIME = 40.0  # s of robot time per case (run count x length), to keep the study within hours
+ENCODER_COUNTS = (512, 1024, 2048, 4096)
+
+
+def robot_model(robot: str) -> SimModel:
+    """The dataset's nominal model of ``robot`` (carpet, ``initial`` friction: what the generator writes)."""
+    return load_model(robot, surface="carpet", friction="initial")
+
+
+def applies(kind: str, model: SimModel) -> bool:
+    """Whether category ``kind`` is a case for ``model``'s robot (an effect must apply to its wheels)."""
+    return kind in ("none", "drag") or REGISTRY[kind].applies_to(model.robot)
 
 
 def _between(rng: np.random.Generator, effect: str, key: str) -> float:
@@ -63,8 +76,10 @@ def _between(rng: np.random.Generator, effect: str, key: str) -> float:
     return float(rng.uniform(lo, hi)) if hi > lo else lo
 
 
-def _hidden(kind: str, rng: np.random.Generator, n_wheels: int) -> dict | None:
-    """The hidden effect of one case (``{name: params}``; None for ``none``), drawn from ``rng``."""
+def hidden_effect(kind: str, rng: np.random.Generator, model: SimModel) -> dict | None:
+    """The hidden effect of one case (``{name: params}``; None for ``none``), drawn from ``rng``: sizes a
+    robot of this kind plausibly has, in a random direction."""
+    n = model.n_wheels
     sign = 1.0 if rng.random() < 0.5 else -1.0
     if kind == "none":
         return None
@@ -72,12 +87,12 @@ def _hidden(kind: str, rng: np.random.Generator, n_wheels: int) -> dict | None:
         size, a = rng.uniform(0.005, 0.025), rng.uniform(-math.pi, math.pi)
         return {kind: {"com": [size * math.cos(a), size * math.sin(a)]}}
     if kind == "wheel_radius":
-        scale = np.ones(n_wheels)
-        scale[rng.integers(n_wheels)] = 1.0 + sign * rng.uniform(0.03, 0.06)
+        scale = np.ones(n)
+        scale[rng.integers(n)] = 1.0 + sign * rng.uniform(0.03, 0.06)
         return {kind: {"scale": [float(v) for v in scale]}}
     if kind == "wheel_geometry":
-        i, j = rng.choice(n_wheels, 2, replace=False)
-        distance, mount = np.ones(n_wheels), np.zeros(n_wheels)
+        i, j = rng.choice(n, 2, replace=False)
+        distance, mount = np.ones(n), np.zeros(n)
         distance[i] = 1.0 + sign * rng.uniform(0.02, 0.05)
         mount[j] = rng.choice([-1.0, 1.0]) * rng.uniform(0.02, 0.04)
         return {kind: {"distance": [float(v) for v in distance], "mount": [float(v) for v in mount]}}
@@ -87,55 +102,84 @@ def _hidden(kind: str, rng: np.random.Generator, n_wheels: int) -> dict | None:
     if kind == "time_offset":
         return {kind: {"delay": sign * rng.uniform(0.02, 0.06)}}
     if kind == "drag":
-        return {"drag": rng.uniform(2.0, 4.0)}
+        return {"drag": float(rng.uniform(2.0, 4.0))}
     if kind == "motor_lag":
         return {kind: {"tau": _between(rng, kind, "tau")}}
     if kind == "kinetic_friction":
-        return {kind: {"ratio": _between(rng, kind, "ratio"), "v_s": _between(rng, kind, "v_s")}}
+        return {kind: {"ratio": float(rng.uniform(0.5, 0.75)), "v_s": float(rng.uniform(0.02, 0.05))}}
     if kind == "wheel_liftoff":
         return {kind: {"lift_rate": _between(rng, kind, "lift_rate"),
                        "recover_rate": _between(rng, kind, "recover_rate")}}
     if kind == "roller_gap":
-        robot = nominal_model().robot
+        robot = model.robot
         pitch = 2 * math.pi / robot.rollers
         return {kind: {"mu_gap": _between(rng, kind, "mu_gap"), "roller_fraction": robot.roller_fraction,
-                       "phase": [float(v) for v in rng.uniform(0.0, pitch, n_wheels)]}}
+                       "phase": [float(v) for v in rng.uniform(0.0, pitch, n)]}}
+    if kind == "mecanum_lateral":
+        return {kind: {"ratio": float(rng.uniform(0.92, 0.97))}}
     raise ValueError(f"unknown kind {kind!r}")
 
 
-def cases(kinds: tuple[str, ...] = KINDS, per_kind: int | None = None, seed0: int = 0) -> Iterator[dict]:
-    """The study's cases: per kind, ``per_kind`` (default :data:`PER_KIND`) cases with their own seed,
-    3 or 4 runs of 2.5 or 3 s (the seventh and eighth ``none`` cases: 8 runs of 5 s), and a hidden
-    effect drawn from ``default_rng(10000 + seed)``; seed = seed0 + 100·(index of the kind in
-    :data:`KINDS`) + i + 1, the same whichever ``kinds`` are asked for."""
-    n_wheels = nominal_model().n_wheels
-    for kind in kinds:
-        k = KINDS.index(kind)
-        for i in range(per_kind or PER_KIND[kind]):
-            seed = seed0 + 100 * k + i + 1
-            rng = np.random.default_rng(10_000 + seed)
-            runs, duration = int(rng.integers(3, 5)), float(rng.choice([2.5, 3.0]))
-            if kind == "none" and i >= 6:
-                runs, duration = 8, 5.0  # the longer datasets on which nothing hidden was once misnamed
-            yield {"kind": kind, "seed": seed, "runs": runs, "duration": duration,
-                   "hidden": _hidden(kind, rng, n_wheels)}
+def cases(kinds: tuple[str, ...] = KINDS, robots: tuple[str, ...] = ROBOTS, per_kind: int | None = None,
+          seed0: int = 0) -> Iterator[dict]:
+    """The study's cases (module docstring): per robot and kind, ``per_kind`` cases (default
+    :data:`PER_KIND`, :data:`PER_NONE` for ``none``), each with its own seed and generator settings."""
+    for robot in robots:
+        model = robot_model(robot)
+        r = ROBOTS.index(robot)
+        for kind in kinds:
+            if not applies(kind, model):
+                continue
+            k = KINDS.index(kind)
+            for i in range(per_kind or (PER_NONE if kind == "none" else PER_KIND)):
+                seed = seed0 + 1000 * r + 100 * k + i + 1
+                rng = np.random.default_rng(10_000 + seed)
+                runs = int(rng.integers(3, 13))
+                duration = float(np.round(rng.uniform(2.5, 10.0), 1))
+                duration = max(2.5, min(duration, math.floor(10 * MAX_ROBOT_TIME / runs) / 10))
+                noise = float(np.round(rng.uniform(0.5, 3.0), 2)) * 1e-3
+                yield {"kind": kind, "robot": robot, "seed": seed, "runs": runs, "duration": duration,
+                       "manoeuvre": str(rng.choice(MANOEUVRES)), "position_noise": noise,
+                       "heading_noise": 2.0 * noise, "encoder_counts": int(rng.choice(ENCODER_COUNTS)),
+                       "hidden": hidden_effect(kind, rng, model)}
 
 
-def run(case: dict) -> dict:
-    """Generate one dataset, run ``gap`` on it (at most 2 effects), score the answer."""
-    model = nominal_model()
+def write_case(case: dict, folder: Path, generator: str = "second") -> None:
+    """Write the dataset of ``case`` into ``folder`` with ``generator`` (``second`` or ``reference``)."""
+    if generator == "second":
+        write_second_dataset(folder, robot=case["robot"], hidden=case["hidden"], runs=case["runs"],
+                             duration=case["duration"], manoeuvre=case["manoeuvre"],
+                             position_noise=case["position_noise"], heading_noise=case["heading_noise"],
+                             encoder_counts=case["encoder_counts"], seed=case["seed"])
+        return
+    from omni_gym.discrepancy.synthetic.reference_data import write_reference_dataset
+
+    write_reference_dataset(folder, robot_model(case["robot"]), case["hidden"], case["runs"], case["duration"],
+                            case["seed"], noise_xy=case["position_noise"], noise_heading=case["heading_noise"],
+                            noisy_start=True)
+
+
+def run(case: dict, generator: str = "second") -> dict:
+    """Generate one dataset, run ``omni-gym gap DATASET --out REPORT --json`` (the defaults), score the answer."""
+    model = robot_model(case["robot"])
     kind, hidden = case["kind"], case["hidden"]
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp) / "data"
-        write_reference_dataset(folder, model, hidden, case["runs"], case["duration"], case["seed"])
+        write_case(case, folder, generator)
         t0 = time.perf_counter()
-        result = gap(folder, None, seed=case["seed"], progress=False, max_effects=2)
+        cmd = [sys.executable, "-m", "omni_gym.cli", "gap", str(folder), "--out", str(Path(tmp) / "report"), "--json"]
+        proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "MPLBACKEND": "Agg"})
         wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        return {**case, "effect": f"error (exit {proc.returncode})", "effects": [], "why": proc.stderr[-300:],
+                "nominal_rms_mm": math.nan, "floor_mm": None, "start": "-", "wall_s": wall, "correct": False}
+    result = json.loads(proc.stdout)
     g = result["gap"]
+    floor = g["noise_components"]["floor"]
     out = {**case, "effect": result["effect"], "effects": result["effects"], "why": result["why"],
-           "nominal_rms_mm": 1e3 * g["rms_before"],
-           "floor_mm": None if g["noise_components"]["floor"] is None else 1e3 * g["noise_components"]["floor"],
-           "reduction": g["reduction"], "wall_s": wall, "fitted": result.get("params")}
+           "start": result["start"]["kind"], "nominal_rms_mm": 1e3 * g["rms_before"],
+           "floor_mm": None if floor is None else 1e3 * floor, "reduction": g["reduction"], "wall_s": wall,
+           "fitted": result.get("params")}
     if kind == "none":
         out["correct"] = result["effect"] == "none"
     elif kind == "drag":
@@ -150,36 +194,72 @@ def run(case: dict) -> dict:
     return out
 
 
-def table(done: list[dict], command: str = "python benchmarks/independent_data.py --jobs 2") -> str:
-    """The markdown summary: right answers per category and in all, then one row per case; ``command``:
-    the command line that made it."""
-    kinds = [k for k in KINDS if any(r["kind"] == k for r in done)]
+def _rate(rows: list[dict]) -> str:
+    right = sum(r["correct"] for r in rows)
+    return f"{right}/{len(rows)} ({100 * right / len(rows):.0f} %)" if rows else "-"
+
+
+def _bucket_table(done: list[dict], title: str, key, order: list) -> list[str]:
+    lines = ["", f"**By {title}**", "", f"| {title} | right | false alarms (nothing hidden) |", "|---|---|---|"]
+    for b in order:
+        rows = [r for r in done if key(r) == b]
+        if rows:
+            none = [r for r in rows if r["kind"] == "none"]
+            fa = sum(not r["correct"] for r in none)
+            lines.append(f"| {b} | {_rate(rows)} | {fa}/{len(none)} |")
+    return lines
+
+
+def table(done: list[dict], command: str, generator: str) -> str:
+    """The markdown report: the rate overall, per category and robot, per noise level and run length, the
+    false-alarm rate, then one row per case; ``command``: the command line that made it."""
     right = sum(r["correct"] for r in done)
-    lines = ["# Independent data: the right answer over many cases", "",
-             f"`{command}` (datasets from the reference integrator, "
-             "`omni_gym.discrepancy.synthetic.reference_data`; tracker noise 1 mm x/y, 2 mrad heading; 3-4 runs of "
-             "2.5-3 s of random twist steps (two `none` cases: 8 runs of 5 s); Williams robot, carpet, initial "
-             "friction; `gap` with at most 2 "
-             "effects). Right: `none` with nothing hidden, `unexplained` for the drag outside the library, "
-             "else the hidden effect named first with its parameters within the effect's recovery tolerance.",
-             "", f"**Right answer in {right} of {len(done)} cases ({100 * right / max(len(done), 1):.0f} %).**", "",
-             "| category | right | cases | answers given |", "|---|---|---|---|"]
-    for k in kinds:
-        rs = [r for r in done if r["kind"] == k]
+    none = [r for r in done if r["kind"] == "none"]
+    fa = [r for r in none if not r["correct"]]
+    wall = [r["wall_s"] for r in done]
+    source = ("the second integrator, `omni_gym.analysis.second_generator`" if generator == "second" else
+              "the reference integrator, `omni_gym.discrepancy.synthetic.reference_data` (noisy first row)")
+    lines = ["# Independent data through the command line: the right answer over many cases", "",
+             f"`{command}`. Datasets from {source}; each case runs `omni-gym gap DATASET --out REPORT --json` with "
+             "the command line's defaults. Right: `none` with nothing hidden, `unexplained` for the drag outside "
+             "the library, else the hidden effect named first with its parameters within the effect's recovery "
+             "tolerance. Run count, run length, manoeuvre family, tracker noise and encoder resolution vary per "
+             "case (`benchmarks/independent_data.py`, module docstring).", "",
+             f"**Right answer in {right} of {len(done)} cases ({100 * right / max(len(done), 1):.0f} %)**; "
+             f"nothing hidden: `none` in {len(none) - len(fa)} of {len(none)} "
+             f"(false alarms {len(fa)}: " + (", ".join(sorted({r['effect'] for r in fa})) or "-") + "). "
+             f"Wall time per case: median {np.median(wall):.0f} s, max {max(wall):.0f} s (`gap` in one process, "
+             "2-core machine shared with other work).", "",
+             "| category | " + " | ".join(ROBOTS) + " | answers given |", "|---|" + "---|" * len(ROBOTS) + "---|"]
+    for k in KINDS:
+        rows = [r for r in done if r["kind"] == k]
+        if not rows:
+            continue
         answers: dict[str, int] = {}
-        for r in rs:
+        for r in rows:
             answers[r["effect"]] = answers.get(r["effect"], 0) + 1
-        lines.append(f"| {k} | {sum(r['correct'] for r in rs)} | {len(rs)} | "
+        per = [_rate([r for r in rows if r["robot"] == rb]) for rb in ROBOTS]
+        lines.append(f"| {k} | " + " | ".join(per) + " | "
                      + ", ".join(f"{a} ×{n}" for a, n in sorted(answers.items())) + " |")
-    lines += ["", "| category | run | seed | runs × s | hidden | answer (effects) | parameter error | nominal / floor "
-              "[mm] | right | wall [s] |", "|---|---|---|---|---|---|---|---|---|---|"]
+    noise_bins = ["0.5-1 mm", "1-2 mm", "2-3 mm"]
+    lines += _bucket_table(done, "tracker noise", lambda r: noise_bins[0 if r["position_noise"] < 1e-3 else
+                                                                       1 if r["position_noise"] < 2e-3 else 2],
+                           noise_bins)
+    len_bins = ["2.5-4 s", "4-7 s", "7-10 s"]
+    lines += _bucket_table(done, "run length", lambda r: len_bins[0 if r["duration"] < 4 else
+                                                                 1 if r["duration"] < 7 else 2], len_bins)
+    lines += _bucket_table(done, "manoeuvre", lambda r: r["manoeuvre"], list(MANOEUVRES))
+    lines += _bucket_table(done, "run count", lambda r: "3-5" if r["runs"] <= 5 else "6-8" if r["runs"] <= 8
+                           else "9-12", ["3-5", "6-8", "9-12"])
+    lines += ["", "| category | robot | seed | runs × s | manoeuvre | noise [mm] | counts | hidden | answer (effects) "
+              "| parameter error | nominal / floor [mm] | right | wall [s] |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in done:
         err = ", ".join(f"{k} {v:.3g}" for k, v in (r.get("param_error") or {}).items())
-        hid = json.dumps(r["hidden"], separators=(",", ":")) if r["hidden"] else "-"
-        hid = hid.replace("|", "/")
+        hid = json.dumps(r["hidden"], separators=(",", ":")).replace("|", "/") if r["hidden"] else "-"
         floor = "-" if r["floor_mm"] is None else f"{r['floor_mm']:.2f}"
-        lines.append(f"| {r['kind']} | {r.get('run', '-')} | {r['seed']} | {r['runs']} × {r['duration']:g} | "
-                     f"`{_round(hid)}` | "
+        lines.append(f"| {r['kind']} | {r['robot']} | {r['seed']} | {r['runs']} × {r['duration']:g} | "
+                     f"{r['manoeuvre']} | {1e3 * r['position_noise']:.2f} | {r['encoder_counts']} | `{_round(hid)}` | "
                      f"{r['effect']} ({' + '.join(r['effects']) or '-'}) | {err or '-'} | "
                      f"{r['nominal_rms_mm']:.2f} / {floor} | {'yes' if r['correct'] else '**no**'} | "
                      f"{r['wall_s']:.0f} |")
@@ -198,10 +278,14 @@ def _command(args: argparse.Namespace) -> str:
     parts = ["python benchmarks/independent_data.py", f"--jobs {args.jobs}"]
     if list(args.kinds) != list(KINDS):
         parts.append("--kinds " + " ".join(args.kinds))
+    if list(args.robots) != list(ROBOTS):
+        parts.append("--robots " + " ".join(args.robots))
     if args.per_kind is not None:
         parts.append(f"--per-kind {args.per_kind}")
     if args.seed0:
         parts.append(f"--seed0 {args.seed0}")
+    if args.generator != "second":
+        parts.append(f"--generator {args.generator}")
     if args.out is not None:
         parts.append(f"--out {args.out}")
     return " ".join(parts)
@@ -210,27 +294,26 @@ def _command(args: argparse.Namespace) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS)
-    ap.add_argument("--per-kind", type=int, default=None, help="cases per category (default: the study's)")
-    ap.add_argument("--jobs", type=int, default=1, help="worker processes")
+    ap.add_argument("--robots", nargs="+", default=list(ROBOTS), choices=ROBOTS)
+    ap.add_argument("--per-kind", type=int, default=None, help="cases per category and robot (default: the study's)")
+    ap.add_argument("--jobs", type=int, default=1, help="cases run side by side (each gap in one process)")
     ap.add_argument("--seed0", type=int, default=0,
                     help="offset of every case's seed (default 0: the study's own cases; others: held-out sets)")
+    ap.add_argument("--generator", choices=("second", "reference"), default="second",
+                    help="the independent integrator that writes the data (default: the second one)")
     ap.add_argument("--out", type=Path, default=None, help="markdown table (and .json beside it)")
     args = ap.parse_args()
-    todo = list(cases(tuple(args.kinds), args.per_kind, args.seed0))
+    todo = list(cases(tuple(args.kinds), tuple(args.robots), args.per_kind, args.seed0))
+    print(f"independent_data: {len(todo)} cases, {args.jobs} at a time", file=sys.stderr, flush=True)
     done = []
-    if args.jobs > 1:
-        with ProcessPoolExecutor(args.jobs) as pool:
-            for fut in as_completed([pool.submit(run, c) for c in todo]):
-                r = fut.result()
-                print(json.dumps(r), flush=True)
-                done.append(r)
-        done.sort(key=lambda r: (KINDS.index(r["kind"]), r["seed"]))
-    else:
-        for c in todo:
-            r = run(c)
+    with ProcessPoolExecutor(max(args.jobs, 1)) as pool:
+        futures = [pool.submit(run, c, args.generator) for c in todo]
+        for fut in as_completed(futures):
+            r = fut.result()
             print(json.dumps(r), flush=True)
             done.append(r)
-    text = table(done, _command(args))
+    done.sort(key=lambda r: (ROBOTS.index(r["robot"]), KINDS.index(r["kind"]), r["seed"]))
+    text = table(done, _command(args), args.generator)
     print(text)
     if args.out:
         args.out.write_text(text)

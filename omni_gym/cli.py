@@ -100,9 +100,10 @@ def build_parser() -> argparse.ArgumentParser:
                          f"SECONDS / runs long ({MIN_SEGMENT:g} to {SEGMENT:g} s; 24 runs and the default: 5 s) "
                          "and replayed from the tracked state at its start; inf: always whole runs")
     gp.add_argument("--start", choices=("auto", "kinematic", "nominal"), default="auto",
-                    help="first model, on top of which effects are searched: kinematic = the kinematic odometry "
-                         "calibration of the training runs (as omni-gym calibrate; needs wheel odometry), nominal = "
-                         "the dataset's model; auto (default): kinematic when every run has wheel odometry")
+                    help="first model, on top of which effects are searched: auto (default): the dataset's model, "
+                         "with the kinematic odometry calibration (as omni-gym calibrate) competing with the "
+                         "library's effects at the first step when every run has wheel odometry; kinematic = start "
+                         "from the calibration; nominal = the dataset's model, no calibration")
     add_ray_option(gp, "the candidate fits", "all (or --jobs N > 1)")
     gp.add_argument("--jobs", type=int, default=1,
                     help="local worker processes for the candidate fits, at most this machine's cores (with "

@@ -188,9 +188,14 @@ def test_gap_writes_report_and_json_and_is_deterministic(small_dataset, tmp_path
     for key in ("effect", "params", "model", "gap", "ranking", "where"):
         assert key in written
     assert set(written["gap"]) >= {"metric", "before", "after"}
-    # every library effect that applies to the robot is a candidate (omni wheels: all but mecanum_lateral)
+    # every library effect that applies to the robot is a candidate (omni wheels: all but mecanum_lateral), and
+    # with wheel encoders in every run the kinematic calibration competes beside them (the default start, auto)
     robot = load_dataset(small_dataset).model.robot
-    assert {r["effect"] for r in written["ranking"]} == {n for n, e in REGISTRY.items() if e.applies_to(robot)}
+    assert {r["effect"] for r in written["ranking"]} == (
+        {n for n, e in REGISTRY.items() if e.applies_to(robot)} | {"kinematic_calibration"})
+    kin = next(r for r in written["ranking"] if r["effect"] == "kinematic_calibration")
+    assert len(kin["params"]["diameters"]) == robot.n_wheels and kin["n_params"] == robot.n_wheels + 1
+    assert written["start"]["kind"] == "nominal" and written["settings"]["start"] == "auto"
     assert all(math.isfinite(r["score"]) for r in written["ranking"])
     assert json.loads((tmp_path / "r1" / "model.json").read_text()) == written["model"]
     report = (tmp_path / "r1" / "report.md").read_text()

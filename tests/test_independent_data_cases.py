@@ -23,21 +23,41 @@ def _load():
 
 def test_a_subset_of_kinds_repeats_the_full_study_cases():
     bench = _load()
-    full = {(c["kind"], c["seed"]): c for c in bench.cases()}
-    subset = list(bench.cases(("wheel_liftoff", "none"), 2))
-    assert [c["seed"] for c in subset] == [901, 902, 1, 2]
+    full = {(c["robot"], c["kind"], c["seed"]): c for c in bench.cases()}
+    subset = list(bench.cases(("wheel_liftoff", "none"), ("optiodom_omni4",), 2))
+    assert [c["seed"] for c in subset] == [1901, 1902, 1001, 1002]
     for c in subset:
-        assert c == full[(c["kind"], c["seed"])]
-    held_out = list(bench.cases(("motor_lag",), 1, seed0=5000))
-    assert held_out[0]["seed"] == 5701 and held_out[0]["hidden"] != full[("motor_lag", 701)]["hidden"]
+        assert c == full[(c["robot"], c["kind"], c["seed"])]
+    held_out = list(bench.cases(("motor_lag",), ("williams2002",), 1, seed0=5000))
+    assert held_out[0]["seed"] == 5701 and held_out[0]["hidden"] != full[("williams2002", "motor_lag", 701)]["hidden"]
+
+
+def test_the_study_covers_what_users_meet():
+    """At least 80 cases over both robot types, 30 with nothing hidden, every library effect that applies to
+    each robot and one outside it; run counts, lengths, noise levels and encoders spread over their ranges."""
+    bench = _load()
+    all_cases = list(bench.cases())
+    assert len(all_cases) >= 80 and sum(c["kind"] == "none" for c in all_cases) >= 30
+    for robot in bench.ROBOTS:
+        model = bench.robot_model(robot)
+        kinds = {c["kind"] for c in all_cases if c["robot"] == robot}
+        assert kinds == {n for n, e in REGISTRY.items() if e.applies_to(model.robot)} | {"none", "drag"}, robot
+    runs = np.array([c["runs"] for c in all_cases])
+    dur = np.array([c["duration"] for c in all_cases])
+    noise = np.array([c["position_noise"] for c in all_cases])
+    assert runs.min() == 3 and runs.max() >= 11 and dur.min() == 2.5 and dur.max() >= 9.0
+    assert np.all(runs * dur <= bench.MAX_ROBOT_TIME + 1e-9)
+    assert noise.min() < 0.8e-3 and noise.max() > 2.5e-3
+    assert {c["manoeuvre"] for c in all_cases} == {"steps", "smooth", "turns"}
+    assert {c["encoder_counts"] for c in all_cases} == set(bench.ENCODER_COUNTS)
 
 
 def test_new_kinds_draw_sizes_between_the_recovery_sizes():
     bench = _load()
-    n = nominal_model().n_wheels
-    for kind in ("motor_lag", "kinetic_friction", "wheel_liftoff", "roller_gap"):
+    model = bench.robot_model("williams2002")
+    for kind in ("motor_lag", "wheel_liftoff", "roller_gap"):
         sizes = REGISTRY[kind].recovery_sizes
-        drawn = [c["hidden"][kind] for c in bench.cases((kind,), 20)]
+        drawn = [c["hidden"][kind] for c in bench.cases((kind,), ("williams2002",), 20)]
         for key in sizes["small"]:
             lo, hi = sorted((sizes["small"][key], sizes["large"][key]))
             values = np.array([d[key] for d in drawn])
@@ -45,7 +65,7 @@ def test_new_kinds_draw_sizes_between_the_recovery_sizes():
             if hi > lo:
                 assert np.ptp(values) > 0.5 * (hi - lo), (kind, key)  # random, spread over the range
         for d in drawn:
-            REGISTRY[kind].validate(d, n)  # complete, valid parameters (roller_gap: every key, phases)
+            REGISTRY[kind].validate(d, model.n_wheels)  # complete, valid parameters (roller_gap: every key, phases)
 
 
 @pytest.mark.slow

@@ -110,6 +110,13 @@ class DecisionRules:
             less than ``min_gap_reduction`` of the original gap is kept as a partial explanation (and the
             search goes on) if it removes at least this share of the gap left at its step.
         n_boot: bootstrap resamples of the runs (count).
+        min_chain_share: a later step's effect must remove at least this share of the first model's gap beyond
+            the floor: what a large first effect leaves is also where the simulator's accuracy is least, and an
+            effect that trims a per cent of it is not evidence of a second physical cause.
+        accuracy_position: m, the simulator's validated accuracy in x and y against an independent integration
+            of the same equations, part of the noise floor (:func:`accuracy_floor`): a residual of that size
+            between two integrators is the simulator's own accuracy, not a missing effect.
+        accuracy_heading: rad, the same in heading.
     """
 
     significance: float = 0.95
@@ -119,6 +126,16 @@ class DecisionRules:
     ambiguity: float = 0.8
     min_step_reduction: float = 0.3
     n_boot: int = 400
+    min_chain_share: float = 0.05
+    accuracy_position: float = 0.5e-3
+    accuracy_heading: float = 1.0e-3
+
+
+def accuracy_floor(rules: DecisionRules, lever: float) -> float:
+    """The simulator's validated accuracy as RMS per residual component [m]: x and y at
+    ``rules.accuracy_position``, heading × ``lever`` [m] at ``rules.accuracy_heading``, pooled over the three
+    components as the residual pools them."""
+    return ((2.0 * rules.accuracy_position**2 + (lever * rules.accuracy_heading) ** 2) / 3.0) ** 0.5
 
 
 @dataclass(frozen=True)

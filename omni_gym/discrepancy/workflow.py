@@ -48,16 +48,18 @@ from omni_gym.discrepancy.fit.fit_tasks import FitShared, FitTask, StepWork, run
 from omni_gym.discrepancy.fit.fitting import Evaluator, FitResult, max_ticks, param_intervals
 from omni_gym.discrepancy.fit.kinematic_calibration import calibrate
 from omni_gym.discrepancy.replay.localise import localise
-from omni_gym.discrepancy.replay.residuals import count_components, geo_mse
+from omni_gym.discrepancy.replay.residuals import count_components, geo_mse, run_sse
 from omni_gym.discrepancy.replay.simulate import FIT_DT
 from omni_gym.discrepancy.report.finite import finite_json
-from omni_gym.discrepancy.settings import GapSettings
+from omni_gym.discrepancy.settings import GapSettings, accuracy_floor
 from omni_gym.outputs import Output
 from omni_gym.parallel import SERIAL, Backend, Executor, executor
+from omni_gym.physics.effects.base import Dim
 from omni_gym.physics.liftoff import contact_cases
 from omni_gym.physics.model import SimModel
 
 STARTS = ("nominal", "kinematic", "auto")  # gap's first model (``start``): see :func:`start_model`
+KINEMATIC = "kinematic_calibration"  # the calibration's name as a hypothesis of the first step (_kinematic_fit)
 MAX_EFFECTS = 3  # most effects one gap run names (each step fits the whole library again)
 METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2)), M the geometric mean over runs "
           "(weighted by observed rows) of each run's mean squared residual over x, y and heading x lever; each run is "
@@ -67,7 +69,7 @@ METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2
 def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds: int = 3,
         progress: bool | None = None, dt: float = FIT_DT, plots: bool = True, force: bool = False,
         max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET, backend: Backend = SERIAL,
-        start: str | SimModel | None = "nominal", settings: GapSettings | None = None) -> dict:
+        start: str | SimModel | None = "auto", settings: GapSettings | None = None) -> dict:
     """Run the workflow on ``dataset``; write the report folder ``out`` (if given); return the result.
 
     ``progress``: tqdm bar on stderr (None: only when stderr is a terminal). Same seed, same result.
@@ -79,16 +81,18 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     is, contains or lies inside the dataset is refused.
     ``backend``: where the candidate fits run (:class:`omni_gym.parallel.Backend`; default this process,
     nothing to start); the result does not depend on it.
-    ``start``: the first model, on top of which effects are searched: ``nominal`` (the dataset's model),
-    ``kinematic`` (its kinematic odometry calibration, fitted on the training runs; needs wheel odometry) or
-    ``auto`` (kinematic when every run has wheel odometry and it predicts held-out runs better, else
-    nominal), or a given :class:`SimModel` (e.g. a calibration made elsewhere: used for every fold as it is,
-    its effects kept and not searched again; None: ``nominal``); :func:`start_model`.
+    ``start``: the first model, on top of which effects are searched: ``auto`` (the default, the command
+    line's: the search starts from the dataset's model and, when every run has wheel odometry, the kinematic
+    odometry calibration competes with the library's effects at the first step, scored on the same held-out
+    folds; if it wins, the search goes on from it), ``nominal`` (the dataset's model, no calibration),
+    ``kinematic`` (the calibration insisted on; needs wheel odometry), or a given :class:`SimModel` (e.g. a
+    calibration made elsewhere: used for every fold as it is, its effects kept and not searched again; None:
+    ``auto``); :func:`start_model`.
     ``settings``: the fit's, the event search's and the decision's settings (None: the defaults); recorded in
     full in result.json (``settings.fit``, ``settings.event_search``, ``settings.rules``).
     """
-    if start is None:  # the dataset's own model
-        start = "nominal"
+    if start is None:  # the default path
+        start = "auto"
     if not isinstance(start, SimModel) and start not in STARTS:
         raise ValueError(f"start must be one of {', '.join(STARTS)}, got {start!r}")
     if isinstance(max_effects, bool) or not isinstance(max_effects, int) or max_effects < 1:
@@ -164,10 +168,11 @@ class SearchRun:
 
 
 def _search_step(search: SearchRun, base: SimModel, base_sse: np.ndarray, exclude: list[str], step: int,
-                 reference_excess: float | None = None) -> Step:
+                 reference_excess: float | None = None, extra: list[FitResult] | None = None) -> Step:
     """Fit every library candidate not in ``exclude`` on top of ``base`` (per-run SSE ``base_sse`` [m²])
     and decide, at search step ``step`` (1-based; the 70 % rule measured against ``reference_excess``
-    [m], the nominal gap, from the second step on).
+    [m], the nominal gap, from the second step on). ``extra``: hypotheses fitted elsewhere that compete in
+    the same decision (the kinematic calibration, :func:`_kinematic_fit`).
 
     The fits run on ``search.ex``; the decision draws from ``search.rng`` in this process."""
     ev, n_comp, sigma, rng, refit = search.ev, search.n_comp, search.sigma, search.rng, search.refit
@@ -206,6 +211,7 @@ def _search_step(search: SearchRun, base: SimModel, base_sse: np.ndarray, exclud
     fits, simulated, works = run_fits(tasks, ev, ex, shared, tick=lambda: bar.update(1), started=started,
                                       finished=done)
     ev.simulated = start + simulated  # in place (this process) or counted by the workers
+    fits = [*fits, *(extra or [])]
     say(f"{prefix}deciding")
     t0 = time.process_time()
     decision = decide(base_sse, fits, n_comp, sigma, rng, reference_excess=reference_excess, rules=cfg.rules)
@@ -217,8 +223,13 @@ def _search_step(search: SearchRun, base: SimModel, base_sse: np.ndarray, exclud
 
 def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress: bool | None, dt: float,
          plots: bool, max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET,
-         backend: Backend = SERIAL, start: str | SimModel = "nominal", settings: GapSettings | None = None) -> dict:
-    """The workflow of :func:`gap`; the report is written into ``out`` as it is (no transaction)."""
+         backend: Backend = SERIAL, start: str | SimModel = "auto", settings: GapSettings | None = None,
+         competition: dict | None = None) -> dict:
+    """The workflow of :func:`gap`; the report is written into ``out`` as it is (no transaction).
+
+    ``competition``: set when the kinematic calibration won the first step of an ``auto`` run (its
+    decision, :func:`_competition_json`): the search is then run again from the calibration (``start`` is
+    ``kinematic``) and ``result.json``'s ``start`` records the competition."""
     from tqdm import tqdm
 
     cpu0, wall0 = time.process_time(), time.perf_counter()  # the work record (fit_tasks.work_json)
@@ -259,7 +270,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         say(f"{len(flagged)} outlier row(s) excluded: "
             + ", ".join(f"{o.run} row {o.row}" for o in flagged[:5]) + (" ..." if len(flagged) > 5 else ""))
     say(f"simulating the {first.kind} model")
-    ev = Evaluator(ds, lever, dt=dt)
+    ev = Evaluator(ds, lever, dt=dt, accuracy=accuracy_floor(rules, lever))
     res0, sse0, tracker = ev.nominal_baseline(nominal)
     # The decision's noise level: tracker noise and the fitting step's own integration error, which an
     # exact model would leave in the residual too (Evaluator.noise_floor).
@@ -282,10 +293,25 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         model, base_sse = nominal, sse0
         search = SearchRun(ev, shared, n_comp, sigma, rng, seed, bar, say, ex, first.refit)
         excess0 = _excess(sse0, n_comp, sigma**2 if sigma is not None else 0.0)
+        kin = _kinematic_fit(ev, first, fold_of) if first.compete else None
+        won = None
         while True:
+            if sigma is not None and geo_mse(base_sse, n_comp) <= sigma**2 * (1 + rules.noise_margin):
+                # The evidence rule (decide): a residual within the floor leaves nothing to explain, so no
+                # candidate is fitted (the answer would be none whatever they gave).
+                step = Step(fits=[], decision=Decision(effect="none", why=(
+                    f"the {first.kind} model's residual ({1e3 * math.sqrt(geo_mse(base_sse, n_comp)):.2f} mm RMS) "
+                    f"is within the noise floor ({1e3 * sigma:.2f} mm: tracker noise, integration error and the "
+                    f"simulator's validated accuracy) by the margin ({100 * rules.noise_margin:.0f} % in MSE): "
+                    "nothing beyond it to explain"), ranking=[]))
+                break
             cpu_step = time.process_time()
             step = _search_step(search, model, base_sse, [*first.excluded, *[s.effect for s in steps]], len(steps) + 1,
-                                reference_excess=excess0 if steps else None)
+                                reference_excess=excess0 if steps else None,
+                                extra=[kin] if kin is not None and not steps else [])
+            if kin is not None and not steps and step.effect == KINEMATIC:
+                won = _competition_json(step)  # the search starts again from the calibration, below
+                break
             steps_cpu += time.process_time() - cpu_step
             step_works.append(step.work)
             fit = step.fit
@@ -302,15 +328,13 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
             base_sse = fit.sse_all
             if len(steps) == max_effects or fit.candidate.stochastic or len(steps) == len(cands):
                 break
-            if sigma is not None and geo_mse(base_sse, n_comp) <= sigma**2 * (1 + rules.noise_margin):
-                # Nothing left beyond tracker noise, even in-sample: no further effect can be warranted
-                # (the decision would call such a residual noise-level), so the search ends without a fit.
-                step = Step(fits=[], decision=Decision(
-                    effect="none", why="the residual with " + " + ".join(s.effect for s in steps)
-                    + " is at the noise floor", ranking=[]))
-                break
             say(f"{'named' if not step.partial else 'kept (partial)'} {step.effect}; searching the remaining gap")
         bar.update(max(bar.total - bar.n, 0))
+    if won is not None:
+        # The calibration won the first step: search again from it (its fold models score the held-out runs).
+        say("the kinematic calibration wins the first step; searching on top of it")
+        return _gap(dataset, out, seed, folds, progress, dt, plots, max_effects, fit_budget, backend, "kinematic",
+                    settings, competition=won)
     say("scoring whole runs open loop (held-out drift)")
     rows, drift = _drift_check(whole, fold_src, first, steps, dt, gate=fitted.segmented)
     searched = list(steps)  # before the drift check: the first step's decision and ranking stay the report's
@@ -328,7 +352,7 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     # the start model, a few LM batches); model.json, params and the held-out scores use the refit.
     say("identifiability of the named effects")
     lin = identifiability.linearise(ev, nominal, [identifiability.Named(s.fit.candidate, s.fit.u_all)
-                                                  for s in steps], sigma)
+                                                  for s in steps], noise_parts["noise"])
     det = [s for s in steps if not s.fit.candidate.stochastic]
     refit = (identified_fit.refit(ev, nominal, lin, fold_of, det[-1].fit.heldout, n_comp, settings.fit)
              if lin is not None else None)
@@ -373,6 +397,9 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         why = (f"{' + '.join(s.effect for s in steps)} together remove only "
                f"{100 * (1 - _excess(after_sse, n_comp, noise_var) / excess0):.0f} % of the gap beyond noise on "
                f"held-out runs (needs {100 * rules.min_gap_reduction:.0f} %); model.json carries them")
+    elif competition is not None and competition["named"] and not steps and decision.effect == "none":
+        # The calibration won the first step and nothing beyond the floor is left on top of it.
+        effect, why = KINEMATIC, f"{competition['why']}; {decision.why}"
     else:
         effect, why = decision.effect, decision.why
     result: dict = {"effect": effect, "why": why}
@@ -419,13 +446,14 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
                 "the fit is not changed); each ranking entry lists its own under 'implausible'",
     }
     result["outliers"] = {"rows": [o.to_json() for o in flagged], "rule": OUTLIER_RULE}
-    result["start"] = first.to_json()
+    result["start"] = {**first.to_json(), "competition": competition}
     result["heldout"] = {
         "metric": HELDOUT_METRIC, "folds_by": "session" if sessions is not None else "run",
         **heldout_table(rows), "per_run": [r.to_json() for r in rows], "drift_check": drift}
     result["score_nominal"] = decision.score_nominal
     result["where"] = where
-    result["settings"] = {"seed": seed, "folds": int(fold_of.max()) + 1, "dt": dt, "lever": lever, "start": start,
+    result["settings"] = {"seed": seed, "folds": int(fold_of.max()) + 1, "dt": dt, "lever": lever,
+                          "start": "auto" if competition is not None else start,
                           "folds_by": "session" if sessions is not None else "run",
                           "max_effects": max_effects,
                           "fit_budget": None if math.isinf(fit_budget) else float(fit_budget),  # None: no limit
@@ -478,6 +506,7 @@ class StartModel:
     kinematic_folds: list[SimModel] | None = None
     kinematic_all: SimModel | None = None
     why: str = ""
+    compete: bool = False  # auto: the calibration is a hypothesis of the first step (_kinematic_fit)
 
     def describe(self) -> str:
         c = self.calibration
@@ -526,11 +555,11 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
     and on each fold's training runs for that fold's held-out scores, so no held-out run informs the
     kinematic model it is scored with. ValueError (one line) for ``kinematic`` without wheel odometry.
 
-    ``auto`` takes the kinematic calibration only when it also predicts the held-out runs better in the
-    simulator: its fold models' mean whole-run open-loop position RMS (:func:`heldout_whole_runs`) is at most
-    the nominal model's. Dead reckoning assumes rolling wheels; on a robot that slips hard (the synthetic
-    recovery robot's random twist steps: 73 mm dead-reckoning RMS where the simulator's nominal replay is
-    1.4 mm) the calibration fits the slip, and its diameters land at the search bounds.
+    ``auto`` starts from the nominal model with ``compete`` set: the calibration is then one hypothesis of the
+    first search step (:func:`_kinematic_fit`), scored on the held-out folds like every library effect. Dead
+    reckoning assumes rolling wheels; on a robot that slips hard (the synthetic recovery robot's random twist
+    steps: 73 mm dead-reckoning RMS where the simulator's nominal replay is 1.4 mm) the calibration fits the
+    slip and absorbs part of a physical effect, so it must win against the effects, not start before them.
     """
     nominal = ds.model
     K = int(fold_src.max()) + 1
@@ -562,30 +591,64 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
                           calibration=cal.to_json(), fold_calibrations=[c.to_json() for c in fold_cals],
                           kinematic_folds=kin_folds, kinematic_all=cal.model,
                           why="the model given (the same for every fold: fitted on which runs, gap cannot know)")
-    why_auto = ""
-    if start == "auto":
-        rows = heldout_whole_runs(ds, fold_src, {"nominal": [nominal] * K, "kinematic": kin_folds},
-                                  {"nominal": nominal, "kinematic": cal.model}, dt=dt)
-        m = {n: float(np.mean([r.position_rms[n] for r in rows])) for n in ("nominal", "kinematic")}
-        why_auto = (f"held-out whole-run position RMS: nominal {1e3 * m['nominal']:.1f} mm, kinematic calibration "
-                    f"{1e3 * m['kinematic']:.1f} mm")
-        if m["kinematic"] > m["nominal"]:
-            start = "nominal"
-            why_auto = f"the kinematic calibration predicts the held-out runs worse than nominal ({why_auto})"
-    if start == "nominal":
+    if start in ("nominal", "auto"):
         return StartModel("nominal", nominal, nominal, [nominal] * K, calibration=cal.to_json(),
                           fold_calibrations=[c.to_json() for c in fold_cals], kinematic_folds=kin_folds,
-                          kinematic_all=cal.model,
-                          why=why_auto or "start nominal asked for (the kinematic calibration is scored beside it)")
+                          kinematic_all=cal.model, compete=start == "auto",
+                          why="the kinematic calibration competes with the library's effects at the first step "
+                              "(scored on the same held-out folds)" if start == "auto" else
+                              "start nominal asked for (the kinematic calibration is scored beside it)")
     # The calibration's own effects are searched again, in the simulator, from the calibrated values (their
     # null point is the calibration: a refit is never worse on its training runs than the start).
     refit = tuple(e for e in ("wheel_radius", "wheel_geometry") if e in cal.model.effects)
     return StartModel("kinematic", nominal, cal.model, kin_folds, refit=refit, calibration=cal.to_json(),
                       fold_calibrations=[c.to_json() for c in fold_cals], kinematic_folds=kin_folds,
                       kinematic_all=cal.model,
-                      why="the runs have wheel odometry: effects are searched on top of the kinematic calibration "
-                          "(fitted on each fold's training runs for held-out scores)" + (f"; {why_auto}" if why_auto
-                                                                                         else ""))
+                      why="effects are searched on top of the kinematic calibration (fitted on each fold's "
+                          "training runs for held-out scores)")
+
+
+@dataclass(frozen=True)
+class _Calibration:
+    """``build`` of the kinematic hypothesis's candidate: its parameters are fitted by dead reckoning, not by
+    the search, so every point gives the all-run calibration's values (a picklable callable)."""
+
+    params: dict
+
+    def __call__(self, values: list[float]) -> dict:
+        return self.params
+
+
+def _calibration_params(cal: dict) -> dict:
+    """The calibration's fitted values as a ranking shows them: effective diameters [m] and L or l1+l2 [m]."""
+    return {"diameters": list(cal["diameters"]), cal["size_name"]: cal["L"]}
+
+
+def _kinematic_fit(ev: Evaluator, first: StartModel, fold_of: np.ndarray) -> FitResult:
+    """The kinematic calibration as a hypothesis of the first search step, scored like every library effect:
+    each fitted run (or segment) replayed in the simulator by the calibration fitted without its fold (held-out
+    SSE) and by the all-run calibration (``sse_all``). Its parameters (the effective diameters and L or
+    l1 + l2) count in the decision's BIC penalty; they are fitted by dead reckoning
+    (:func:`~omni_gym.discrepancy.fit.kinematic_calibration.calibrate`), so the search does not move them."""
+    models = [first.kinematic_all, *first.kinematic_folds]
+    sse = np.array([[run_sse(r) for r in per] for per in ev.residuals(models)])  # (1 + K, R)
+    heldout = np.array([sse[1 + k, r] for r, k in enumerate(fold_of)])
+    cal = first.calibration
+    dims = (*(Dim(f"diameter{i + 1}", 0.5 * d, 1.5 * d) for i, d in enumerate(cal["nominal_diameters"])),
+            Dim(cal["size_name"], 0.5 * cal["nominal_L"], 1.5 * cal["nominal_L"]))
+    params = _calibration_params(cal)
+    cand = Candidate(KINEMATIC, dims, _Calibration(params))
+    u = cand.point({**{f"diameter{i + 1}": d for i, d in enumerate(cal["diameters"])}, cal["size_name"]: cal["L"]})
+    return FitResult(candidate=cand, u_all=u, params_all=params, sse_all=sse[0], heldout=heldout,
+                     fold_params=[_calibration_params(c) for c in first.fold_calibrations], pool_u=u[None, :],
+                     pool_sse=sse[:1])
+
+
+def _competition_json(step: Step) -> dict:
+    """What result.json's ``start.competition`` records of a first step the calibration won: whether it was
+    named (else kept as a partial explanation), why, and the step's ranking."""
+    d = step.decision
+    return {"winner": KINEMATIC, "named": d.partial is None, "why": d.why, "ranking": _short_ranking(step)}
 
 
 def _compact_folds(fold_src: np.ndarray, groups: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

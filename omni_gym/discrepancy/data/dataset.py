@@ -30,7 +30,10 @@ from omni_gym.discrepancy.data.units import check_run_units
 from omni_gym.io import InputError, check_times, parse_cell, read_csv_rows, read_json
 from omni_gym.physics.model import SimModel
 
-DATASET_KEYS = ("model", "description", "sessions")  # dataset.json: any other key is refused (a typo, not data)
+DATASET_KEYS = ("model", "description", "sessions")
+# s: tracked rows closer than this before a run's first command are not averaged into its start pose (the
+# time_offset effect's bound: a tracker that many seconds off the odometry's clock may show the motion there).
+REST_MARGIN = 0.15  # dataset.json: any other key is refused (a typo, not data)
 
 
 @dataclass
@@ -60,9 +63,25 @@ class Run:
 
     @property
     def start_pose(self) -> np.ndarray:
-        """Pose at t = 0 (the origin when the first row is empty)."""
+        """Pose at t = 0 [m, m, rad] (the origin when the first row is empty).
+
+        Every run starts at rest, so each tracked row before the first command is a measurement of the same
+        pose: the start pose is their mean (heading: the mean of the wraps about the first row's), with a
+        row's tracker noise / sqrt(rows). A single first row's noise would turn the whole replay: 2 mrad of
+        heading noise is 2 mm of drift per metre travelled, which ``gap`` would read as a model error. Rows
+        within :data:`REST_MARGIN` [s] of the first command are left out (a tracker that lags or leads the
+        odometry may already show the motion there); with none, the first row alone."""
         p = self.pose[0]
-        return p.copy() if np.all(np.isfinite(p)) else np.zeros(3)
+        if not np.all(np.isfinite(p)):
+            return np.zeros(3)
+        moving = np.flatnonzero(np.any(self.cmd != 0.0, axis=1))
+        t_move = self.t[moving[0]] if moving.size else self.t[-1] + REST_MARGIN
+        rest = self.pose[self.t <= t_move - REST_MARGIN]
+        rest = rest[np.all(np.isfinite(rest), axis=1)]
+        if len(rest) < 2:
+            return p.copy()
+        dtheta = np.angle(np.exp(1j * (rest[:, 2] - p[2])))  # wrapped about the first row's heading
+        return np.array([rest[:, 0].mean(), rest[:, 1].mean(), p[2] + dtheta.mean()])
 
     def start_state(self, angles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The replay state at row 0 (a :class:`~omni_gym.discrepancy.replay.simulate.Job`'s ``state0``): the

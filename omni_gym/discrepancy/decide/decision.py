@@ -142,16 +142,28 @@ def decide(nominal_sse: np.ndarray, fits: list[HeldOutFit], n_comp: np.ndarray, 
     stochastic = fits[best].candidate.stochastic
     best_at_noise = (sigma is not None and not stochastic
                      and rb["heldout_rms"] ** 2 <= noise_var * (1 + rules.noise_margin))
+    if nominal_at_noise:
+        # The evidence rule, one for every effect: only a residual beyond the floor can be evidence of a missing
+        # effect. A baseline within it leaves nothing to explain, however well a candidate trims the noise.
+        also = (f"; {rb['effect']} lowers the held-out MSE by {100 * rb['improvement']:.0f} %, within that floor"
+                if rb["beats_nominal"] else "")
+        return replace(out, effect="none", why=(
+            f"the nominal residual ({1e3 * math.sqrt(mse0):.2f} mm RMS) is within the noise floor "
+            f"({1e3 * sigma:.2f} mm: tracker noise, integration error and the simulator's validated accuracy) "
+            f"by the margin ({100 * rules.noise_margin:.0f} % in MSE): nothing beyond it to explain{also}"))
+    chain_share = (excess_base - rb["excess_rms"]) / excess0 if excess0 > 0 else 0.0
+    if reference_excess is not None and rb["beats_nominal"] and chain_share < rules.min_chain_share:
+        # A later step: the effect must explain a real share of the first model's gap, not polish what is left.
+        return replace(out, effect="none", why=(
+            f"the best candidate, {rb['effect']}, removes only {100 * chain_share:.1f} % of the first model's gap "
+            f"beyond noise (a later effect needs {100 * rules.min_chain_share:.0f} %)"))
     if not rb["beats_nominal"]:
-        if nominal_at_noise or sigma is None:
-            return replace(out, effect="none", why=(
-                "no candidate improves the held-out error significantly"
-                + (" and the nominal residual is at the noise floor (tracker noise and integration error)"
-                   if nominal_at_noise else "")))
+        if sigma is None:
+            return replace(out, effect="none", why="no candidate improves the held-out error significantly")
         return replace(out, effect="unexplained", why=(
             f"the nominal residual ({1e3 * math.sqrt(mse0):.2f} mm RMS) is well above the noise "
-            f"floor ({1e3 * sigma:.2f} mm: tracker noise and integration error) and no candidate "
-            "improves it significantly"))
+            f"floor ({1e3 * sigma:.2f} mm: tracker noise, integration error and the simulator's validated accuracy) "
+            "and no candidate improves it significantly"))
     if reduction < rules.min_gap_reduction and not best_at_noise:
         out = replace(out, effect="unexplained", why=(
             f"the best candidate, {rb['effect']}, removes only {100 * reduction:.0f} % of the gap beyond "

@@ -49,10 +49,12 @@ from omni_gym.physics.model import SimModel
 class Evaluator:
     """SSE per run of parameter points, by batched simulation (one world per call)."""
 
-    def __init__(self, dataset: Dataset, lever: float, dt: float = FIT_DT, max_batch: int = 1500) -> None:
+    def __init__(self, dataset: Dataset, lever: float, dt: float = FIT_DT, max_batch: int = 1500,
+                 accuracy: float = 0.0) -> None:
         self.ds = dataset
         self.lever = lever
         self.dt = dt
+        self.accuracy = accuracy  # [m] the simulator's validated accuracy, part of the floor (noise_floor)
         self.max_batch = max_batch
         self.simulated = 0  # robot-runs simulated (for the report)
         self._windows: list[tuple] | None = None
@@ -76,26 +78,32 @@ class Evaluator:
         return self._baseline
 
     def noise_floor(self, nominal: SimModel) -> tuple[float | None, dict]:
-        """The decision's noise floor [m] and its parts: sqrt(σ̂² + ε²), σ̂ the tracker noise
-        (:func:`~omni_gym.discrepancy.replay.residuals.noise_estimate`) and ε the RMS integration error of the
-        fitting step ``dt`` itself (:meth:`integration_error`). Even an exact model leaves both in the
-        residual, so both belong to the floor a candidate cannot go below. None when σ̂ is unknown.
+        """The decision's noise floor [m] and its parts: sqrt(σ̂² + ε² + δ²), σ̂ the tracker noise
+        (:func:`~omni_gym.discrepancy.replay.residuals.noise_estimate`), ε the RMS integration error of the
+        fitting step ``dt`` itself (:meth:`integration_error`) and δ the simulator's validated accuracy against an
+        independent integration (``accuracy``, :func:`omni_gym.discrepancy.settings.accuracy_floor`). Even an exact
+        model leaves all three in the residual, so all belong to the floor a candidate cannot go below. None when
+        σ̂ is unknown.
 
-        Parts (dict): ``tracker`` σ̂, ``integration`` ε, ``floor`` [m], ``channels`` the per-channel
-        σ̂ (x, y, heading × lever) [m], ``note``.
+        Parts (dict): ``tracker`` σ̂, ``integration`` ε, ``accuracy`` δ, ``floor`` [m], ``noise`` sqrt(σ̂² + ε²)
+        (the random part, which the identifiability analysis uses), ``channels`` the per-channel σ̂ (x, y,
+        heading × lever) [m], ``note``.
         """
         if self._floor is None:
             res0, _, sigma = self.nominal_baseline(nominal)
             eps = self.integration_error(nominal)
             ch = channel_noise(res0, [r.t for r in self.ds.runs])
-            floor = None if sigma is None else math.sqrt(sigma**2 + eps**2)
+            noise = None if sigma is None else math.sqrt(sigma**2 + eps**2)
+            floor = None if noise is None else math.sqrt(noise**2 + self.accuracy**2)
             self._floor = (floor, {
-                "tracker": sigma, "integration": eps, "floor": floor,
+                "tracker": sigma, "integration": eps, "accuracy": self.accuracy, "noise": noise, "floor": floor,
                 "channels": None if ch is None else [float(math.sqrt(v)) for v in ch],
-                "note": "floor = sqrt(tracker^2 + integration^2) [m]: tracker noise from the residual's second "
-                        "differences per channel (x, y, heading x lever; their mean square); integration: RMS "
-                        f"error of the fitting step dt = {self.dt:g} s, 2 x (pose at dt - pose at dt/2) "
-                        "(first-order integrator), nominal model, every run"})
+                "note": "floor = sqrt(tracker^2 + integration^2 + accuracy^2) [m]: tracker noise from the residual's "
+                        "second differences per channel (x, y, heading x lever; their mean square); integration: "
+                        f"RMS error of the fitting step dt = {self.dt:g} s, 2 x (pose at dt - pose at dt/2) "
+                        "(first-order integrator), nominal model, every run; accuracy: the simulator's validated "
+                        "agreement with an independent integration of the same equations (settings.rules "
+                        "accuracy_position, accuracy_heading), pooled like the residual"})
         return self._floor
 
     def integration_error(self, model: SimModel) -> float:

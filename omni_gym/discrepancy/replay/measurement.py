@@ -7,13 +7,15 @@ simulated centre poses into the poses the tracker would report (used by
 :func:`omni_gym.discrepancy.replay.simulate.simulate_jobs` for every replay, so every residual of the
 workflow compares like with like), and :func:`centre_start` turns a tracked start state into the
 centre's (a replay from a measured state: a run's first pose, a segment's or a window's start).
-Physics effects pass through both unchanged.
+Physics effects pass through both unchanged. :func:`align_to_start_window` estimates a whole run's start pose
+from its first tracked rows, not from one noisy row.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from omni_gym.angles import wrap_angle
 from omni_gym.physics.effects import REGISTRY
 from omni_gym.physics.model import SimModel
 
@@ -60,3 +62,28 @@ def align_start(pose: np.ndarray, target: np.ndarray) -> np.ndarray:
     out[:, 1] = target[1] + s * rel[:, 0] + c * rel[:, 1]
     out[:, 2] = pose[:, 2] + d
     return out
+
+
+START_WINDOW = 0.2  # s: the first tracked rows of a run that its replay is aligned to (align_to_start_window)
+
+
+def align_to_start_window(run_t: np.ndarray, measured_pose: np.ndarray, pose: np.ndarray,
+                          window: float = START_WINDOW) -> np.ndarray:
+    """A replay ``pose`` (K, 3) of a whole run, moved rigidly so that it matches the run's tracked rows
+    ``measured_pose`` (K, 3, NaN where unobserved) over the first ``window`` [s] on average: rotated about its
+    first row by the mean heading difference there, then translated by the mean position difference.
+
+    The replay starts at the tracked start pose, which carries the tracker's noise: a heading error of 2 mrad
+    turns the whole replay (2 mm of drift per metre travelled), which would read as a model error. Over the
+    first rows the replay has not yet drifted, so their mean difference estimates the start pose's error
+    with a row's noise / sqrt(rows) (0.2 s at 100 Hz: 20 rows). On a uniform floor the motion is equivariant
+    under a rigid move of its start, so moving the replay is the same as replaying from the moved start.
+    Unchanged when fewer than two rows are observed in the window."""
+    rows = np.all(np.isfinite(measured_pose), axis=1) & (run_t - run_t[0] <= window)
+    if np.count_nonzero(rows) < 2:
+        return pose
+    dtheta = float(np.mean(wrap_angle(measured_pose[rows, 2] - pose[rows, 2])))
+    turned = align_start(pose, np.array([pose[0, 0], pose[0, 1], pose[0, 2] + dtheta]))
+    shift = np.mean(measured_pose[rows, :2] - turned[rows, :2], axis=0)
+    turned[:, :2] += shift
+    return turned

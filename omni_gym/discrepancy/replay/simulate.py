@@ -13,7 +13,13 @@ import numpy as np
 
 from omni_gym.angles import wrap_angle
 from omni_gym.discrepancy.data.dataset import Run
-from omni_gym.discrepancy.replay.measurement import align_start, centre_start, has_tracker_effects, measured
+from omni_gym.discrepancy.replay.measurement import (
+    align_start,
+    align_to_start_window,
+    centre_start,
+    has_tracker_effects,
+    measured,
+)
 from omni_gym.physics.liftoff import ScheduledContactProcess
 from omni_gym.physics.model import SimModel
 from omni_gym.physics.world import World
@@ -116,6 +122,9 @@ def simulate_jobs(jobs: list[Job], dt: float = FIT_DT) -> list[tuple[np.ndarray,
             # whole replay so that its first row is the tracked start.
             target = job.run.start_pose if job.state0 is None else job.state0[0]
             poses[b] = align_start(poses[b], np.asarray(target, dtype=float))
+    for b, job in enumerate(jobs):
+        if job.state0 is None and job.k0 == 0:  # a whole run from rest: its start pose from its first rows
+            poses[b] = align_to_start_window(job.run.t[:ends[b] + 1], job.run.pose[:ends[b] + 1], poses[b])
     angles = [ang_ev[pos, b] for b, pos in enumerate(rows_at)]
     return list(zip(poses, angles, strict=True))
 

@@ -61,7 +61,7 @@ def markdown(result: dict, figures: list[str]) -> str:
                   for f in flags] + [""]
     lines += _steps_lines(result)
     lines += _identifiability_lines(result.get("identifiability"))
-    lines += _model_json_lines(effect, result.get("effects") or [])
+    lines += _model_json_lines(effect, result.get("effects") or [], (result.get("start") or {}).get("kind"))
     if effect in ("unexplained", "none"):
         lines += _next_steps(result)
     if result.get("non_finite"):
@@ -269,15 +269,18 @@ def _fitted_lines(result: dict) -> list[str]:
             "more of the data, slower). Every run in the tables below is such a segment.", ""]
 
 
-def _model_json_lines(effect: str, effects: list[str]) -> list[str]:
-    """What model.json is for."""
-    if effect not in ("unexplained", "none"):
-        what = "the nominal model with the named effect and its fitted parameters added (the extended model)"
+def _model_json_lines(effect: str, effects: list[str], start: str | None = None) -> list[str]:
+    """What model.json is for (``start``: result.json's ``start.kind``, the model the search began from)."""
+    base = "the kinematic calibration of the runs" if start == "kinematic" else "the nominal model"
+    if effect == "kinematic_calibration" and not effects:
+        what = "the kinematic calibration of the runs (effective wheel diameters and size), which explains the data"
+    elif effect not in ("unexplained", "none"):
+        what = f"{base} with the named effect and its fitted parameters added (the extended model)"
     elif effects:
-        what = (f"the nominal model with {' + '.join(effects)} added as fitted, although together they do not "
+        what = (f"{base} with {' + '.join(effects)} added as fitted, although together they do not "
                 "explain the gap (see the outcome)")
     else:
-        what = "the nominal model unchanged (no effect was named)"
+        what = f"{base} unchanged (no effect was named)"
     tracker = [e for e in effects if REGISTRY[e].kind == "tracker"]
     note = ([f"Tracker (measurement) effects ({', '.join(tracker)}) explain how the data were measured, not how "
              "the robot moves: model.json keeps them under its `tracker` key, which simulators and environments "
