@@ -434,7 +434,7 @@ def _on_gap_of(plant: Plant, regions: np.ndarray) -> np.ndarray:
 
 
 def integrate(plant: Plant, times: np.ndarray, commands: np.ndarray, sample_times: np.ndarray,
-              start_pose=(0.0, 0.0, 0.0), lift_schedule=(), method: str = "Radau",
+              start_pose=(0.0, 0.0, 0.0), lift_schedule=(), method: str = "LSODA",
               rtol: float = 1e-8, atol: float = 1e-10) -> Trajectory:
     """Integrate the run from rest at ``start_pose`` and sample it at ``sample_times`` [s] (≥ 0).
 
