@@ -33,8 +33,8 @@ world, on purpose written down):
 * **Roller/rigid material.** Wheel i touches rigid material while
   \\|((φ_i + phase_i) mod p) − p/2\\| < (1 − roller_fraction)·p/2, p = 2π/rollers; there μ'' replaces
   both μ'_W and μ'_T (the same law, k unchanged). The boundaries are located by ``solve_ivp`` event
-  functions on the integrated wheel angle (so they are exact for the lagged wheel too); the strict
-  inequality puts a wheel exactly at a boundary on the roller.
+  functions on the integrated wheel angle (so they are exact for the lagged wheel too); a wheel
+  exactly at a boundary at the start is put on the side it moves to.
 * **Kinetic friction** shapes every coefficient (μ'_W, μ'_T and μ''), each with its own slip.
 * **mecanum_lateral**: r_i ← r_i·2/(1 + ratio) and tan γ_i ← tan γ_i / ratio, after ``wheel_radius``
   scaled r_i; ``wheel_geometry`` scales the wheel position by ``distance`` and yaws d_i (and with it
@@ -55,8 +55,8 @@ world, on purpose written down):
 Event handling: the run is split at every command change and every lift-off switch; within a piece,
 ``solve_ivp`` (Radau by default, rtol 1e-8) integrates with two terminal, directional events per
 gap-switching wheel, the two boundaries of the roller/rigid interval its angle is in. At an event the
-wheel's region index is stepped, its angle set exactly onto the boundary (a correction at the
-solver's root tolerance) and the integration restarted, so no step ever straddles a friction
+wheel's region index is stepped, its angle set onto the boundary (a correction at the solver's
+root tolerance; 1e-12 rad past it, on the new side) and the integration restarted, so no step ever straddles a friction
 discontinuity.
 """
 
@@ -505,9 +505,14 @@ def integrate(plant: Plant, times: np.ndarray, commands: np.ndarray, sample_time
                 hit = [k for k, te in enumerate(sol.t_events) if len(te)]
                 k = min(hit, key=lambda q: sol.t_events[q][0])
                 i, step, angle = owners[k]
-                regions[i] += step
-                state[6 + i] = angle
+                _cross(plant, regions, state, i, step, angle)
                 counts["gap_switches"] += 1
+                # Wheels at the same angle (a turn in place with equal phases) cross together.
+                for k2, (i2, step2, angle2) in enumerate(owners):
+                    speed = state[6 + n + i2] if plant.tau is not None else cmd[i2]
+                    if i2 != i and abs(state[6 + i2] - angle2) < SIMULTANEOUS and step2 * speed > 0:
+                        _cross(plant, regions, state, i2, step2, angle2)
+                        counts["gap_switches"] += 1
             t = t_end
     if not filled.all():  # samples exactly at the last cut
         out[~filled] = state
@@ -520,6 +525,19 @@ def integrate(plant: Plant, times: np.ndarray, commands: np.ndarray, sample_time
     rx, ry = -(c * cx - s * cy), -(s * cx + c * cy)
     vel = np.column_stack([out[:, 3] - om * ry, out[:, 4] + om * rx, om])
     return Trajectory(t=samples, pose=pose, velocity=vel, angles=out[:, 6:6 + n].copy(), events=counts)
+
+
+SIMULTANEOUS = 1e-9  # rad: wheels this close to their boundary at another wheel's event cross with it
+
+
+def _cross(plant: Plant, regions: np.ndarray, state: np.ndarray, i: int, step: int, angle: float) -> None:
+    """Step wheel i's region by ``step`` (±1) and put its angle just past ``angle``, on the new side.
+
+    1e-12 rad past the boundary: the new region's event function then starts strictly non-zero, so a
+    wheel that stops there does not re-trigger it.
+    """
+    regions[i] += step
+    state[6 + i] = angle + step * max(1e-12, 8 * math.ulp(angle))
 
 
 def _angle_event(index: int, boundary: float, direction: float):
