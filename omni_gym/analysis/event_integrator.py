@@ -224,7 +224,8 @@ def check_effects(effects: dict, model: SimModel) -> None:
         if name == "tracker_offset":
             off = _finite(params.get("offset"), "effect 'tracker_offset' parameter 'offset'")
             if off.shape != (2,):
-                raise ValueError(f"effect 'tracker_offset' parameter 'offset': expected [x, y], got {params.get('offset')!r}")
+                raise ValueError(f"effect 'tracker_offset' parameter 'offset': expected [x, y], "
+                                 f"got {params.get('offset')!r}")
             _scalar(params, "yaw", name)
         if name == "time_offset":
             _scalar(params, "delay", name, -1.0, 1.0)
@@ -508,7 +509,7 @@ def integrate(plant: Plant, times: np.ndarray, commands: np.ndarray, sample_time
                 _cross(plant, regions, state, i, step, angle)
                 counts["gap_switches"] += 1
                 # Wheels at the same angle (a turn in place with equal phases) cross together.
-                for k2, (i2, step2, angle2) in enumerate(owners):
+                for i2, step2, angle2 in owners:
                     speed = state[6 + n + i2] if plant.tau is not None else cmd[i2]
                     if i2 != i and abs(state[6 + i2] - angle2) < SIMULTANEOUS and step2 * speed > 0:
                         _cross(plant, regions, state, i2, step2, angle2)
