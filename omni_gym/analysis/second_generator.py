@@ -53,7 +53,6 @@ from omni_gym.analysis.event_integrator import (
     draw_lift_schedule,
     integrate,
 )
-from omni_gym.discrepancy.data.dataset import Run, write_dataset
 from omni_gym.physics.model import SimModel, load_model
 
 ROBOTS = ("williams2002", "optiodom_omni4")
@@ -184,6 +183,18 @@ def simulate_run(model: SimModel, hidden: dict, times: np.ndarray, commands: np.
     return {"pose": pose, "angles": traj.angles[idx_rows], "lift_schedule": schedule, "events": traj.events}
 
 
+def _write_folder(folder: Path, model: SimModel, description: str, runs: list[tuple[str, np.ndarray]]) -> None:
+    """The dataset folder of ``docs/formats.md``: runs/NAME.csv (t, w1..wn, enc1..encn, x, y, theta), then
+    dataset.json {"model", "description"} (written here, not by the workflow's writer: this module sits
+    below the discrepancy workflow and relies on the documented format only)."""
+    n = model.n_wheels
+    header = ["t"] + [f"w{i + 1}" for i in range(n)] + [f"enc{i + 1}" for i in range(n)] + ["x", "y", "theta"]
+    (folder / "runs").mkdir(parents=True, exist_ok=True)
+    for name, rows in runs:
+        outputs.write_csv_atomic(folder / "runs" / f"{name}.csv", header, rows)
+    outputs.write_json_atomic(folder / "dataset.json", {"model": model.to_json(), "description": description})
+
+
 def _digest(folder: Path) -> str:
     h = hashlib.sha256()
     for f in [folder / "dataset.json"] + sorted((folder / "runs").glob("*.csv")):
@@ -240,7 +251,7 @@ def write_second_dataset(folder, *, robot: str = "williams2002", hidden: dict | 
         phi0 = rng.uniform(0.0, q, model.n_wheels)
         enc = q * (np.floor((sim["angles"] + phi0) / q) - np.floor(phi0 / q))
         name = f"run{k:03d}"
-        run_list.append(Run(name=name, t=times, cmd=commands, pose=pose, enc=enc))
+        run_list.append((name, np.column_stack([times, commands, enc, pose])))
         truth_runs.append({"run": name, "start_pose": start.tolist(),
                            "lift_schedule": [{"t": t, "lifted": np.flatnonzero(m).astype(int).tolist()}
                                              for t, m in sim["lift_schedule"]],
@@ -254,7 +265,7 @@ def write_second_dataset(folder, *, robot: str = "williams2002", hidden: dict | 
                 "encoder_counts": int(encoder_counts), "tracker_rate": tracker_rate, "seed": int(seed)}
     with outputs.Output(folder, "dir", force=force, marker="dataset.json", what="dataset",
                         companions=(truth_path,)) as tx:
-        write_dataset(tx.path, model.to_json(), description, run_list)
+        _write_folder(tx.path, model, description, run_list)
         truth = {"generator": "omni_gym.analysis.second_generator", "hidden": _jsonable(hidden),
                  "settings": settings, "seed": int(seed), "runs": truth_runs, "dataset_digest": _digest(tx.path)}
         tx.stage_companion(truth_path, (json.dumps(truth, indent=2) + "\n").encode())
