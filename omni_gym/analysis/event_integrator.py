@@ -53,11 +53,12 @@ world, on purpose written down):
   Exp(1/recover_rate).
 
 Event handling: the run is split at every command change and every lift-off switch; within a piece,
-``solve_ivp`` (Radau by default, rtol 1e-8) integrates with two terminal, directional events per
-gap-switching wheel, the two boundaries of the roller/rigid interval its angle is in. At an event the
-wheel's region index is stepped, its angle set onto the boundary (a correction at the solver's
-root tolerance; 1e-12 rad past it, on the new side) and the integration restarted, so no step ever straddles a friction
-discontinuity.
+``solve_ivp`` (LSODA by default, rtol 1e-8; Radau on request) integrates with two terminal,
+directional events per gap-switching wheel, the two boundaries of the roller/rigid interval its angle
+is in. At an event the wheel's region index is stepped (with it any wheel within 1e-9 rad of its own
+boundary and moving across it: equal wheels of a turn in place cross together), its angle put onto
+the boundary (a correction at the solver's root tolerance; 1e-12 rad past it, on the new side) and
+the integration restarted, so no step straddles a friction discontinuity.
 """
 
 from __future__ import annotations
