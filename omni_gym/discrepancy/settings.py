@@ -6,8 +6,11 @@
   (:func:`omni_gym.discrepancy.fit.fitting.fit_candidate`).
 - :class:`DecisionRules`: the thresholds of the decision (:func:`omni_gym.discrepancy.decide.decision.decide`;
   why each value, ``docs/discrepancy.md``).
-- :class:`GapSettings`: the three together, as ``gap`` takes them and ``result.json`` records them
-  (``settings.event_search``, ``settings.fit``, ``settings.rules``; :meth:`GapSettings.to_json`).
+- :class:`DataSettings`: tracker outliers and the start alignment of whole runs.
+- :class:`IdentifiabilitySettings`: what counts as determined by the data, and the refit in that subspace.
+- :class:`GapSettings`: all of them together, as ``gap`` takes them and ``result.json`` records them
+  (``settings.event_search``, ``settings.fit``, ``settings.rules``, ``settings.data``,
+  ``settings.identifiability``; :meth:`GapSettings.to_json`).
 
 The defaults are the values every committed result was made with; a report is reproduced from its
 ``result.json`` by passing the recorded values back (``GapSettings.from_json``). This module imports
@@ -139,15 +142,62 @@ def accuracy_floor(rules: DecisionRules, lever: float) -> float:
 
 
 @dataclass(frozen=True)
+class DataSettings:
+    """How the data are read before any fit (:mod:`omni_gym.discrepancy.data.outliers`,
+    :func:`omni_gym.discrepancy.replay.measurement.align_to_start_window`).
+
+    Attributes:
+        outlier_z: robust standard deviations of tracker noise beyond which a row is an outlier.
+        outlier_acceleration: m/s², the largest acceleration floor friction can give (μ ≤ 2): a path may
+            deviate from the line through its neighbours by this much without being flagged.
+        outlier_max_share: most rows of a run flagged (share, 0-1): beyond that the tracker itself is broken.
+        start_window: s, the first tracked rows of a whole run that its replay is aligned to.
+    """
+
+    outlier_z: float = 6.0
+    outlier_acceleration: float = 2.0 * 9.81
+    outlier_max_share: float = 0.05
+    start_window: float = 0.2
+
+
+@dataclass(frozen=True)
+class IdentifiabilitySettings:
+    """What the data determine of the named effects (:mod:`omni_gym.discrepancy.fit.identifiability`) and the
+    refit in that subspace (:mod:`omni_gym.discrepancy.fit.identified_fit`).
+
+    Attributes:
+        identified: largest 95 % half-width (share of the fit range) of an identified combination or parameter.
+        confounded: |correlation| above which two parameters are reported as confounded.
+        step: forward-difference step in the unit cube (the fits' own LM step).
+        bound: unit-cube distance from a bound within which a value counts as at its fit bound.
+        merge_weight: least |weight| (largest weight 1) of a parameter that a combination is said to involve.
+        bound_passes: most refits after fixing parameters that the subspace fit put at a bound.
+        held_out_tolerance: most held-out MSE increase (share) accepted for holding bound parameters at the
+            start model's values.
+    """
+
+    identified: float = 0.05
+    confounded: float = 0.9
+    step: float = 3e-3
+    bound: float = 1e-3
+    merge_weight: float = 0.1
+    bound_passes: int = 2
+    held_out_tolerance: float = 0.05
+
+
+@dataclass(frozen=True)
 class GapSettings:
-    """Every setting of a ``gap`` run's search, fit and decision (one object per stage)."""
+    """Every setting of a ``gap`` run that changes its answer, one object per stage: the data (outliers,
+    start alignment), the fit, the lift-event search, the decision and the identifiability analysis."""
 
     event_search: EventSearchSettings = field(default_factory=EventSearchSettings)
     fit: FitSettings = field(default_factory=FitSettings)
     rules: DecisionRules = field(default_factory=DecisionRules)
+    data: DataSettings = field(default_factory=DataSettings)
+    identifiability: IdentifiabilitySettings = field(default_factory=IdentifiabilitySettings)
 
     def to_json(self) -> dict:
-        """The three stages' settings in full, for result.json (tuples become lists)."""
+        """Every stage's settings in full, for result.json (tuples become lists)."""
         return {f.name: asdict(getattr(self, f.name)) for f in fields(self)}
 
     @classmethod

@@ -37,7 +37,7 @@ import numpy as np
 
 from omni_gym.discrepancy.data.dataset import Dataset, load_dataset, sessions_of
 from omni_gym.discrepancy.data.folds import source_folds
-from omni_gym.discrepancy.data.outliers import OUTLIER_RULE, drop_outliers, find_outliers
+from omni_gym.discrepancy.data.outliers import drop_outliers, find_outliers, outlier_rule
 from omni_gym.discrepancy.data.segments import FIT_BUDGET, check_fit_budget, fit_data
 from omni_gym.discrepancy.decide.decision import Decision, decide
 from omni_gym.discrepancy.decide.score import heldout_table, heldout_whole_runs
@@ -48,6 +48,7 @@ from omni_gym.discrepancy.fit.fit_tasks import FitShared, FitTask, StepWork, run
 from omni_gym.discrepancy.fit.fitting import Evaluator, FitResult, max_ticks, param_intervals
 from omni_gym.discrepancy.fit.kinematic_calibration import calibrate
 from omni_gym.discrepancy.replay.localise import localise
+from omni_gym.discrepancy.replay.measurement import START_WINDOW
 from omni_gym.discrepancy.replay.residuals import count_components, geo_mse, run_sse
 from omni_gym.discrepancy.replay.simulate import FIT_DT
 from omni_gym.discrepancy.report.finite import finite_json
@@ -98,12 +99,12 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     if isinstance(max_effects, bool) or not isinstance(max_effects, int) or max_effects < 1:
         raise ValueError(f"max_effects must be an integer >= 1, got {max_effects!r}")
     check_fit_budget(fit_budget)
+    opts = GapOptions(dataset, None, seed, folds, progress, dt, plots, max_effects, fit_budget, backend, start,
+                      GapSettings() if settings is None else settings)
     if out is None:
-        return _gap(dataset, None, seed, folds, progress, dt, plots, max_effects, fit_budget, backend, start,
-                    settings)
+        return _gap(opts)
     with Output(Path(out), "dir", force=force, inputs=[dataset], marker="result.json", what="gap report") as tx:
-        return _gap(dataset, tx.path, seed, folds, progress, dt, plots, max_effects, fit_budget, backend, start,
-                    settings)
+        return _gap(replace(opts, out=tx.path))
 
 
 @dataclass
@@ -221,80 +222,247 @@ def _search_step(search: SearchRun, base: SimModel, base_sse: np.ndarray, exclud
     return Step(fits=fits, decision=decision, work=work)
 
 
-def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress: bool | None, dt: float,
-         plots: bool, max_effects: int = MAX_EFFECTS, fit_budget: float = FIT_BUDGET,
-         backend: Backend = SERIAL, start: str | SimModel = "auto", settings: GapSettings | None = None,
-         competition: dict | None = None) -> dict:
-    """The workflow of :func:`gap`; the report is written into ``out`` as it is (no transaction).
+@dataclass(frozen=True)
+class GapOptions:
+    """One ``gap`` call's options (:func:`gap`'s arguments, checked); ``out`` the folder the report is written
+    into as it is (the caller holds the transaction); ``competition``: set when the kinematic calibration
+    won the first step of an ``auto`` run (:func:`_competition_json`): the search then runs again from the
+    calibration (``start`` is ``kinematic``) and ``result.json``'s ``start`` records the competition."""
 
-    ``competition``: set when the kinematic calibration won the first step of an ``auto`` run (its
-    decision, :func:`_competition_json`): the search is then run again from the calibration (``start`` is
-    ``kinematic``) and ``result.json``'s ``start`` records the competition."""
-    from tqdm import tqdm
+    dataset: str | Path
+    out: Path | None
+    seed: int
+    folds: int
+    progress: bool | None
+    dt: float
+    plots: bool
+    max_effects: int
+    fit_budget: float
+    backend: Backend
+    start: str | SimModel
+    settings: GapSettings
+    competition: dict | None = None
 
+
+@dataclass
+class DataStage:
+    """Stage 1, the data and the folds: the source runs ``whole`` (the whole-run held-out score replays them),
+    what is fitted (``fitted``: whole runs or segments within the fit budget), the fitted runs ``ds`` with the
+    tracker outliers ``flagged`` dropped, the folds of the source runs (``fold_src``, by session when there
+    are ``sessions``) and of the fitted runs (``fold_of``), the residual ``lever`` [m], the residual
+    components per fitted run ``n_comp`` and the driver's generator ``rng``."""
+
+    whole: Dataset
+    fitted: Any  # omni_gym.discrepancy.data.segments.FitData
+    ds: Dataset
+    flagged: list
+    sessions: list | None
+    fold_src: np.ndarray
+    fold_of: np.ndarray
+    lever: float
+    n_comp: np.ndarray
+    rng: np.random.Generator
+
+
+@dataclass
+class StartStage:
+    """Stage 2, the start hypotheses and the baseline they give: the start model ``first`` (the nominal model,
+    with the kinematic calibration as a competing hypothesis when ``first.compete``), the evaluator ``ev``,
+    the start model's residuals ``res0``, per-run SSE ``sse0`` [m²], the tracker noise ``tracker`` [m], the
+    decision's floor ``sigma`` [m] with its parts, the effects that do not apply to the robot (``skipped``),
+    the candidates of the first step (``cands``) and the start model's gap beyond the floor ``excess0`` [m]."""
+
+    first: StartModel
+    ev: Evaluator
+    res0: list
+    sse0: np.ndarray
+    tracker: float | None
+    sigma: float | None
+    noise_parts: dict
+    skipped: dict
+    cands: list[Candidate]
+    excess0: float
+
+
+@dataclass
+class SearchStage:
+    """Stage 3, the search: the effects added step by step (``steps``, their ``uncertainties``), the step that
+    ended it (``last``), the localisation (``where``), each step's measured work, the CPU time inside the steps,
+    and ``won``: the first step's record when the kinematic calibration won it (the search is then redone from
+    it)."""
+
+    steps: list[Step]
+    uncertainties: list[dict]
+    last: Step
+    where: dict
+    works: list[StepWork]
+    steps_cpu: float
+    won: dict | None = None
+
+
+@dataclass
+class Answer:
+    """Stage 4, the decision on the whole search: the effects kept after the whole-run drift check and the
+    identified refit (``steps``, ``uncertainties``, ``model``), the answer (``effect``, ``why``), the first
+    step (its decision and ranking are the report's), the step that ended the search with none/unexplained
+    (``final``, None otherwise), the per-run held-out SSE of the reported model (``after_sse``), the whole-run
+    rows and drift record, and the identifiability JSON."""
+
+    effect: str
+    why: str
+    steps: list[Step]
+    uncertainties: list[dict]
+    model: SimModel
+    first_step: Step
+    final: Step | None
+    after_sse: np.ndarray
+    rows: list
+    drift: dict
+    identifiability: dict | None
+
+
+@dataclass
+class GapResult:
+    """What ``gap`` found, typed (``result.json`` is :meth:`to_json`; ``docs/formats.md``, "Gap report")."""
+
+    effect: str
+    why: str
+    params: dict
+    effects: list[str]
+    not_applicable: dict
+    steps: list[dict]
+    identifiability: dict | None
+    model: dict
+    gap: dict
+    ranking: list[dict]
+    plausibility: dict
+    outliers: dict
+    start: dict
+    heldout: dict
+    score_nominal: float | None
+    where: dict
+    settings: dict
+    dataset: dict
+    work: dict
+    ambiguous_with: list[dict] | None = None
+    uncertainty: dict | None = None
+
+    def to_json(self) -> dict:
+        """result.json: standard JSON (a value that could not be computed is null, listed in ``non_finite``)."""
+        out: dict = {"effect": self.effect, "why": self.why}
+        if self.ambiguous_with:
+            out["ambiguous_with"] = self.ambiguous_with
+        out["params"] = self.params
+        if self.uncertainty is not None:
+            out["uncertainty"] = self.uncertainty
+        for key in ("effects", "not_applicable", "steps", "identifiability", "model", "gap", "ranking",
+                    "plausibility", "outliers", "start", "heldout", "score_nominal", "where", "settings", "dataset",
+                    "work"):
+            out[key] = getattr(self, key)
+        out, bad = finite_json(out)
+        if bad:
+            out["non_finite"] = bad
+        return out
+
+
+def _gap(opts: GapOptions) -> dict:
+    """The workflow of :func:`gap`, stage by stage: data and folds, start hypotheses, search, decision, result
+    (and the report, into ``opts.out``)."""
     cpu0, wall0 = time.process_time(), time.perf_counter()  # the work record (fit_tasks.work_json)
-    settings = GapSettings() if settings is None else settings
-    rules = settings.rules
-    step_works: list[StepWork] = []
-    steps_cpu = 0.0  # this process's CPU time inside the search steps (the rest is the run's serial part)
-    show = sys.stderr.isatty() if progress is None else progress
-    say = _stage_printer(progress is None and not show)  # redirected stderr: one line per stage
-    ds = load_dataset(dataset)
-    whole = ds  # the source runs, whole (the drift-aware held-out score replays them)
-    R = len(ds.runs)
-    if R < 2:
-        raise ValueError(f"{dataset}: needs at least 2 runs (held-out scoring splits by run), got {R}")
-    fitted = fit_data(ds, fit_budget)  # refuses a budget that leaves segments of fewer than 2 runs
+    show = sys.stderr.isatty() if opts.progress is None else opts.progress
+    say = _stage_printer(opts.progress is None and not show)  # redirected stderr: one line per stage
+    data = _data_stage(opts, say)
+    start = _start_stage(opts, data, say)
+    search = _search_stage(opts, data, start, say, show)
+    if search.won is not None:
+        # The calibration won the first step: search again from it (its fold models score the held-out runs).
+        say("the kinematic calibration wins the first step; searching on top of it")
+        return _gap(replace(opts, start="kinematic", competition=search.won))
+    answer = _decide_stage(opts, data, start, search, say)
+    result = _result(opts, data, start, search, answer, cpu0, wall0).to_json()
+    if opts.out is not None:
+        from omni_gym.discrepancy.report.report import write_report
+
+        say("writing report")
+        write_report(Path(opts.out), result, data.ds, start.first.model, answer.model, data.lever, opts.dt,
+                     plots=opts.plots)
+    return result
+
+
+def _data_stage(opts: GapOptions, say: Callable[[str], None]) -> DataStage:
+    """Load the dataset, choose what is fitted (whole runs or segments), make the folds, drop tracker outliers."""
+    ds = load_dataset(opts.dataset)
+    whole = ds
+    if len(ds.runs) < 2:
+        raise ValueError(f"{opts.dataset}: needs at least 2 runs (held-out scoring splits by run), got {len(ds.runs)}")
+    fitted = fit_data(ds, opts.fit_budget)  # refuses a budget that leaves segments of fewer than 2 runs
     # Said after the checks: a dataset that is refused gives exactly one line (the error).
-    say(f"loaded dataset {dataset} ({R} runs)")
+    say(f"loaded dataset {opts.dataset} ({len(ds.runs)} runs)")
     if fitted.segmented:
         say(f"fitting {fitted.describe()}")
     ds = fitted.dataset
-    R = len(ds.runs)
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(opts.seed)
     # Folds over the source runs (by session when the dataset records several), then their segments.
     sessions = sessions_of(whole.runs)
-    fold_src = source_folds(len(whole.runs), rng, folds, sessions)
+    fold_src = source_folds(len(whole.runs), rng, opts.folds, sessions)
     fold_of, fold_src = _compact_folds(fold_src, fitted.groups)
-    first = start_model(whole, fold_src, start, dt)
-    if first.kind == "kinematic":
-        say(f"start: kinematic calibration ({first.describe()})")
-    elif first.kind == "given":
-        say("starting from the given model" + (f" (keeping its {', '.join(first.excluded)})" if first.excluded else ""))
-    nominal = first.model
     lever = ds.model.robot.lever()  # the dataset's: the same residual metric whatever the start
-    say(f"checking {R} runs for tracker outliers")
-    flagged = find_outliers(ds, lever)
+    say(f"checking {len(ds.runs)} runs for tracker outliers")
+    flagged = find_outliers(ds, lever, opts.settings.data)
     ds = drop_outliers(ds, flagged)  # flagged rows count as not observed (outliers.py)
     if flagged:
         say(f"{len(flagged)} outlier row(s) excluded: "
             + ", ".join(f"{o.run} row {o.row}" for o in flagged[:5]) + (" ..." if len(flagged) > 5 else ""))
+    return DataStage(whole, fitted, ds, flagged, sessions, fold_src, fold_of, lever, count_components(ds), rng)
+
+
+def _start_stage(opts: GapOptions, data: DataStage, say: Callable[[str], None]) -> StartStage:
+    """The start model (and the kinematic hypothesis), its residuals and the decision's noise floor."""
+    first = start_model(data.whole, data.fold_src, opts.start, opts.dt)
+    if first.kind == "kinematic":
+        say(f"start: kinematic calibration ({first.describe()})")
+    elif first.kind == "given":
+        say("starting from the given model" + (f" (keeping its {', '.join(first.excluded)})" if first.excluded else ""))
     say(f"simulating the {first.kind} model")
-    ev = Evaluator(ds, lever, dt=dt, accuracy=accuracy_floor(rules, lever))
-    res0, sse0, tracker = ev.nominal_baseline(nominal)
-    # The decision's noise level: tracker noise and the fitting step's own integration error, which an
-    # exact model would leave in the residual too (Evaluator.noise_floor).
-    sigma, noise_parts = ev.noise_floor(nominal)
-    n_comp = count_components(ds)
-    cands = [c for c in candidates(nominal) if c.name not in first.excluded]  # for the progress bar
-    skipped = not_applicable(nominal)  # e.g. roller_gap on mecanum wheels: never fitted, said in result.json
+    rules = opts.settings.rules
+    ev = Evaluator(data.ds, data.lever, dt=opts.dt, accuracy=accuracy_floor(rules, data.lever),
+                   start_window=opts.settings.data.start_window)
+    res0, sse0, tracker = ev.nominal_baseline(first.model)
+    # The decision's floor: tracker noise, the fitting step's own integration error and the simulator's validated
+    # accuracy, which an exact model would leave in the residual too (Evaluator.noise_floor).
+    sigma, noise_parts = ev.noise_floor(first.model)
+    cands = [c for c in candidates(first.model) if c.name not in first.excluded]
+    skipped = not_applicable(first.model)  # e.g. roller_gap on mecanum wheels: never fitted, said in result.json
     if skipped:
         say(f"not tried (does not apply to this robot): {', '.join(skipped)}")
-    total = 2 + sum(max_ticks(c, settings.fit) + 1 for c in cands)
+    excess0 = _excess(sse0, data.n_comp, sigma**2 if sigma is not None else 0.0)
+    return StartStage(first, ev, res0, sse0, tracker, sigma, noise_parts, skipped, cands, excess0)
+
+
+def _search_stage(opts: GapOptions, data: DataStage, start: StartStage, say: Callable[[str], None],
+                  show: bool) -> SearchStage:
+    """Localise, then name effects step by step until none/unexplained, the library or ``max_effects`` is used up
+    (module docstring); with the kinematic hypothesis competing at the first step."""
+    from tqdm import tqdm
+
+    settings, rules, first, ev, sigma = opts.settings, opts.settings.rules, start.first, start.ev, start.sigma
+    n_comp, rng = data.n_comp, data.rng
+    total = 2 + sum(max_ticks(c, settings.fit) + 1 for c in start.cands)
     steps: list[Step] = []
     uncertainties: list[dict] = []
+    works: list[StepWork] = []
+    steps_cpu = 0.0  # this process's CPU time inside the search steps (the rest is the run's serial part)
+    won = None
     ev.windows  # noqa: B018 -- computed once here, before the evaluator is sent to the workers
-    shared = FitShared(ev, fold_of, settings)
-    with executor(backend) as ex, \
+    shared = FitShared(ev, data.fold_of, settings)
+    with executor(opts.backend) as ex, \
             tqdm(total=total, desc="gap: fitting", file=sys.stderr, disable=not show, unit="batch") as bar:
         say("localising")
-        where = localise(ds, nominal, lever, res0, dt=dt, sigma=tracker)  # windows: no integration drift
+        where = localise(data.ds, first.model, data.lever, start.res0, dt=opts.dt, sigma=start.tracker)
         bar.update(1)
-        model, base_sse = nominal, sse0
-        search = SearchRun(ev, shared, n_comp, sigma, rng, seed, bar, say, ex, first.refit)
-        excess0 = _excess(sse0, n_comp, sigma**2 if sigma is not None else 0.0)
-        kin = _kinematic_fit(ev, first, fold_of) if first.compete else None
-        won = None
+        model, base_sse = first.model, start.sse0
+        search = SearchRun(ev, shared, n_comp, sigma, rng, opts.seed, bar, say, ex, first.refit)
+        kin = _kinematic_fit(ev, first, data.fold_of) if first.compete else None
         while True:
             if sigma is not None and geo_mse(base_sse, n_comp) <= sigma**2 * (1 + rules.noise_margin):
                 # The evidence rule (decide): a residual within the floor leaves nothing to explain, so no
@@ -307,13 +475,13 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
                 break
             cpu_step = time.process_time()
             step = _search_step(search, model, base_sse, [*first.excluded, *[s.effect for s in steps]], len(steps) + 1,
-                                reference_excess=excess0 if steps else None,
+                                reference_excess=start.excess0 if steps else None,
                                 extra=[kin] if kin is not None and not steps else [])
-            if kin is not None and not steps and step.effect == KINEMATIC:
-                won = _competition_json(step)  # the search starts again from the calibration, below
-                break
             steps_cpu += time.process_time() - cpu_step
-            step_works.append(step.work)
+            works.append(step.work)
+            if kin is not None and not steps and step.effect == KINEMATIC:
+                won = _competition_json(step)  # the search starts again from the calibration (_gap)
+                break
             fit = step.fit
             if fit is None:  # none or unexplained: the search ends here
                 break
@@ -326,17 +494,26 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
             })
             model = model.with_effect(step.effect, fit.params_all)
             base_sse = fit.sse_all
-            if len(steps) == max_effects or fit.candidate.stochastic or len(steps) == len(cands):
+            if len(steps) == opts.max_effects or fit.candidate.stochastic or len(steps) == len(start.cands):
                 break
             say(f"{'named' if not step.partial else 'kept (partial)'} {step.effect}; searching the remaining gap")
         bar.update(max(bar.total - bar.n, 0))
-    if won is not None:
-        # The calibration won the first step: search again from it (its fold models score the held-out runs).
-        say("the kinematic calibration wins the first step; searching on top of it")
-        return _gap(dataset, out, seed, folds, progress, dt, plots, max_effects, fit_budget, backend, "kinematic",
-                    settings, competition=won)
+    return SearchStage(steps, uncertainties, step, where, works, steps_cpu, won)
+
+
+def _decide_stage(opts: GapOptions, data: DataStage, start: StartStage, search: SearchStage,
+                  say: Callable[[str], None]) -> Answer:
+    """The whole-run drift check, the identified refit, and the answer."""
+    settings, rules, first, ev = opts.settings, opts.settings.rules, start.first, start.ev
+    n_comp, sigma, competition = data.n_comp, start.sigma, opts.competition
+    steps, uncertainties, step = list(search.steps), list(search.uncertainties), search.last
+    nominal = first.model
+    model = nominal
+    for s in steps:
+        model = model.with_effect(s.effect, s.fit.params_all)
     say("scoring whole runs open loop (held-out drift)")
-    rows, drift = _drift_check(whole, fold_src, first, steps, dt, gate=fitted.segmented)
+    rows, drift = _drift_check(data.whole, data.fold_src, first, steps, opts.dt, gate=data.fitted.segmented,
+                               start_window=settings.data.start_window)
     searched = list(steps)  # before the drift check: the first step's decision and ranking stay the report's
     if drift["dropped"]:
         say(f"dropped (worse whole-run held-out drift): {', '.join(drift['dropped'])}")
@@ -352,9 +529,10 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
     # the start model, a few LM batches); model.json, params and the held-out scores use the refit.
     say("identifiability of the named effects")
     lin = identifiability.linearise(ev, nominal, [identifiability.Named(s.fit.candidate, s.fit.u_all)
-                                                  for s in steps], noise_parts["noise"])
+                                                  for s in steps], start.noise_parts["noise"],
+                                    settings.identifiability)
     det = [s for s in steps if not s.fit.candidate.stochastic]
-    refit = (identified_fit.refit(ev, nominal, lin, fold_of, det[-1].fit.heldout, n_comp, settings.fit)
+    refit = (identified_fit.refit(ev, nominal, lin, data.fold_of, det[-1].fit.heldout, n_comp, settings.fit)
              if lin is not None else None)
     ident_json = None
     if lin is not None:
@@ -370,22 +548,20 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
         for s in steps:
             model = model.with_effect(s.effect, s.fit.params_all)
         step = steps[-1] if step.fit is not None else step
-        rows, _ = _drift_check(whole, fold_src, first, steps, dt, gate=False)  # the models actually reported
+        rows, _ = _drift_check(data.whole, data.fold_src, first, steps, opts.dt, gate=False,
+                               start_window=settings.data.start_window)  # the models actually reported
         drift["rows"] = "per_run and per_session: the identified refit's models (the check itself: the search's)"
     first_step = searched[0] if searched else step
     final = step if step.fit is None else None  # the none/unexplained answer that ended the search, if one did
     if drift["dropped"]:
         final = None
     decision = first_step.decision
-    by_name = {f.candidate.name: f for f in first_step.fits}
     noise_var = sigma**2 if sigma is not None else 0.0
-    N = float(n_comp.sum())
-    after_sse = steps[-1].fit.heldout if steps else sse0
+    after_sse = steps[-1].fit.heldout if steps else start.sse0
     # The answer: the first effect when the effects found together remove enough of the nominal gap
     # (the last step's decision applied the 70 % rule to the whole chain), else the first step's own
     # answer (none/unexplained), or unexplained for a chain that ran out of candidates short of it.
-    explained = bool(steps) and not steps[-1].partial
-    if explained:
+    if steps and not steps[-1].partial:
         effect, why = steps[0].effect, steps[0].decision.why if len(steps) == 1 else _chain_why(steps)
     elif drift["dropped"] and not steps:
         effect = "unexplained"
@@ -394,42 +570,46 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
                "model")
     elif steps:
         effect = "unexplained"
-        why = (f"{' + '.join(s.effect for s in steps)} together remove only "
-               f"{100 * (1 - _excess(after_sse, n_comp, noise_var) / excess0):.0f} % of the gap beyond noise on "
-               f"held-out runs (needs {100 * rules.min_gap_reduction:.0f} %); model.json carries them")
-    elif competition is not None and competition["named"] and not steps and decision.effect == "none":
+        share = 1 - _excess(after_sse, n_comp, noise_var) / start.excess0 if start.excess0 > 0 else 0.0
+        why = (f"{' + '.join(s.effect for s in steps)} " + ("together remove" if len(steps) > 1 else "removes")
+               + f" only {100 * share:.0f} % of the gap beyond noise on held-out runs (needs "
+               f"{100 * rules.min_gap_reduction:.0f} %); model.json carries "
+               + ("them" if len(steps) > 1 else "it"))
+    elif competition is not None and competition["named"] and decision.effect == "none":
         # The calibration won the first step and nothing beyond the floor is left on top of it.
         effect, why = KINEMATIC, f"{competition['why']}; {decision.why}"
     else:
         effect, why = decision.effect, decision.why
-    result: dict = {"effect": effect, "why": why}
-    if decision.ambiguous_with:
-        result["ambiguous_with"] = decision.ambiguous_with
-    if steps:
-        result["params"] = steps[0].fit.params_all
-        result["uncertainty"] = uncertainties[0]
-    else:
-        result["params"] = {}
-    result["effects"] = [s.effect for s in steps]
-    result["not_applicable"] = skipped
-    result["steps"] = _steps_json(steps, uncertainties, final, sse0, n_comp, noise_var)
-    result["identifiability"] = ident_json
+    return Answer(effect, why, steps, uncertainties, model, first_step, final, after_sse, rows, drift, ident_json)
+
+
+def _result(opts: GapOptions, data: DataStage, start: StartStage, search: SearchStage, answer: Answer,
+            cpu0: float, wall0: float) -> GapResult:
+    """The typed result of the stages (``cpu0``, ``wall0``: the run's start, for the work record)."""
+    ds, n_comp, sigma, first = data.ds, data.n_comp, start.sigma, start.first
+    decision = answer.first_step.decision
+    steps = answer.steps
+    noise_var = sigma**2 if sigma is not None else 0.0
+    N = float(n_comp.sum())
+    sse0, after_sse = start.sse0, answer.after_sse
+    uncertainty = answer.uncertainties[0] if steps else None
     if sigma is None:
-        result.setdefault("uncertainty", {})["noise"] = (
+        uncertainty = {**(uncertainty or {}), "noise": (
             "tracker noise cannot be estimated (too few consecutive observed rows): gap values include noise, "
-            "and a gap left by an effect cannot be told from noise")
+            "and a gap left by an effect cannot be told from noise")}
     m0, m1 = geo_mse(sse0, n_comp), geo_mse(after_sse, n_comp)
-    before, after = excess0, _excess(after_sse, n_comp, noise_var)
-    result["model"] = model.to_json()
-    result["gap"] = {"metric": METRIC, "before": before, "after": after,
-                     "reduction": 1.0 - after / before if before > 0 else 0.0,
-                     "rms_before": math.sqrt(m0), "rms_after": math.sqrt(m1),
-                     "pooled_rms_before": math.sqrt(sse0.sum() / N), "pooled_rms_after": math.sqrt(after_sse.sum() / N),
-                     "noise": tracker, "noise_floor": sigma, "noise_components": noise_parts, "heldout_runs": R,
-                     "per_run": [{"run": r.name, "fold": int(k), "rms_before": _rms(a, n), "rms_after": _rms(b, n)}
-                                 for r, k, a, b, n in zip(ds.runs, fold_of, sse0, after_sse, n_comp, strict=True)]}
-    result["ranking"] = decision.ranking
-    for entry in result["ranking"]:
+    before, after = start.excess0, _excess(after_sse, n_comp, noise_var)
+    gap_json = {"metric": METRIC, "before": before, "after": after,
+                "reduction": 1.0 - after / before if before > 0 else 0.0,
+                "rms_before": math.sqrt(m0), "rms_after": math.sqrt(m1),
+                "pooled_rms_before": math.sqrt(sse0.sum() / N), "pooled_rms_after": math.sqrt(after_sse.sum() / N),
+                "noise": start.tracker, "noise_floor": sigma, "noise_components": start.noise_parts,
+                "heldout_runs": len(ds.runs),
+                "per_run": [{"run": r.name, "fold": int(k), "rms_before": _rms(a, n), "rms_after": _rms(b, n)}
+                            for r, k, a, b, n in zip(ds.runs, data.fold_of, sse0, after_sse, n_comp, strict=True)]}
+    by_name = {f.candidate.name: f for f in answer.first_step.fits}
+    ranking = decision.ranking
+    for entry in ranking:
         f = by_name.get(entry["effect"])
         if f is not None and f.event_fit is not None:
             # The stochastic candidate's inferred lift events (its held-out score counts them).
@@ -437,43 +617,37 @@ def _gap(dataset: str | Path, out: Path | None, seed: int, folds: int, progress:
             entry["events"] = f.event_fit.to_json([r.name for r in ds.runs], contact_cases(ds.n_wheels))
             if f.event_fit.note:
                 entry["events_note"] = f.event_fit.note
-        _annotate(entry, decision.nominal_excess_rms, nominal)
-    flags = [fl for s in steps for fl in plausible.check(s.effect, s.fit.params_all, nominal)]
-    result["plausibility"] = {
-        "flags": [fl.to_json() for fl in flags],
-        "ranges": plausible.ranges_json(),
-        "note": "flags: fitted values of the named effects outside a physically plausible range (flagging only, "
-                "the fit is not changed); each ranking entry lists its own under 'implausible'",
-    }
-    result["outliers"] = {"rows": [o.to_json() for o in flagged], "rule": OUTLIER_RULE}
-    result["start"] = {**first.to_json(), "competition": competition}
-    result["heldout"] = {
-        "metric": HELDOUT_METRIC, "folds_by": "session" if sessions is not None else "run",
-        **heldout_table(rows), "per_run": [r.to_json() for r in rows], "drift_check": drift}
-    result["score_nominal"] = decision.score_nominal
-    result["where"] = where
-    result["settings"] = {"seed": seed, "folds": int(fold_of.max()) + 1, "dt": dt, "lever": lever,
-                          "start": "auto" if competition is not None else start,
-                          "folds_by": "session" if sessions is not None else "run",
-                          "max_effects": max_effects,
-                          "fit_budget": None if math.isinf(fit_budget) else float(fit_budget),  # None: no limit
-                          "liftoff": EVENT_METHOD, **settings.to_json(), "robot_runs_simulated": ev.simulated}
-    result["dataset"] = {"path": str(dataset), "runs": fitted.source_runs, "description": ds.description,
-                         "fitted": fitted.to_json()}
-    # Measured (the one part of result.json that differs from run to run): the steps' tasks, total work and
-    # critical paths, and what W workers could reach (fit_tasks.work_json).
+        _annotate(entry, decision.nominal_excess_rms, first.model)
+    flags = [fl for s in steps for fl in plausible.check(s.effect, s.fit.params_all, first.model)]
+    folds_by = "session" if data.sessions is not None else "run"
     cpu = time.process_time() - cpu0
-    result["work"] = work_json(step_works, max(cpu - steps_cpu, 0.0), time.perf_counter() - wall0, backend.describe(),
-                               driver_cpu_s=cpu)
-    result, bad = finite_json(result)  # standard JSON: a value that could not be computed is null
-    if bad:
-        result["non_finite"] = bad
-    if out is not None:
-        from omni_gym.discrepancy.report.report import write_report
-
-        say("writing report")
-        write_report(Path(out), result, ds, nominal, model, lever, dt, plots=plots)
-    return result
+    return GapResult(
+        effect=answer.effect, why=answer.why, ambiguous_with=decision.ambiguous_with or None,
+        params=steps[0].fit.params_all if steps else {}, uncertainty=uncertainty,
+        effects=[s.effect for s in steps], not_applicable=start.skipped,
+        steps=_steps_json(steps, answer.uncertainties, answer.final, sse0, n_comp, noise_var),
+        identifiability=answer.identifiability, model=answer.model.to_json(), gap=gap_json, ranking=ranking,
+        plausibility={
+            "flags": [fl.to_json() for fl in flags],
+            "ranges": plausible.ranges_json(),
+            "note": "flags: fitted values of the named effects outside a physically plausible range (flagging only, "
+                    "the fit is not changed); each ranking entry lists its own under 'implausible'"},
+        outliers={"rows": [o.to_json() for o in data.flagged], "rule": outlier_rule(opts.settings.data)},
+        start={**first.to_json(), "competition": opts.competition},
+        heldout={"metric": HELDOUT_METRIC, "folds_by": folds_by, **heldout_table(answer.rows),
+                 "per_run": [r.to_json() for r in answer.rows], "drift_check": answer.drift},
+        score_nominal=decision.score_nominal, where=search.where,
+        settings={"seed": opts.seed, "folds": int(data.fold_of.max()) + 1, "dt": opts.dt, "lever": data.lever,
+                  "start": "auto" if opts.competition is not None else opts.start, "folds_by": folds_by,
+                  "max_effects": opts.max_effects,
+                  "fit_budget": None if math.isinf(opts.fit_budget) else float(opts.fit_budget),  # None: no limit
+                  "liftoff": EVENT_METHOD, **opts.settings.to_json(), "robot_runs_simulated": start.ev.simulated},
+        dataset={"path": str(opts.dataset), "runs": data.fitted.source_runs, "description": ds.description,
+                 "fitted": data.fitted.to_json()},
+        # Measured (the one part of result.json that differs from run to run): the steps' tasks, total work and
+        # critical paths, and what W workers could reach (fit_tasks.work_json).
+        work=work_json(search.works, max(cpu - search.steps_cpu, 0.0), time.perf_counter() - wall0,
+                       opts.backend.describe(), driver_cpu_s=cpu))
 
 
 HELDOUT_METRIC = ("whole-run open-loop position RMS [m] (Euclidean x, y error over a run's tracked rows, the "
@@ -662,7 +836,7 @@ def _compact_folds(fold_src: np.ndarray, groups: np.ndarray) -> tuple[np.ndarray
 
 
 def _drift_check(whole: Dataset, fold_src: np.ndarray, first: StartModel, steps: list[Step], dt: float,
-                 gate: bool) -> tuple[list, dict]:
+                 gate: bool, start_window: float | None = START_WINDOW) -> tuple[list, dict]:
     """The drift-aware held-out score: every source run replayed whole, open loop, by the nominal model, the
     kinematic calibration (with odometry) and the start model with the named effects one after another
     (each fold's own fits: fold params on top of the fold's start model).
@@ -688,7 +862,7 @@ def _drift_check(whole: Dataset, fold_src: np.ndarray, first: StartModel, steps:
         all_models["kinematic"] = first.kinematic_all
     for j, (mf, ma) in enumerate(zip(chain_folds, chain_all, strict=True)):
         fold_models[f"chain{j}"], all_models[f"chain{j}"] = mf, ma
-    rows = heldout_whole_runs(whole, fold_src, fold_models, all_models, dt=dt)
+    rows = heldout_whole_runs(whole, fold_src, fold_models, all_models, dt=dt, start_window=start_window)
     means = [float(np.mean([r.position_rms[f"chain{j}"] for r in rows])) for j in range(len(chain_folds))]
     groups = list(dict.fromkeys(r.session for r in rows))  # sessions (one group of None without them)
     per_group = [[float(np.mean([r.position_rms[f"chain{j}"] for r in rows if r.session == g])) for g in groups]

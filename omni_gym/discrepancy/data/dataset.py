@@ -30,10 +30,10 @@ from omni_gym.discrepancy.data.units import check_run_units
 from omni_gym.io import InputError, check_times, parse_cell, read_csv_rows, read_json
 from omni_gym.physics.model import SimModel
 
-DATASET_KEYS = ("model", "description", "sessions")
+DATASET_KEYS = ("model", "description", "sessions")  # dataset.json: any other key is refused (a typo, not data)
 # s: tracked rows closer than this before a run's first command are not averaged into its start pose (the
 # time_offset effect's bound: a tracker that many seconds off the odometry's clock may show the motion there).
-REST_MARGIN = 0.15  # dataset.json: any other key is refused (a typo, not data)
+REST_MARGIN = 0.15
 
 
 @dataclass

@@ -13,27 +13,27 @@ Two things make e_k non-zero on good data:
 * tracker noise: white noise of σ per row gives Var(e_k) = σ²·(1 + w_a² + w_b²);
 * motion: the line misses a path with acceleration a by at most (a/2)·|t_k − t_a|·|t_k − t_b|, and a
   robot pushed only by floor friction accelerates at most μ·g (the heading channel, angular
-  acceleration × lever, is bounded alike for a body whose mass sits within the lever). ``A_MAX`` =
+  acceleration × lever, is bounded alike for a body whose mass sits within the lever). ``outlier_acceleration`` =
   2·g covers μ up to 2 (the library's stickiest surface).
 
 A row is an outlier when |e_k| of some component exceeds both together:
 
-    |e_k| > Z·σ̂·sqrt(1 + w_a² + w_b²) + (A_MAX/2)·|t_k − t_a|·|t_k − t_b|,
+    |e_k| > outlier_z·σ̂·sqrt(1 + w_a² + w_b²) + (outlier_acceleration/2)·|t_k − t_a|·|t_k − t_b|,
 
 σ̂ the robust noise scale of the dataset (1.4826 × the median absolute e_k / sqrt(1 + w_a² + w_b²)
-over all observed rows and components: the median ignores the few outliers themselves). ``Z`` = 6:
+over all observed rows and components: the median ignores the few outliers themselves). ``outlier_z`` = 6:
 for Gaussian noise, P(|z| > 6) = 2·10⁻⁹ per component, so a dataset of 10⁵ tracked components has
 about a 2·10⁻⁴ chance of one false flag; the motion term keeps stick-slip and command steps, whose
 accelerations stay below μ·g, from being flagged at any noise level (noise-free data included).
 
 A jump of size J at row k also moves its neighbours' e by up to J/2, so rows are flagged one at a
-time, worst first, each flagged row leaving the neighbour set before the next test (``MAX_SHARE``
+time, worst first, each flagged row leaving the neighbour set before the next test (``outlier_max_share``
 caps the flagged share of a run's rows: beyond it the data are not "a few outliers").
 
 What is done with them (``drop_outliers``): a flagged row is treated as not observed (its pose cells
 empty), as if the tracker had lost the robot for a frame: it enters neither the fit, the noise
 estimate nor the localisation. A flagged first row (t = 0) takes the next observed pose instead:
-every run starts at rest, so the two differ by at most A_MAX·t²/2. The flagged rows are listed in
+every run starts at rest, so the two differ by at most outlier_acceleration·t²/2. The flagged rows are listed in
 ``result.json`` (``outliers``) and in ``report.md``.
 """
 
@@ -45,10 +45,11 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from omni_gym.discrepancy.data.dataset import Dataset, Run
+from omni_gym.discrepancy.settings import DataSettings
 
-Z = 6.0  # robust standard deviations of tracker noise (see the module docstring)
-A_MAX = 2.0 * 9.81  # m/s², the largest acceleration floor friction can give (mu <= 2)
-MAX_SHARE = 0.05  # most rows of a run flagged (5 %): beyond that the tracker itself is broken
+# The thresholds (outlier_z, outlier_acceleration, outlier_max_share) are fields of
+# settings.DataSettings, recorded in result.json (settings.data); the defaults are used where none is given.
+_DEFAULT = DataSettings()
 COMPONENTS = ("x", "y", "theta")
 
 
@@ -110,36 +111,38 @@ def noise_scale(ds: Dataset, lever: float) -> float:
     return float(1.4826 * np.median(np.abs(z))) if z.size else 0.0
 
 
-def find_outliers(ds: Dataset, lever: float) -> list[Outlier]:
-    """Flag tracker outlier rows in every run of ``ds`` (criterion in the module docstring)."""
+def find_outliers(ds: Dataset, lever: float, cfg: DataSettings | None = None) -> list[Outlier]:
+    """Flag tracker outlier rows in every run of ``ds`` (criterion in the module docstring; ``cfg``: its
+    thresholds, None: the defaults)."""
+    cfg = _DEFAULT if cfg is None else cfg
     sigma = noise_scale(ds, lever)
     found = []
     for run in ds.runs:
-        found += _run_outliers(run, lever, sigma)
+        found += _run_outliers(run, lever, sigma, cfg)
     return found
 
 
-def _excess(run: Run, p: np.ndarray, keep: np.ndarray, sigma: float) -> tuple[np.ndarray, ...]:
+def _excess(run: Run, p: np.ndarray, keep: np.ndarray, sigma: float, cfg: DataSettings) -> tuple[np.ndarray, ...]:
     """Rows ``idx`` kept, their deviation e (m, 3) [m], threshold (m,) [m] and excess |e|/threshold (m, 3)."""
     idx = np.flatnonzero(keep)
     e, f, span = _line_deviation(run.t, p, idx)
-    limit = Z * sigma * f + 0.5 * A_MAX * span
+    limit = cfg.outlier_z * sigma * f + 0.5 * cfg.outlier_acceleration * span
     with np.errstate(invalid="ignore", over="ignore"):
         excess = np.where(np.isfinite(e), np.abs(e) / limit[:, None], np.inf)  # a non-finite cell is an outlier
     return idx, e, limit, excess
 
 
-def _run_outliers(run: Run, lever: float, sigma: float) -> list[Outlier]:
+def _run_outliers(run: Run, lever: float, sigma: float, cfg: DataSettings) -> list[Outlier]:
     """Flag rows of one run, one at a time. A jump J at row k also puts about J/2 into its
     neighbours' tests (J/2 against a line through k): among the rows over the threshold, the one
     whose removal leaves its neighbourhood (±3 rows) least in excess is the outlier (at the end of a
     run, the outlier's own test is a weaker extrapolation and does not always have the top excess)."""
     p = _components(run, lever)
     keep = run.observed.copy()
-    cap = max(1, int(MAX_SHARE * keep.sum()))
+    cap = max(1, int(cfg.outlier_max_share * keep.sum()))
     out = []
     while len(out) < cap and keep.sum() >= 4:  # a line through two others needs a third row to test
-        idx, e, limit, excess = _excess(run, p, keep, sigma)
+        idx, e, limit, excess = _excess(run, p, keep, sigma, cfg)
         row_ex = excess.max(axis=1)
         over = np.flatnonzero(row_ex > 1.0)
         if not over.size:
@@ -150,7 +153,7 @@ def _run_outliers(run: Run, lever: float, sigma: float) -> list[Outlier]:
             trial[idx[j]] = False
             if trial.sum() < 3:
                 continue
-            idx2, _, _, ex2 = _excess(run, p, trial, sigma)
+            idx2, _, _, ex2 = _excess(run, p, trial, sigma, cfg)
             near = np.abs(np.searchsorted(idx2, idx[j]) - np.arange(idx2.size)) <= 3
             key = (float(ex2[near].max()) if near.any() else 0.0, -float(row_ex[j]))
             if best_key is None or key < best_key:
@@ -187,8 +190,14 @@ def drop_outliers(ds: Dataset, outliers: list[Outlier]) -> Dataset:
     return replace(ds, runs=runs)
 
 
-OUTLIER_RULE = (f"a tracked row is an outlier when one pose component (x, y, heading x lever) lies farther from the "
-                f"line through its two nearest observed rows than {Z:g} robust noise standard deviations plus the "
-                f"largest path deviation a friction-limited motion (acceleration {A_MAX:.1f} m/s^2) can make; flagged "
-                f"rows are treated as not observed (a flagged first row takes the next observed pose); 'row' is the "
-                f"CSV row (row 1 is the header)")
+def outlier_rule(cfg: DataSettings | None = None) -> str:
+    """The criterion in words, with ``cfg``'s thresholds (result.json's ``outliers.rule``)."""
+    cfg = _DEFAULT if cfg is None else cfg
+    return (f"a tracked row is an outlier when one pose component (x, y, heading x lever) lies farther from the "
+            f"line through its two nearest observed rows than {cfg.outlier_z:g} robust noise standard deviations plus "
+            f"the largest path deviation a friction-limited motion (acceleration {cfg.outlier_acceleration:.1f} "
+            "m/s^2) can make; flagged rows are treated as not observed (a flagged first row takes the next observed "
+            "pose); 'row' is the CSV row (row 1 is the header)")
+
+
+OUTLIER_RULE = outlier_rule()

@@ -16,6 +16,7 @@ import numpy as np
 
 from omni_gym.discrepancy.data.dataset import Dataset
 from omni_gym.discrepancy.fit.kinematic_calibration import position_rms
+from omni_gym.discrepancy.replay.measurement import START_WINDOW
 from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, simulate_poses
 from omni_gym.physics.model import SimModel
 
@@ -82,18 +83,20 @@ class HeldOutRun:
 
 
 def heldout_whole_runs(ds: Dataset, fold_of: np.ndarray, fold_models: dict[str, list[SimModel]],
-                       all_models: dict[str, SimModel], dt: float = FIT_DT) -> list[HeldOutRun]:
+                       all_models: dict[str, SimModel], dt: float = FIT_DT,
+                       start_window: float | None = START_WINDOW) -> list[HeldOutRun]:
     """The drift-aware held-out score: every run of ``ds`` replayed **whole, open loop**, from its start
     pose, with each compared model as fitted without the run's fold: ``fold_models[name][k]`` for a run of
     fold ``fold_of[i] = k``, ``all_models[name]`` for a run no fit saw (fold -1). One simulation per run
-    and model, whatever the fit budget: the cost of one search point.
+    and model, whatever the fit budget: the cost of one search point. ``start_window`` [s]: as
+    :func:`~omni_gym.discrepancy.replay.simulate.simulate_jobs`.
     """
     names = list(fold_models)
     jobs = []
     for i, run in enumerate(ds.runs):
         k = int(fold_of[i])
         jobs += [Job(fold_models[n][k] if k >= 0 else all_models[n], run) for n in names]
-    poses = simulate_poses(jobs, dt=dt)
+    poses = simulate_poses(jobs, dt=dt, start_window=start_window)
     out = []
     for i, run in enumerate(ds.runs):
         last = int(np.flatnonzero(run.observed)[-1])

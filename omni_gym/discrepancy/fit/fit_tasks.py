@@ -104,7 +104,7 @@ def jobs_task(shared: FitShared, chunk: JobsChunk) -> ChunkResult:
     t0 = time.process_time()
     runs = shared.ev.ds.runs
     jobs = [j if isinstance(j, Job) else Job(chunk.models[j[0]], runs[j[1]], *j[2:]) for j in chunk.jobs]
-    poses = simulate_poses(jobs, chunk.dt, chunk.max_batch)
+    poses = simulate_poses(jobs, chunk.dt, chunk.max_batch, shared.ev.start_window)
     return ChunkResult(poses, len(jobs), time.process_time() - t0)
 
 
@@ -315,7 +315,7 @@ class TaskEvaluator:
         t_thread = time.thread_time()
         if self._ex is None:
             t0 = time.process_time()
-            poses = simulate_poses(jobs, dt, max_batch)
+            poses = simulate_poses(jobs, dt, max_batch, self._ev.start_window)
             self.work.add_round([time.process_time() - t0])
         else:
             parts = self._ex.map(jobs_task, job_chunks(jobs, self._ev.ds.runs, dt, max_batch), shared=self._shared,

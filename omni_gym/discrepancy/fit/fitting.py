@@ -31,6 +31,7 @@ from omni_gym.discrepancy.fit.search import (
     phase_search,
     valley_search,
 )
+from omni_gym.discrepancy.replay.measurement import START_WINDOW
 from omni_gym.discrepancy.replay.residuals import (
     channel_noise,
     count_components,
@@ -50,11 +51,12 @@ class Evaluator:
     """SSE per run of parameter points, by batched simulation (one world per call)."""
 
     def __init__(self, dataset: Dataset, lever: float, dt: float = FIT_DT, max_batch: int = 1500,
-                 accuracy: float = 0.0) -> None:
+                 accuracy: float = 0.0, start_window: float = START_WINDOW) -> None:
         self.ds = dataset
         self.lever = lever
         self.dt = dt
         self.accuracy = accuracy  # [m] the simulator's validated accuracy, part of the floor (noise_floor)
+        self.start_window = start_window  # [s] whole-run replays aligned to their first tracked rows
         self.max_batch = max_batch
         self.simulated = 0  # robot-runs simulated (for the report)
         self._windows: list[tuple] | None = None
@@ -117,8 +119,8 @@ class Evaluator:
         """
         runs = self.ds.runs
         jobs = [Job(model, r) for r in runs]
-        coarse = simulate_poses(jobs, self.dt, self.max_batch)
-        fine = simulate_poses(jobs, self.dt / 2, self.max_batch)
+        coarse = simulate_poses(jobs, self.dt, self.max_batch, self.start_window)
+        fine = simulate_poses(jobs, self.dt / 2, self.max_batch, self.start_window)
         self.simulated += 2 * len(jobs)
         sse = sum(run_sse(np.where(r.observed[:, None], 2.0 * pose_residual(f, c, self.lever), np.nan))
                   for r, c, f in zip(runs, coarse, fine, strict=True))
@@ -155,7 +157,7 @@ class Evaluator:
     def job_residuals(self, jobs: list[Job], shooting: bool = False) -> list[np.ndarray]:
         """Per job of :meth:`jobs` (any contiguous part of them): its residual rows [m] (open loop: the
         run's (K, 3); shooting: the window's rows after its start)."""
-        out = simulate_poses(jobs, self.dt, self.max_batch)
+        out = simulate_poses(jobs, self.dt, self.max_batch, self.start_window)
         if shooting:
             return [pose_residual(j.run.pose[j.k0 + 1:j.k1 + 1], p[1:], self.lever)
                     for j, p in zip(jobs, out, strict=True)]
@@ -183,7 +185,7 @@ class Evaluator:
     def simulate(self, jobs: list[Job], dt: float, max_batch: int) -> list[np.ndarray]:
         """Poses of any ``jobs`` (:func:`~omni_gym.discrepancy.replay.simulate.simulate_poses`), for searches that
         build their own jobs (the lift-event inference); not counted in ``simulated`` (the caller counts)."""
-        return simulate_poses(jobs, dt, max_batch)
+        return simulate_poses(jobs, dt, max_batch, self.start_window)
 
 
 @dataclass

@@ -10,9 +10,9 @@ are comparable. With J = U S Vᵀ (SVD) and σ_eff per component, the Gauss–Ne
 when the fit leaves white noise; on real data the fit leaves model error, larger and correlated over
 many rows, so σ_eff = max(floor, RMS left)·sqrt(τ), τ the residual's integrated autocorrelation time
 in rows (:func:`autocorrelation_time`). A combination is
-**identified** when its 95 % half-width 2σ/sₖ is at most :data:`IDENTIFIED` of the fit range; a
+**identified** when its 95 % half-width 2σ/sₖ is at most ``identified`` (settings) of the fit range; a
 parameter is identified when its own standard error (the diagonal of the covariance) passes the same
-test. Parameters whose correlation magnitude exceeds :data:`CONFOUNDED` are reported as confounded
+test. Parameters whose correlation magnitude exceeds ``confounded`` are reported as confounded
 pairs. A value at its fit bound is never a measurement (the fit wants a value beyond the range: it
 compensates another error). A named value that is not identified is not a measurement either: the
 report says so (its value is only one point of a valley the data leave open), and gives the identified
@@ -31,13 +31,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from omni_gym.discrepancy.fit.candidates import Candidate
+from omni_gym.discrepancy.settings import IdentifiabilitySettings
 from omni_gym.physics.model import SimModel
 
-IDENTIFIED = 0.05  # largest 95 % half-width (share of the fit range) of an identified combination
-CONFOUNDED = 0.9  # |correlation| above which two parameters are reported as confounded
-STEP = 3e-3  # forward-difference step in the unit cube (the fits' own LM step)
-BOUND = 1e-3  # unit-cube distance from a bound within which a value counts as at its fit bound
-MERGE_WEIGHT = 0.1  # least |weight| (largest weight 1) of a parameter that a combination is said to involve
+# The thresholds (identified, confounded, step, bound, merge_weight) are the fields of
+# settings.IdentifiabilitySettings, recorded in result.json (settings.identifiability); a Linearisation carries them.
 
 
 @dataclass(frozen=True)
@@ -83,6 +81,7 @@ class Linearisation:
     sigma_eff: float
     rms: float
     tau: float
+    cfg: IdentifiabilitySettings = IdentifiabilitySettings()
 
     @property
     def labels(self) -> list[tuple[str, str]]:
@@ -100,28 +99,33 @@ class Linearisation:
 
     @property
     def own_identified(self) -> np.ndarray:
-        """(dimensions,) True where the parameter's own 95 % half-width (2 sd) is within :data:`IDENTIFIED`."""
-        return 2.0 * self.sd <= IDENTIFIED
+        """(dimensions,) True where the parameter's own 95 % half-width (2 sd) is within ``cfg.identified``."""
+        return 2.0 * self.sd <= self.cfg.identified
 
     @property
     def identified(self) -> np.ndarray:
-        """(combinations,) True where the combination's 95 % half-width is within :data:`IDENTIFIED`."""
-        return self.half <= IDENTIFIED
+        """(combinations,) True where the combination's 95 % half-width is within ``cfg.identified``."""
+        return self.half <= self.cfg.identified
 
     def at_bound(self) -> np.ndarray:
         """(dimensions,) True where u* sits at its fit bound (never for a periodic dimension)."""
         u = self.u
-        return np.array([not d.periodic and bool(x <= BOUND or x >= 1.0 - BOUND) for d, x in zip(self.dims, u,
+        b = self.cfg.bound
+        return np.array([not d.periodic and bool(x <= b or x >= 1.0 - b) for d, x in zip(self.dims, u,
                                                                                                    strict=True)])
 
 
-def linearise(ev, nominal: SimModel, named: list[Named], sigma: float | None) -> Linearisation | None:
+def linearise(ev, nominal: SimModel, named: list[Named], sigma: float | None,
+              cfg: IdentifiabilitySettings | None = None) -> Linearisation | None:
     """Linearise the final fit (module docstring); None when there is nothing to analyse (no
     deterministic named effect or no noise estimate).
 
     ``ev``: the workflow's :class:`~omni_gym.discrepancy.fit.fitting.Evaluator`; ``sigma`` [m]: the noise
-    floor per residual component. Costs one batch of 1 + (fitted dimensions) simulations of every run.
+    floor per residual component; ``cfg``: the thresholds (None: the defaults), carried by the result.
+    Costs one batch of 1 + (fitted dimensions) simulations of every run.
     """
+    cfg = IdentifiabilitySettings() if cfg is None else cfg
+    step = cfg.step
     named = [n for n in named if not n.candidate.stochastic]
     if not named or sigma is None or sigma <= 0:
         return None
@@ -131,7 +135,7 @@ def linearise(ev, nominal: SimModel, named: list[Named], sigma: float | None) ->
         for j in range(n.candidate.n_params):
             us = [u.copy() for u in base]
             # step inwards at the upper bound, so the point stays in the fit range
-            us[i][j] += STEP if us[i][j] + STEP <= 1.0 else -STEP
+            us[i][j] += step if us[i][j] + step <= 1.0 else -step
             models.append(_model(nominal, named, us))
     res = ev.residuals(models)
     r0 = _stack(res[0])
@@ -143,8 +147,8 @@ def linearise(ev, nominal: SimModel, named: list[Named], sigma: float | None) ->
     rms = float(np.sqrt(np.mean(r0**2))) if r0.size else sigma
     tau = autocorrelation_time(res[0])
     sigma_eff = max(sigma, rms) * math.sqrt(tau)
-    signs = np.array([1.0 if u[j] + STEP <= 1.0 else -1.0 for u in base for j in range(len(u))])
-    J = np.column_stack([(_stack(r) - r0) / (STEP * s) for r, s in zip(res[1:], signs, strict=True)])
+    signs = np.array([1.0 if u[j] + step <= 1.0 else -1.0 for u in base for j in range(len(u))])
+    J = np.column_stack([(_stack(r) - r0) / (step * s) for r, s in zip(res[1:], signs, strict=True)])
     _, s, vt = np.linalg.svd(J, full_matrices=False)
     # An exactly flat direction (a dimension that changes nothing) would give 1/0: floor s far below the
     # largest, so the covariance stays finite (that direction's interval is then simply huge).
@@ -154,7 +158,7 @@ def linearise(ev, nominal: SimModel, named: list[Named], sigma: float | None) ->
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     corr = cov / np.maximum(np.outer(sd, sd), 1e-300)
     return Linearisation(named=named, base=base, r0=r0, J=J, s=s, vt=vt, half=half, sd=sd, corr=corr, sigma=sigma,
-                         sigma_eff=sigma_eff, rms=rms, tau=tau)
+                         sigma_eff=sigma_eff, rms=rms, tau=tau, cfg=cfg)
 
 
 def analyse(ev, nominal: SimModel, named: list[Named], sigma: float | None) -> dict | None:
@@ -170,7 +174,7 @@ def combination_text(lin: Linearisation, k: int) -> tuple[str, list[tuple[str, f
     alone = len(lin.named) == 1
     v = lin.vt[k] / np.max(np.abs(lin.vt[k]))
     terms = [(f"{labels[j][1]}" if alone else f"{labels[j][0]}.{labels[j][1]}", float(v[j]))
-             for j in np.argsort(-np.abs(v)) if abs(v[j]) >= MERGE_WEIGHT]
+             for j in np.argsort(-np.abs(v)) if abs(v[j]) >= lin.cfg.merge_weight]
     return _combo_text(terms), terms
 
 
@@ -187,16 +191,16 @@ def summary(lin: Linearisation, used: dict | None = None) -> dict:
                        "half_width_95": 2.0 * sd[k] * (d.hi - d.lo) if not d.log else None,
                        "half_width_95_range_share": float(2.0 * sd[k]),
                        "at_bound": bool(bound[k]),
-                       "identified": bool(2.0 * sd[k] <= IDENTIFIED)})
+                       "identified": bool(2.0 * sd[k] <= lin.cfg.identified)})
     combos = []
     for k in range(len(lin.s)):
         text, terms = combination_text(lin, k)
         combos.append({"combination": text, "terms": terms,
-                       "half_width_95_range_share": float(half[k]), "identified": bool(half[k] <= IDENTIFIED)})
+                       "half_width_95_range_share": float(half[k]), "identified": bool(half[k] <= lin.cfg.identified)})
     corr = lin.corr
     pairs = [{"a": f"{labels[i][0]}.{labels[i][1]}", "b": f"{labels[j][0]}.{labels[j][1]}",
               "correlation": float(corr[i, j])}
-             for i in range(len(labels)) for j in range(i + 1, len(labels)) if abs(corr[i, j]) > CONFOUNDED]
+             for i in range(len(labels)) for j in range(i + 1, len(labels)) if abs(corr[i, j]) > lin.cfg.confounded]
     per_effect = {}
     for n in lin.named:
         own = [p for p in params if p["effect"] == n.candidate.name]
@@ -209,10 +213,11 @@ def summary(lin: Linearisation, used: dict | None = None) -> dict:
             "sigma_eff": lin.sigma_eff, "rms_left": rms, "autocorrelation_rows": tau,
             "note": (f"Gauss-Newton at the final fit: J = d(residual)/d(unit coordinate of each fitted dimension), "
                      f"SVD; a combination or parameter is identified when its 95 % half-width (2 sigma_eff/s) is "
-                     f"at most {IDENTIFIED:g} of its fit range; sigma_eff = max(noise floor {1e3 * sigma:.3g} mm, "
-                     f"RMS left {1e3 * rms:.3g} mm) x sqrt(autocorrelation time {tau:.3g} rows) = "
-                     f"{1e3 * lin.sigma_eff:.3g} mm; |correlation| > {CONFOUNDED:g}: confounded; a value at its fit "
-                     "bound is never a measurement")}
+                     f"at most {lin.cfg.identified:g} of its fit range; sigma_eff = max(noise floor "
+                     f"{1e3 * sigma:.3g} mm, RMS left {1e3 * rms:.3g} mm) x sqrt(autocorrelation time {tau:.3g} "
+                     "rows) = "
+                     f"{1e3 * lin.sigma_eff:.3g} mm; |correlation| > {lin.cfg.confounded:g}: confounded; a value at "
+                     "its fit bound is never a measurement")}
 
 
 def autocorrelation_time(res: list[np.ndarray], max_lag: int = 500, cut: float = 0.05) -> float:

@@ -3,7 +3,7 @@
 After the search, :mod:`.identifiability` linearises the final fit u* (every named deterministic effect's
 fitted dimensions, unit-cube coordinates) and splits the parameter space by the SVD of the scaled
 Jacobian J = U S Vᵀ into combinations vₖ (rows of Vᵀ), each known to a 95 % half-width hₖ = 2σ_eff/sₖ.
-A combination is identified when hₖ is within :data:`~.identifiability.IDENTIFIED` of the range.
+A combination is identified when hₖ is within ``identified`` (settings) of the range.
 
 **Choice: the fit is re-done in a subspace**, u = u₀ + B·c, u₀ the start model's values (the
 candidate's null point: the nominal model's, or the kinematic calibration's when the search started from
@@ -22,8 +22,8 @@ is), and could return the start model where the data clearly say otherwise.
 
 **Bounds.** A value at its fit bound is never a measurement (the fit wants a value beyond the range, to
 compensate another error). A parameter the fit puts at a bound is held at the start value and the fit
-re-done (:data:`BOUND_PASSES`). That may cost prediction: when the refit's held-out MSE is more than
-:data:`HELD_OUT_TOLERANCE` above the search's, the data reject the start value there, the parameter keeps
+re-done (``bound_passes``). That may cost prediction: when the refit's held-out MSE is more than
+``held_out_tolerance`` above the search's, the data reject the start value there, the parameter keeps
 the search's value and the report says it sits at its bound, compensating another error, with the cost
 of holding it measured (``bound_cost``): on the omni3 robot a wheel distance at the 1.15 bound, held at 1,
 made four of five held-out sessions' whole-run position RMS worse (mean 54.5 → 68.0 mm; the kinematic
@@ -33,7 +33,7 @@ Per parameter the outcome is one of (``status``):
 
 * ``identified``: its own 95 % half-width is within the threshold; fitted.
 * ``merged``: not identified alone, in an identified combination (weight at least
-  :data:`~.identifiability.MERGE_WEIGHT` of the largest): it moves only along that combination, and the
+  ``merge_weight`` of the largest): it moves only along that combination, and the
   report gives the combination, not the value, as what the data determined.
 * ``loose``: in a combination that is fitted but not identified: the data move it away from the start
   but leave it uncertain (its 95 % half-width, share of the range, is given); not a measurement.
@@ -54,7 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from omni_gym.discrepancy.fit.candidates import to_cube
-from omni_gym.discrepancy.fit.identifiability import BOUND, MERGE_WEIGHT, Linearisation, combination_text
+from omni_gym.discrepancy.fit.identifiability import Linearisation, combination_text
 from omni_gym.discrepancy.replay.residuals import geo_mse, run_sse
 from omni_gym.discrepancy.settings import FitSettings
 from omni_gym.physics.model import SimModel
@@ -64,8 +64,8 @@ NOTE = ("parameters not determined by the data are held at the start model's val
         "runs for the held-out scores); per_effect_status: identified, merged (determined only in the listed "
         "combinations), fixed (start value), kept (no start value: left where the search put it); search_params: "
         "the search's values before the refit")
-STEP = 3e-3  # forward-difference step along each combination (unit-cube length)
-BOUND_PASSES = 2  # most re-fits after fixing parameters that the subspace fit put at a bound
+# The forward-difference step, the bound margin, the merge weight, the bound passes and the held-out tolerance
+# are the fields of settings.IdentifiabilitySettings (recorded in result.json); the Linearisation carries them.
 
 
 @dataclass
@@ -130,7 +130,7 @@ def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, search_h
 
     ``search_heldout`` (R,) [m²] and ``n_comp`` (R,): the search's per-run held-out SSE and residual
     components. With them, holding the parameters at a bound must not cost more than
-    :data:`HELD_OUT_TOLERANCE` of the search's held-out MSE (row-weighted geometric mean, the decision's
+    ``held_out_tolerance`` of the search's held-out MSE (row-weighted geometric mean, the decision's
     metric); when it does, the data reject the start value there (the bound value compensates another
     error that the model needs compensated): those parameters keep the search's values, reported as at
     their bound with the cost measured (``bound_cost``). ``fit``: the LM iterations of the subspace fits
@@ -148,20 +148,20 @@ def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, search_h
     if search_heldout is None or n_comp is None or not bound.any():
         return out
     cost = geo_mse(out.heldout, n_comp) / max(geo_mse(search_heldout, n_comp), 1e-30) - 1.0
-    if cost <= HELD_OUT_TOLERANCE:
+    if cost <= lin.cfg.held_out_tolerance:
         return out
     # The data reject the start value of the bound parameters: keep them where the search put them.
     u_keep = np.where(bound, u_star, u_ref)
     kept = (_refit(ev, start, lin, fold_of, u_keep, has & ~bound, held_dir, iterations, keep=bound)
             if held_dir.any() else None)
-    if kept is not None and geo_mse(kept.heldout, n_comp) > (1.0 + HELD_OUT_TOLERANCE) * geo_mse(search_heldout,
+    if kept is not None and geo_mse(kept.heldout, n_comp) > (1.0 + lin.cfg.held_out_tolerance) * geo_mse(search_heldout,
                                                                                                       n_comp):
         kept = None  # holding the undetermined directions costs too (not expected: the start is inside them)
     status = kept.status if kept is not None else statuses(lin)
     labels, dims = lin.labels, lin.dims
     u_final = np.concatenate(kept.u_all) if kept is not None else u_star
     for j in np.flatnonzero(bound):
-        if dims[j].periodic or BOUND < u_final[j] < 1.0 - BOUND:
+        if dims[j].periodic or lin.cfg.bound < u_final[j] < 1.0 - lin.cfg.bound:
             continue  # kept at the search's value, which is inside the range: its status says the rest
         eff, name = labels[j]
         st = status[eff]
@@ -179,7 +179,6 @@ def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, search_h
     return kept
 
 
-HELD_OUT_TOLERANCE = 0.05  # most held-out MSE increase (share) accepted for holding bound parameters at the start
 
 
 def _refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, u_ref: np.ndarray, has: np.ndarray,
@@ -187,20 +186,21 @@ def _refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, u_ref: 
     """One refit: the combinations not in ``held_dir`` fitted from ``u_ref``; parameters in no fitted
     combination held at ``u_ref`` (``has``: they have a start value; ``keep``: held at ``u_ref`` whatever
     else, as the search's values); parameters the fit puts at a bound are held at the start and the fit
-    re-done (:data:`BOUND_PASSES`; ``bound_fixed`` of the result). ``iterations``: LM iterations of each
+    re-done (``bound_passes``; ``bound_fixed`` of the result). ``iterations``: LM iterations of each
     subspace fit."""
     own = lin.own_identified
     keep = np.zeros(len(u_ref), dtype=bool) if keep is None else keep
     V = lin.vt[~held_dir]  # (m, p) the combinations fitted
     weight = _weights(V, len(u_ref))
     at_bound = np.zeros(len(u_ref), dtype=bool)
-    fixed = has & (weight < MERGE_WEIGHT) & ~own
-    kept = ~has & ~keep & (weight < MERGE_WEIGHT) & ~own
-    for _ in range(1 + BOUND_PASSES):
+    fixed = has & (weight < lin.cfg.merge_weight) & ~own
+    kept = ~has & ~keep & (weight < lin.cfg.merge_weight) & ~own
+    for _ in range(1 + lin.cfg.bound_passes):
         fit = _subspace_fit(ev, start, lin, V, fixed | kept | keep, u_ref, fold_of, iterations)
         u = np.concatenate(fit[0])
         dims = lin.dims
-        at = np.array([not d.periodic and (x <= BOUND or x >= 1.0 - BOUND) for d, x in zip(dims, u, strict=True)])
+        b = lin.cfg.bound
+        at = np.array([not d.periodic and (x <= b or x >= 1.0 - b) for d, x in zip(dims, u, strict=True)])
         newly = at & has & ~fixed & ~keep
         if not newly.any():
             break
@@ -264,12 +264,12 @@ def _subspace_fit(ev, start: SimModel, lin: Linearisation, V: np.ndarray, held: 
         states.append({"c": starts[i].copy(), "res": res0[i], "cost": cost(res0[i], mask), "lam": 1e-2})
     for _ in range(iterations if m else 0):
         # Jacobian of every target in one batch
-        cs = [st["c"] + STEP * e for st in states for e in np.eye(m)]
+        cs = [st["c"] + lin.cfg.step * e for st in states for e in np.eye(m)]
         res = simulate(cs)
         trials = []
         for t, (st, mask) in enumerate(zip(states, masks, strict=True)):
             r0 = _stack(st["res"], mask)
-            J = np.column_stack([(_stack(res[t * m + i], mask) - r0) / STEP for i in range(m)])
+            J = np.column_stack([(_stack(res[t * m + i], mask) - r0) / lin.cfg.step for i in range(m)])
             A, g = J.T @ J, J.T @ r0
             for lam in (st["lam"] / 10, st["lam"], st["lam"] * 10):
                 step = np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), -g)
@@ -324,18 +324,18 @@ def statuses(lin: Linearisation, u: np.ndarray | None = None, fixed: np.ndarray 
                 entry["fixed"][pname] = value
             elif own[j]:
                 entry["identified"].append(pname)
-                if not dims[j].periodic and (u[j] <= BOUND or u[j] >= 1.0 - BOUND):
+                if not dims[j].periodic and (u[j] <= lin.cfg.bound or u[j] >= 1.0 - lin.cfg.bound):
                     entry["at_bound"].append(pname)
             elif kept[j]:
                 entry["kept"][pname] = value
-            elif w_loose[j] >= MERGE_WEIGHT:
+            elif w_loose[j] >= lin.cfg.merge_weight:
                 entry["loose"][pname] = float(2.0 * lin.sd[j])  # 95 % half-width, share of the fit range
             else:
                 entry["merged"].append(pname)
         for k in ident_rows:
             text, terms = combination_text(lin, int(k))
-            if any(labels[j][1] in entry["merged"] and abs(lin.vt[k, j]) / np.max(np.abs(lin.vt[k])) >= MERGE_WEIGHT
-                   for j in idx):
+            w = np.abs(lin.vt[k]) / np.max(np.abs(lin.vt[k]))
+            if any(labels[j][1] in entry["merged"] and w[j] >= lin.cfg.merge_weight for j in idx):
                 entry["combinations"].append({"combination": text, "terms": terms,
                                               "half_width_95_range_share": float(lin.half[k])})
         entry["line"] = _line(name, entry)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from omni_gym.angles import wrap_angle
+from omni_gym.discrepancy.settings import DataSettings
 from omni_gym.physics.effects import REGISTRY
 from omni_gym.physics.model import SimModel
 
@@ -64,7 +65,7 @@ def align_start(pose: np.ndarray, target: np.ndarray) -> np.ndarray:
     return out
 
 
-START_WINDOW = 0.2  # s: the first tracked rows of a run that its replay is aligned to (align_to_start_window)
+START_WINDOW = DataSettings().start_window  # s: the default of align_to_start_window (settings.DataSettings)
 
 
 def align_to_start_window(run_t: np.ndarray, measured_pose: np.ndarray, pose: np.ndarray,

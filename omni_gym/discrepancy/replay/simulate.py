@@ -14,6 +14,7 @@ import numpy as np
 from omni_gym.angles import wrap_angle
 from omni_gym.discrepancy.data.dataset import Run
 from omni_gym.discrepancy.replay.measurement import (
+    START_WINDOW,
     align_start,
     align_to_start_window,
     centre_start,
@@ -56,8 +57,13 @@ class Job:
             self.state0 = self.run.state0
 
 
-def simulate_jobs(jobs: list[Job], dt: float = FIT_DT) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Simulate all jobs in one world; per job (pose (K, 3), wheel angles (K, n)) at rows k0..k1."""
+def simulate_jobs(jobs: list[Job], dt: float = FIT_DT, start_window: float | None = START_WINDOW
+                  ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Simulate all jobs in one world; per job (pose (K, 3), wheel angles (K, n)) at rows k0..k1.
+
+    ``start_window`` [s]: a job that replays a whole run from rest is aligned to the run's tracked rows over
+    its first ``start_window`` seconds (:func:`~omni_gym.discrepancy.replay.measurement.align_to_start_window`);
+    None: not aligned (a replay that makes data rather than compares with it)."""
     world = World([j.model for j in jobs], dt=dt)
     B, n = len(jobs), world.n_wheels
     for b, job in enumerate(jobs):
@@ -123,17 +129,20 @@ def simulate_jobs(jobs: list[Job], dt: float = FIT_DT) -> list[tuple[np.ndarray,
             target = job.run.start_pose if job.state0 is None else job.state0[0]
             poses[b] = align_start(poses[b], np.asarray(target, dtype=float))
     for b, job in enumerate(jobs):
-        if job.state0 is None and job.k0 == 0:  # a whole run from rest: its start pose from its first rows
-            poses[b] = align_to_start_window(job.run.t[:ends[b] + 1], job.run.pose[:ends[b] + 1], poses[b])
+        if start_window is not None and job.state0 is None and job.k0 == 0:  # a whole run from rest
+            poses[b] = align_to_start_window(job.run.t[:ends[b] + 1], job.run.pose[:ends[b] + 1], poses[b],
+                                             start_window)
     angles = [ang_ev[pos, b] for b, pos in enumerate(rows_at)]
     return list(zip(poses, angles, strict=True))
 
 
-def simulate_poses(jobs: list[Job], dt: float = FIT_DT, max_batch: int = 1500) -> list[np.ndarray]:
-    """Poses (K, 3) of every job, simulated in worlds of at most ``max_batch`` robots (memory bound)."""
+def simulate_poses(jobs: list[Job], dt: float = FIT_DT, max_batch: int = 1500,
+                   start_window: float | None = START_WINDOW) -> list[np.ndarray]:
+    """Poses (K, 3) of every job, simulated in worlds of at most ``max_batch`` robots (memory bound);
+    ``start_window``: as :func:`simulate_jobs`."""
     out: list[np.ndarray] = []
     for i in range(0, len(jobs), max_batch):
-        out += [p for p, _ in simulate_jobs(jobs[i:i + max_batch], dt=dt)]
+        out += [p for p, _ in simulate_jobs(jobs[i:i + max_batch], dt=dt, start_window=start_window)]
     return out
 
 

@@ -147,7 +147,7 @@ def synthesize(model: SimModel, hidden: str, runs: int, noise: float, seed: int,
     lift_seeds = r_lift.integers(0, 2**31, runs)
     shells = [Run(name=f"run{i:03d}", t=t, cmd=c, pose=np.zeros((len(t), 3))) for i, (t, c) in enumerate(plans)]
     sims = simulate_jobs([Job(true_model, r, seed=int(s), drag=drag) for r, s in zip(shells, lift_seeds, strict=True)],
-                         dt=DEFAULT_DT)
+                         dt=DEFAULT_DT, start_window=None)  # making data: nothing measured to align to
     lever = pose_lever(model)
     out = []
     quantum = 2 * math.pi / COUNTS_PER_REV
