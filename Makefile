@@ -50,7 +50,7 @@ bench-agents: $(STAMP)
 	$(PY) benchmarks/learning_curves.py --runs benchmarks/results/training_runs/* --out benchmarks/results
 	$(PY) benchmarks/headroom.py --episodes 50 --out benchmarks/results
 
-# The agents of issue 16 into runs/: three agents (privileged, residual, EKF features) x two ids x 3 seeds, with
+# The native-vector-env agents into runs/: three agents (privileged, residual, EKF features) x two ids x 3 seeds, with
 # PPO (3 M steps, 3-12 min per run on the shared 2-core machine) and SAC (privileged 300k steps, 20-40 min;
 # residual and EKF features 200k steps, 1 gradient step per vector step).
 SEEDS ?= 0 1 2

@@ -268,7 +268,7 @@ def null_results():
 @pytest.mark.slow
 def test_null_case_gives_none(null_results):
     named = [r["named"] for r in null_results]
-    # Issue 5: `none` in at least 95 % of seeds.
+    # The null data: `none` in at least 95 % of seeds.
     assert sum(n == "none" for n in named) >= 0.95 * len(named), named
 
 

@@ -1,4 +1,4 @@
-"""``gap`` end to end on real logs (issue 15 item 7): a small subset of the bundled OptiOdom runs.
+"""``gap`` end to end on real logs: a small subset of the bundled OptiOdom runs.
 
 Four runs of the training sessions (two clockwise circles, two squares; 220 s of
 robot time), fitted within a 20 s budget (one 5 s segment of each run, ``data/segments.py``), one search

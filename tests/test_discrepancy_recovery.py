@@ -1,4 +1,4 @@
-"""Issue 5: every library effect hidden in synthetic data at two sizes and two noise levels.
+"""Every library effect hidden in synthetic data at two sizes and two noise levels.
 
 Two tiers, the same assertions:
 
@@ -12,7 +12,7 @@ Two tiers, the same assertions:
   pushed ``make test`` past its 10 minutes on this 2-core machine. Every case still runs in the
   full sweep.
 
-Thresholds are the issue's: the right name in >= 90 % of cases (quick sweep: each case), parameters
+Thresholds (docs/discrepancy.md): the right name in >= 90 % of cases (quick sweep: each case), parameters
 within the documented tolerances (omni_gym.discrepancy.synthetic.recovery.TOLERANCES, docs/discrepancy.md),
 the held-out gap beyond tracker noise reduced by >= 70 %. The committed benchmark
 (benchmarks/discrepancy_recovery.py) runs the study on larger datasets and reports wall times.
@@ -39,8 +39,8 @@ def _check(effect: str, cells: list[tuple]) -> None:
     # run_case searches with max_effects=1: at most one effect comes back, whatever the answer.
     assert all(len(c["effects"]) <= 1 for c in cases), [c["effects"] for c in cases]
     # A missed effect may be `unexplained` or `none`. Another effect's name is a wrong answer unless the
-    # workflow itself says it cannot tell that effect from the hidden one on this data (the issue:
-    # "say so when two candidates cannot be told apart"): then the truth must be in `ambiguous_with`.
+    # workflow itself says it cannot tell that effect from the hidden one on this data (the workflow's
+    # contract: "say so when two candidates cannot be told apart"): then the truth must be in `ambiguous_with`.
     flagged = [c for c in cases if c["named"] not in (effect, "unexplained", "none")]
     assert all(effect in [a["effect"] for a in c["ambiguous_with"] or []] for c in flagged), \
         [(c["named"], c["ambiguous_with"]) for c in flagged]

@@ -22,7 +22,7 @@ from omni_gym.envs import RENAMED
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
 TOP_DIRS = ("omni_gym/", "agents/", "benchmarks/", "docs/", "data/", "tests/", ".ci/")
-PROCESS_WORDS = ("issue ", "issue\n", "moonshot", "session-start", "this session", "helper")
+PROCESS_WORDS = ("issue ", "issue\n", "session-start", "this session", "helper")
 
 
 def code_lines() -> list[str]:
