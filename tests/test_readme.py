@@ -89,6 +89,18 @@ def test_every_id_the_readme_names_is_registered_and_current():
         assert env_id not in RENAMED, f"README names the old id {env_id} (now {RENAMED[env_id]})"
 
 
+def test_the_readme_id_table_is_the_registry():
+    """The registry (omni_gym.envs.all_ids) is the one list of ids: the README's table has each once, with its
+    registered step limit, and nothing else."""
+    from omni_gym.envs import all_ids
+
+    table = README.split("## Environments", 1)[1].split("\n\n", 2)[1]
+    rows = [[c.strip() for c in line.strip("|").split("|")] for line in table.splitlines()[2:]]
+    listed = {row[0].strip("`"): int(row[-1]) for row in rows}
+    assert len(listed) == len(rows), "an id is listed twice"
+    assert listed == {i: gym.spec(i).max_episode_steps for i in all_ids()}
+
+
 def test_every_repository_file_the_readme_cites_exists():
     cited = set(re.findall(r"`([^`\s]+)`", README)) | set(re.findall(r"\]\(([^)\s]+)\)", README))
     paths = [c for c in cited if c.startswith(TOP_DIRS) and not re.search(r"[<>*{}|]|\.\.\.|…", c)]

@@ -34,6 +34,7 @@ import numpy as np
 
 from omni_gym.bounds import RATE_MAX, Bound, wheel_count
 from omni_gym.checks import is_number, unknown_key
+from omni_gym.envs import CUSTOM_ID  # robot, floor and lift-off all from model= (omni_gym.envs.omni_env)
 from omni_gym.io import read_json
 from omni_gym.physics import effects as effect_library
 from omni_gym.physics.friction import FRICTION_MODELS, SURFACES, Surface
@@ -49,7 +50,6 @@ OBS_MODES = ("state", "sensors")
 ACTION_MODES = ("wheels", "twist")
 KINEMATICS = ("nominal", "model")  # the wheel matrix of twist actions and controllers (omni_gym.physics.kinematics)
 RENDER_MODES = (None, "rgb_array", "human")
-CUSTOM_ID = "OmniPathFollow-Custom-v0"  # robot, floor and lift-off all from model= (omni_gym.envs.omni_env)
 MODEL_DEFINES = ("robot", "surface", "friction")  # the keywords a model replaces
 RESET_OPTIONS: tuple[str, ...] = ()  # reset(options=...) keys the environments understand (none yet)
 
