@@ -21,3 +21,29 @@ def test_unknown_id_message_lists_every_id_including_the_custom_one():
     with pytest.raises(ValueError, match="unknown environment id 'NoSuchEnv-v0'") as err:
         make_env("NoSuchEnv-v0")
     assert all(i in str(err.value) for i in envs.all_ids())
+
+
+def test_the_optiodom_importer_takes_its_robots_from_the_presets():
+    """Both OptiOdom robot types are physics presets; the importer's nominal wheels are theirs (the
+    imported JSON was checked byte-identical to the importer's own omni3 construction when it moved)."""
+    from omni_gym.discrepancy.data.importers import optiodom
+    from omni_gym.physics.robot import PRESETS, optiodom_omni3
+
+    robot = optiodom_omni3(0.2, 0.1)
+    assert optiodom.wheel_layout(0.2) == [{"position": list(w.position), "drive": list(w.drive)} for w in robot.wheels]
+    # The README's drive table, exact zeros included, and clockwise rotation for equal positive speeds.
+    drives = [c for w in PRESETS["optiodom_omni3"]().wheels for c in w.drive]
+    assert drives == pytest.approx([-0.8660254, -0.5, 0.8660254, -0.5, 0.0, 1.0], abs=1e-7)
+    assert PRESETS["optiodom_omni3"]().wheels[2].position[1] == 0.0
+    assert optiodom.default_mass("omni3") == robot.mass and optiodom.default_mass("omni4") == PRESETS[
+        "optiodom_omni4"]().mass
+
+
+def test_a_near_miss_robot_name_gets_a_suggestion():
+    from omni_gym.physics.robot import robot_preset
+
+    with pytest.raises(ValueError, match="did you mean optiodom_omni4[?]"):
+        robot_preset("optiodom-omni4")
+    with pytest.raises(ValueError) as err:
+        robot_preset("hexapod")
+    assert "did you mean" not in str(err.value)

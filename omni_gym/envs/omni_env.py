@@ -100,7 +100,7 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
 
     | keyword | default | allowed | unit | meaning |
     |---|---|---|---|---|
-    | `robot` | `williams2002`; Phunopas-v0, GoToPose-v0: `phunopas2018`; Mecanum-v0: `optiodom_omni4` | `williams2002`, `phunopas2018`, `optiodom_omni4`, `regularN` (3 ≤ N ≤ 16) | — | robot preset (`optiodom_omni4` has mecanum wheels: needs `friction="initial"`); ignored when `model` is given |
+    | `robot` | `williams2002`; Phunopas-v0, GoToPose-v0: `phunopas2018`; Mecanum-v0: `optiodom_omni4` | `williams2002`, `phunopas2018`, `optiodom_omni3`, `optiodom_omni4`, `regularN` (3 ≤ N ≤ 16) | — | robot preset (`optiodom_omni4` has mecanum wheels: needs `friction="initial"`); ignored when `model` is given |
     | `surface` | `carpet` | `paper`, `carpet`, `grip` | — | floor, `omni_gym.physics.friction.SURFACES`; ignored when `model` is given |
     | `friction` | `roller_gap`; Mecanum-v0: `initial` | `initial`, `roller_gap` | — | friction model (`roller_gap`: omni wheels only); ignored when `model` is given |
     | `model` | None | None, a model JSON file path (str or `os.PathLike`), its dict, a `SimModel`; the model JSON bounds (`docs/bounds.md`), 3 to 16 wheels, a `wheel_liftoff` effect's rates within the `lift_rate`, `recover_rate` bounds (`recover_rate` only when `lift_rate` > 0) | — | a calibrated model; it defines the robot, surface, friction model and effects |
