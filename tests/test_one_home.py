@@ -47,3 +47,25 @@ def test_a_near_miss_robot_name_gets_a_suggestion():
     with pytest.raises(ValueError) as err:
         robot_preset("hexapod")
     assert "did you mean" not in str(err.value)
+
+
+def test_the_environments_use_only_worlds_public_members():
+    import re
+    from pathlib import Path
+
+    root = Path(envs.__file__).parent
+    private = [f"{p.name}:{n}" for p in root.glob("*.py") for n, line in enumerate(p.read_text().splitlines(), 1)
+               if re.search(r"\bworld\._[a-z]", line)]
+    assert private == []
+
+
+def test_cfg_shows_the_models_robot_floor_and_friction_not_the_ids_ignored_ones():
+    import gymnasium as gym
+
+    import omni_gym  # noqa: F401
+    from omni_gym.physics.model import load_model
+
+    model = load_model("optiodom_omni4", "grip", "initial")
+    cfg = gym.make("OmniPathFollow-Phunopas-v0", model=model.to_json()).unwrapped.cfg
+    assert (cfg.robot, cfg.surface, cfg.friction) == ("optiodom_omni4", "grip", "initial")
+    assert cfg.base_model().surface.name == "grip"
