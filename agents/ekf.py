@@ -75,13 +75,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.stats import chi2
 
+# The state layout and the motion model f, F: one compiled kernel shared with the batched filter.
+from agents.motion import BG, NX, OM, TH, VX, VY, X, Y, motion_model  # noqa: F401  (re-exported)
 from agents.slip_detector import DetectorConfig, SlipDetector
 from omni_gym.angles import wrap_angle
 from omni_gym.physics.kinematics import WheelKinematics
 from omni_gym.physics.robot import RobotSpec
 
-X, Y, TH, VX, VY, OM, BG = range(7)
-NX = 7
 _CLONE = [TH, VX, VY]  # states cloned for the accelerometer update
 TWO_PI = 2.0 * math.pi
 
@@ -105,37 +105,6 @@ OBS_ACCEL_LIMIT = 49.9  # m/s²: the sensors observation clips the accelerometer
 def encoder_rate_std(counts_per_rev: int, dt: float) -> float:
     """Std [rad/s] of (⌊θ_k/q⌋ − ⌊θ_{k−1}/q⌋)·q/Δt − (θ_k − θ_{k−1})/Δt for uniform errors: q/(Δt·√6)."""
     return (TWO_PI / counts_per_rev) / (dt * math.sqrt(6.0))
-
-
-def _sinc(phi: float) -> tuple[float, float]:
-    """sin(φ)/φ and its derivative (series below |φ| = 1e-4)."""
-    if abs(phi) < 1e-4:
-        return 1.0 - phi * phi / 6.0, -phi / 3.0
-    s, c = math.sin(phi), math.cos(phi)
-    return s / phi, (phi * c - s) / (phi * phi)
-
-
-def motion_model(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """f(x) and its Jacobian F (7×7) over ``dt`` [s]: exact arc for the twist held constant."""
-    th, vx, vy, om = x[TH], x[VX], x[VY], x[OM]
-    phi = 0.5 * om * dt
-    s, ds = _sinc(phi)
-    c, sn = math.cos(th + phi), math.sin(th + phi)
-    rvx, rvy = c * vx - sn * vy, sn * vx + c * vy  # R(θm)·v
-    dvx, dvy = -sn * vx - c * vy, c * vx - sn * vy  # R'(θm)·v
-    out = np.array(x, dtype=float, copy=True)
-    out[X] += rvx * dt * s
-    out[Y] += rvy * dt * s
-    out[TH] = wrap_angle(th + om * dt)
-    F = np.eye(NX)
-    F[X, TH], F[Y, TH] = dvx * dt * s, dvy * dt * s
-    F[X, VX], F[X, VY] = c * dt * s, -sn * dt * s
-    F[Y, VX], F[Y, VY] = sn * dt * s, c * dt * s
-    half = 0.5 * dt * dt
-    F[X, OM] = (dvx * s + rvx * ds) * half
-    F[Y, OM] = (dvy * s + rvy * ds) * half
-    F[TH, OM] = dt
-    return out, F
 
 
 def process_noise(x: np.ndarray, dt: float, accel_psd: float, yaw_accel_psd: float, bias_psd: float,
