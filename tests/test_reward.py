@@ -33,7 +33,7 @@ def rollout(env_id: str = ENV, steps: int = 25, **kwargs) -> tuple[list[float], 
 
 def test_the_fused_builtin_is_the_formula_and_tracking_reward_computes_the_same_bits():
     rewards, inputs = rollout()
-    builtin = rw.TrackingReward()
+    builtin = rw.BuiltinReward()
     for r, x in zip(rewards, inputs, strict=True):
         assert builtin(x)[0] == r  # the kernel's inline call and the stand-alone one: same bits
         e, eth, a = x.position_error[0], x.heading_error[0], x.action[0]
@@ -42,7 +42,7 @@ def test_the_fused_builtin_is_the_formula_and_tracking_reward_computes_the_same_
     assert any(np.abs(x.action).max() == 1.0 for x in inputs)  # the clipped action is the one scored
 
 
-@pytest.mark.parametrize("builtin", [rw.TrackingReward, rw.TrackingReward(), None])
+@pytest.mark.parametrize("builtin", [rw.BuiltinReward, rw.BuiltinReward(), None])
 def test_passing_the_builtin_keeps_the_fast_path_and_its_values(builtin):
     env = gym.make(ENV, reward=builtin)
     assert env.unwrapped.cfg.reward is None and env.unwrapped.core._custom_reward is None

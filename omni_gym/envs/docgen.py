@@ -89,7 +89,7 @@ def allowed_cell(opt: Option) -> str:
     elif opt.kind == "obstacles":
         text = f"at most {MAX_OBSTACLES} discs, radius ≥ {MIN_OBSTACLE_RADIUS:g}"
     elif opt.kind == "reward":
-        text = "None, `TrackingReward` (the built-in), a callable `f(RewardInputs) -> (B,) array`, or a class of such"
+        text = "None, `BuiltinReward` (the built-in), a callable `f(RewardInputs) -> (B,) array`, or a class of such"
     else:
         raise ValueError(f"option {opt.name!r}: unknown kind {opt.kind!r}")
     return f"{text}; {opt.also}" if opt.also else text

@@ -134,7 +134,7 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
     | `randomize_lift_rate` | None | None or (lo, hi) with 0 ≤ lo ≤ hi ≤ 1000 | 1/s | `lift_rate` drawn from U(lo, hi) at each reset |
     | `randomize_sensor_noise` | None | None or (lo, hi) with 0 ≤ lo ≤ hi ≤ 10 | — | every sensor noise and bias std (on top of `sensor_noise`) scaled by one U(lo, hi) per robot at each reset |
     | `render_mode` | None | None, `rgb_array`, `human` | — | `rgb_array` (H×W×3 uint8) or `human` (pygame window); single environment only |
-    | `reward` | None | None, `TrackingReward` (the built-in), a callable `f(RewardInputs) -> (B,) array`, or a class of such | — | the reward: None is the built-in tracking reward (`omni_gym.envs.reward.FORMULA`, computed in the compiled observation kernel); your own is a callable on `omni_gym.envs.reward.RewardInputs` returning one number per robot |
+    | `reward` | None | None, `BuiltinReward` (the built-in), a callable `f(RewardInputs) -> (B,) array`, or a class of such | — | the reward: None is the built-in tracking reward (`omni_gym.envs.reward.FORMULA`, computed in the compiled observation kernel); your own is a callable on `omni_gym.envs.reward.RewardInputs` returning one number per robot |
 
     ``model=`` takes a calibrated model (a model JSON file path or the dict ``omni-gym model show --json``
     prints, effects included): it then defines the robot, surface, friction model and effects,

@@ -86,7 +86,7 @@ class Reward(Protocol):
     def __call__(self, inputs: RewardInputs) -> np.ndarray: ...
 
 
-class TrackingReward:
+class BuiltinReward:
     """The built-in reward (:data:`FORMULA`) as a :class:`Reward`. Passing it (the class or an instance)
     as ``reward=`` keeps the compiled fast path: the observation kernel computes the same numbers."""
 
@@ -100,18 +100,18 @@ class TrackingReward:
         return out
 
     def __eq__(self, other: object) -> bool:
-        return isinstance(other, TrackingReward)
+        return isinstance(other, BuiltinReward)
 
     def __hash__(self) -> int:
-        return hash(TrackingReward)
+        return hash(BuiltinReward)
 
     def __repr__(self) -> str:
-        return "TrackingReward()"
+        return "BuiltinReward()"
 
 
 def is_builtin(reward: object) -> bool:
-    """True for None, :class:`TrackingReward` and its instances: the fused kernel computes these."""
-    return reward is None or reward is TrackingReward or type(reward) is TrackingReward
+    """True for None, :class:`BuiltinReward` and its instances: the fused kernel computes these."""
+    return reward is None or reward is BuiltinReward or type(reward) is BuiltinReward
 
 
 def check_reward(value: object) -> Reward | None:
