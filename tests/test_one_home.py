@@ -69,3 +69,10 @@ def test_cfg_shows_the_models_robot_floor_and_friction_not_the_ids_ignored_ones(
     cfg = gym.make("OmniPathFollow-Phunopas-v0", model=model.to_json()).unwrapped.cfg
     assert (cfg.robot, cfg.surface, cfg.friction) == ("optiodom_omni4", "grip", "initial")
     assert cfg.base_model().surface.name == "grip"
+
+
+def test_the_package_docstring_describes_exactly_the_registered_ids():
+    import re
+
+    described = re.findall(r"^\* ``(Omni[^`]+)``", envs.__doc__, re.M)
+    assert described == list(envs.all_ids())
