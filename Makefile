@@ -18,7 +18,9 @@ test: $(STAMP)
 	$(PY) -m ruff check .
 	$(PY) -m pytest -q -n 2 --dist worksteal -m "not slow" --durations=15
 
-# The long tests: the discrepancy workflow's full 12-case recovery per effect, the paper story, a second drag seed.
+# The long tests (.ci/run runs them after `make test`): each repeats a shorter test at full size or checks what
+# `make test` checks elsewhere too (the reason is beside each mark): the discrepancy workflow's full 12-case
+# recovery per effect, the paper story, a second drag seed, the omni3 real-data gap run.
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -n 2 --dist worksteal -m slow
 
