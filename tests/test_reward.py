@@ -90,13 +90,17 @@ def test_a_reward_that_is_not_callable_is_refused_in_one_line(value, message):
     assert "\n" not in str(err.value)
 
 
-def test_a_reward_of_the_wrong_shape_names_itself():
+def test_a_reward_of_the_wrong_shape_or_not_finite_names_itself():
     def two(_x):
         return np.zeros(2)
 
-    env = gym.make(ENV, reward=two)
+    def nan(x):
+        return np.full(len(x.step), np.nan)
+
     with pytest.raises(ValueError, match=r"reward .*two returned shape \(2,\); expected \(1,\)"):
-        env.reset(seed=0)
+        gym.make(ENV, reward=two).reset(seed=0)
+    with pytest.raises(ValueError, match=r"reward .*nan returned a non-finite value: \[nan\]"):
+        gym.make(ENV, reward=nan).reset(seed=0)
 
 
 def test_the_formula_is_written_once_and_the_docs_quote_it():

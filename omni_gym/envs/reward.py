@@ -139,6 +139,8 @@ def evaluate(reward: Reward, inputs: RewardInputs, out: np.ndarray) -> None:
     if values.shape != out.shape and not (values.size == 1 == out.size):  # one robot: a scalar will do
         raise ValueError(f"reward {_name(reward)} returned shape {values.shape}; expected ({out.shape[0]},): "
                          "one number per robot")
+    if not np.isfinite(values).all():  # named here: the environment's own check would blame the physics
+        raise ValueError(f"reward {_name(reward)} returned a non-finite value: {values.ravel().tolist()[:8]}")
     out[:] = values.reshape(out.shape)
 
 
