@@ -178,16 +178,17 @@ class RobotSpec:
         return replace(self, **changes)
 
 
-def tangential_wheels(radius: float, angles: list[float]) -> tuple[Wheel, ...]:
+def tangential_wheels(radius: float, angles: list[float], clockwise: bool = False) -> tuple[Wheel, ...]:
     """Wheels on a circle of ``radius`` [m] at body-frame ``angles`` [rad], driving counter-clockwise.
 
     Wheel i sits at radius·(cos α_i, sin α_i) with drive (−sin α_i, cos α_i): all wheels turning
-    forward spin the robot counter-clockwise (positive yaw).
+    forward spin the robot counter-clockwise (positive yaw); ``clockwise``: drive (sin α_i, −cos α_i).
     """
+    sign = -1.0 if clockwise else 1.0
     return tuple(
         Wheel(
             position=(radius * math.cos(a), radius * math.sin(a)),
-            drive=(-math.sin(a), math.cos(a)),
+            drive=(sign * -math.sin(a), sign * math.cos(a)),
         )
         for a in angles
     )
@@ -359,11 +360,9 @@ def optiodom_omni3(L: float = 0.195, diameter: float = 0.102) -> RobotSpec:
     for name, value in (("L", L), ("diameter", diameter)):
         if not (math.isfinite(value) and value > 0):
             raise ValueError(f"optiodom_omni3: {name} must be a positive length [m], got {value!r}")
-    wheels = []
-    for deg in OPTIODOM_OMNI3_ANGLES_DEG:
-        a = math.radians(deg)
-        wheels.append(Wheel(position=(_exact_zero(L * math.cos(a), L), _exact_zero(L * math.sin(a), L)),
-                            drive=(_exact_zero(math.sin(a), 1.0), _exact_zero(-math.cos(a), 1.0))))
+    wheels = [Wheel(position=(_exact_zero(w.position[0], L), _exact_zero(w.position[1], L)),
+                    drive=(_exact_zero(w.drive[0], 1.0), _exact_zero(w.drive[1], 1.0)))
+              for w in tangential_wheels(L, [math.radians(deg) for deg in OPTIODOM_OMNI3_ANGLES_DEG], clockwise=True)]
     rho = max(math.hypot(*w.position) for w in wheels)  # L, up to rounding
     mass = OPTIODOM_OMNI3_MASS
     return RobotSpec(
