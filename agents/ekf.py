@@ -81,6 +81,7 @@ from agents.slip_detector import DetectorConfig, SlipDetector
 from omni_gym.angles import wrap_angle
 from omni_gym.physics.kinematics import WheelKinematics
 from omni_gym.physics.robot import RobotSpec
+from omni_gym.sensors import SensorConfig
 
 _CLONE = [TH, VX, VY]  # states cloned for the accelerometer update
 TWO_PI = 2.0 * math.pi
@@ -99,6 +100,7 @@ ACCEL_INFLATION = 2.0  # accel_noise_std = ACCEL_INFLATION·√(noise² + bias²
 # while (a DeprecationWarning), as keywords and as attributes.
 RENAMED_NOISE = {"gyro_std": "gyro_noise_std", "gyro_bias_walk": "gyro_bias_walk_std",
                  "compass_std": "compass_noise_std", "accel_std": "accel_noise_std"}
+_SENSORS = SensorConfig()  # the defaults of EKFConfig's noise levels
 OBS_ACCEL_LIMIT = 49.9  # m/s²: the sensors observation clips the accelerometer at ±10 × 5 m/s²
 
 
@@ -169,14 +171,15 @@ class EKFConfig:
         detector: slip-detector parameters.
     """
 
-    wheel_rate_std: float = encoder_rate_std(2048, 0.01)
-    gyro_noise_std: float = 0.005
-    gyro_bias_std: float = 0.01
-    gyro_bias_walk_std: float = 1e-4
-    compass_noise_std: float = 0.05
-    accel_noise_std: float = ACCEL_INFLATION * math.hypot(0.05, 0.02)
-    camera_position_std: float = 0.005
-    camera_heading_std: float = 0.02
+    # The sensors' default noise levels (their one home: omni_gym.sensors.SensorConfig) at 100 Hz.
+    wheel_rate_std: float = encoder_rate_std(_SENSORS.counts_per_rev, 0.01)
+    gyro_noise_std: float = _SENSORS.gyro_noise_std
+    gyro_bias_std: float = _SENSORS.gyro_bias_std
+    gyro_bias_walk_std: float = _SENSORS.gyro_bias_walk_std
+    compass_noise_std: float = _SENSORS.compass_noise_std
+    accel_noise_std: float = ACCEL_INFLATION * math.hypot(_SENSORS.accel_noise_std, _SENSORS.accel_bias_std)
+    camera_position_std: float = _SENSORS.camera_position_std
+    camera_heading_std: float = _SENSORS.camera_heading_std
     accel_psd: float = 1.0
     yaw_accel_psd: float = 100.0
     rest_speed_std: float = 1e-3
