@@ -76,3 +76,21 @@ def test_the_package_docstring_describes_exactly_the_registered_ids():
 
     described = re.findall(r"^\* ``(Omni[^`]+)``", envs.__doc__, re.M)
     assert described == list(envs.all_ids())
+
+
+def test_world_body_states_is_the_public_read_of_what_pose_and_velocity_convert():
+    import numpy as np
+
+    from omni_gym.physics.model import load_model
+    from omni_gym.physics.world import World
+
+    model = load_model("phunopas2018")
+    world = World(model, n_robots=2)
+    world.reset(np.array([[0.1, -0.2, 0.3], [0.0, 0.0, -1.0]]))
+    world.set_commands(np.tile(model.robot.wheel_matrix() @ [0.2, 0.1, 0.5], (2, 1)))
+    world.step(0.1)
+    states = world.body_states()
+    assert states.shape == (2, 6)
+    # The centre of mass is the geometric centre here: pose is the state less each arena's origin.
+    np.testing.assert_array_equal(world.pose[:, 0:2], states[:, 0:2] - world.origins)
+    np.testing.assert_array_equal(world.velocity[:, 2], states[:, 5])
