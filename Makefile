@@ -18,7 +18,9 @@ test: $(STAMP)
 	$(PY) -m ruff check .
 	$(PY) -m pytest -q -n 2 --dist worksteal -m "not slow" --durations=15
 
-# The long tests: the discrepancy workflow's full 12-case recovery per effect, the paper story, a second drag seed.
+# The long tests (.ci/run runs them after `make test`): each repeats a shorter test at full size or checks what
+# `make test` checks elsewhere too (the reason is beside each mark): the discrepancy workflow's full 12-case
+# recovery per effect, the paper story, a second drag seed, the omni3 real-data gap run.
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -n 2 --dist worksteal -m slow
 
@@ -50,7 +52,7 @@ bench-agents: $(STAMP)
 	$(PY) benchmarks/learning_curves.py --runs benchmarks/results/training_runs/* --out benchmarks/results
 	$(PY) benchmarks/headroom.py --episodes 50 --out benchmarks/results
 
-# The agents of issue 16 into runs/: three agents (privileged, residual, EKF features) x two ids x 3 seeds, with
+# The native-vector-env agents into runs/: three agents (privileged, residual, EKF features) x two ids x 3 seeds, with
 # PPO (3 M steps, 3-12 min per run on the shared 2-core machine) and SAC (privileged 300k steps, 20-40 min;
 # residual and EKF features 200k steps, 1 gradient step per vector step).
 SEEDS ?= 0 1 2

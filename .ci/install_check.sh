@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Non-editable install check (issue 12 item 3): build a wheel, install it with the agents extra into a
+# Non-editable install check: build a wheel, install it with the agents extra into a
 # fresh virtualenv, and from a directory outside the repository (so the source tree is not importable)
 # run `omni-gym --version`, a short `omni-gym train` and an `omni-gym evaluate` of the result.
 # Usage: .ci/install_check.sh   (from anywhere; uses python3 from PATH for the new venv)

@@ -16,7 +16,7 @@ commands held over the control period; on a gripping floor the body follows with
 the heading change over a period is exactly ω·Δt with the ω the gyro reads at its end. (A
 continuous-time white-acceleration discretisation adds heading noise the gyro cannot see; the
 accelerometer update then turns its bias into heading drift, ≈0.02 rad in 3 s in our runs.) The gyro
-bias is a random walk, ``gyro_bias_walk``² [rad²/s³]. Q = G·diag(q_v, q_v, q_ω)·Δt·Gᵀ + q_b·Δt with
+bias is a random walk, ``gyro_bias_walk_std``² [rad²/s³]. Q = G·diag(q_v, q_v, q_ω)·Δt·Gᵀ + q_b·Δt with
 G = ∂f/∂(vx, vy, ω).
 
 Measurements, all of the state at the end of control period k:
@@ -30,8 +30,8 @@ Measurements, all of the state at the end of control period k:
   of a difference of two quantised angles, std q/(Δt·√6), q = 2π/counts_per_rev (0.125 rad/s at 2048
   counts/rev and 100 Hz), treated as white (it is in fact negatively correlated from period to period,
   lag-1 correlation −1/2, which makes the wheel NIS somewhat larger than nominal in the environments).
-* gyro: z = ω + b_g, std ``gyro_std``.
-* compass: z = θ, std ``compass_std``.
+* gyro: z = ω + b_g, std ``gyro_noise_std``.
+* compass: z = θ, std ``compass_noise_std``.
 * camera: z = (x, y, θ) when ``fix_age`` == 0 (a fix taken this period), std ``camera_*_std``.
 * accelerometer, as a weak update: the environments' accelerometer reads the change of the geometric
   centre's world velocity over the period, in the body frame,
@@ -39,7 +39,7 @@ Measurements, all of the state at the end of control period k:
   It involves the previous state, so :meth:`process` clones (θ, vx, vy) before predicting (stochastic
   cloning), updates the 10-state augmented system and drops the clone. The accelerometer bias (0.02
   m/s² per axis, constant over an episode) is not a state (the state is fixed at seven); the update
-  uses an inflated noise ``accel_std`` = 2·√(noise² + bias²) = 0.108 m/s². Measured trade-off (1× is
+  uses an inflated noise ``accel_noise_std`` = 2·√(noise² + bias²) = 0.108 m/s². Measured trade-off (1× is
   the bias treated as white noise): Monte Carlo with a biased accelerometer and quantised encoders,
   average NEES 7.7 (1×) and 5.3 (2×) for 7 states; 'grip' environment runs, NEES 6.4 / 3.9 under
   smooth commands and 11.0 / 8.4 under step commands; on the default carpet environment the
@@ -67,19 +67,22 @@ compass; camera.
 
 from __future__ import annotations
 
+import inspect
 import math
+import warnings
 from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.stats import chi2
 
+# The state layout and the motion model f, F: one compiled kernel shared with the batched filter.
+from agents.motion import BG, NX, OM, TH, VX, VY, X, Y, motion_model  # noqa: F401  (re-exported)
 from agents.slip_detector import DetectorConfig, SlipDetector
 from omni_gym.angles import wrap_angle
 from omni_gym.physics.kinematics import WheelKinematics
 from omni_gym.physics.robot import RobotSpec
+from omni_gym.sensors import SensorConfig
 
-X, Y, TH, VX, VY, OM, BG = range(7)
-NX = 7
 _CLONE = [TH, VX, VY]  # states cloned for the accelerometer update
 TWO_PI = 2.0 * math.pi
 
@@ -92,44 +95,18 @@ CAMERA_HEADING_FLOOR = 1e-3  # rad
 ACCEL_FLOOR = 0.02  # m/s²
 BIAS_FLOOR = 1e-4  # rad/s, initial gyro-bias std
 BIAS_WALK_FLOOR = 1e-6  # rad/s/√s
-ACCEL_INFLATION = 2.0  # accel_std = ACCEL_INFLATION·√(noise² + bias²): a weak update (module docstring)
+ACCEL_INFLATION = 2.0  # accel_noise_std = ACCEL_INFLATION·√(noise² + bias²): a weak update (module docstring)
+# EKFConfig's noise levels carry omni_gym.sensors.SensorConfig's names; the old names still work for a
+# while (a DeprecationWarning), as keywords and as attributes.
+RENAMED_NOISE = {"gyro_std": "gyro_noise_std", "gyro_bias_walk": "gyro_bias_walk_std",
+                 "compass_std": "compass_noise_std", "accel_std": "accel_noise_std"}
+_SENSORS = SensorConfig()  # the defaults of EKFConfig's noise levels
 OBS_ACCEL_LIMIT = 49.9  # m/s²: the sensors observation clips the accelerometer at ±10 × 5 m/s²
 
 
 def encoder_rate_std(counts_per_rev: int, dt: float) -> float:
     """Std [rad/s] of (⌊θ_k/q⌋ − ⌊θ_{k−1}/q⌋)·q/Δt − (θ_k − θ_{k−1})/Δt for uniform errors: q/(Δt·√6)."""
     return (TWO_PI / counts_per_rev) / (dt * math.sqrt(6.0))
-
-
-def _sinc(phi: float) -> tuple[float, float]:
-    """sin(φ)/φ and its derivative (series below |φ| = 1e-4)."""
-    if abs(phi) < 1e-4:
-        return 1.0 - phi * phi / 6.0, -phi / 3.0
-    s, c = math.sin(phi), math.cos(phi)
-    return s / phi, (phi * c - s) / (phi * phi)
-
-
-def motion_model(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """f(x) and its Jacobian F (7×7) over ``dt`` [s]: exact arc for the twist held constant."""
-    th, vx, vy, om = x[TH], x[VX], x[VY], x[OM]
-    phi = 0.5 * om * dt
-    s, ds = _sinc(phi)
-    c, sn = math.cos(th + phi), math.sin(th + phi)
-    rvx, rvy = c * vx - sn * vy, sn * vx + c * vy  # R(θm)·v
-    dvx, dvy = -sn * vx - c * vy, c * vx - sn * vy  # R'(θm)·v
-    out = np.array(x, dtype=float, copy=True)
-    out[X] += rvx * dt * s
-    out[Y] += rvy * dt * s
-    out[TH] = wrap_angle(th + om * dt)
-    F = np.eye(NX)
-    F[X, TH], F[Y, TH] = dvx * dt * s, dvy * dt * s
-    F[X, VX], F[X, VY] = c * dt * s, -sn * dt * s
-    F[Y, VX], F[Y, VY] = sn * dt * s, c * dt * s
-    half = 0.5 * dt * dt
-    F[X, OM] = (dvx * s + rvx * ds) * half
-    F[Y, OM] = (dvy * s + rvy * ds) * half
-    F[TH, OM] = dt
-    return out, F
 
 
 def process_noise(x: np.ndarray, dt: float, accel_psd: float, yaw_accel_psd: float, bias_psd: float,
@@ -175,11 +152,11 @@ class EKFConfig:
 
     Attributes:
         wheel_rate_std: encoder-rate noise [rad/s]; quantisation q/(Δt·√6), 0.125 at 2048 counts, 100 Hz.
-        gyro_std: gyro white noise [rad/s].
+        gyro_noise_std: gyro white noise [rad/s].
         gyro_bias_std: initial gyro-bias std [rad/s] (the sensor's turn-on bias spread).
-        gyro_bias_walk: gyro-bias random walk [rad/s/√s].
-        compass_std: compass noise [rad].
-        accel_std: accelerometer noise assumed by the weak update [m/s²] (inflated, module docstring).
+        gyro_bias_walk_std: gyro-bias random walk [rad/s/√s].
+        compass_noise_std: compass noise [rad].
+        accel_noise_std: accelerometer noise assumed by the weak update [m/s²] (inflated, module docstring).
         camera_position_std, camera_heading_std: camera fix noise [m], [rad].
         accel_psd: spectral density of the body accelerations [(m/s²)²·s]: 1.0 → velocity jumps of
             std 0.1 m/s per 10 ms period, room for a controller's step commands (the accelerometer and
@@ -194,14 +171,15 @@ class EKFConfig:
         detector: slip-detector parameters.
     """
 
-    wheel_rate_std: float = encoder_rate_std(2048, 0.01)
-    gyro_std: float = 0.005
-    gyro_bias_std: float = 0.01
-    gyro_bias_walk: float = 1e-4
-    compass_std: float = 0.05
-    accel_std: float = ACCEL_INFLATION * math.hypot(0.05, 0.02)
-    camera_position_std: float = 0.005
-    camera_heading_std: float = 0.02
+    # The sensors' default noise levels (their one home: omni_gym.sensors.SensorConfig) at 100 Hz.
+    wheel_rate_std: float = encoder_rate_std(_SENSORS.counts_per_rev, 0.01)
+    gyro_noise_std: float = _SENSORS.gyro_noise_std
+    gyro_bias_std: float = _SENSORS.gyro_bias_std
+    gyro_bias_walk_std: float = _SENSORS.gyro_bias_walk_std
+    compass_noise_std: float = _SENSORS.compass_noise_std
+    accel_noise_std: float = ACCEL_INFLATION * math.hypot(_SENSORS.accel_noise_std, _SENSORS.accel_bias_std)
+    camera_position_std: float = _SENSORS.camera_position_std
+    camera_heading_std: float = _SENSORS.camera_heading_std
     accel_psd: float = 1.0
     yaw_accel_psd: float = 100.0
     rest_speed_std: float = 1e-3
@@ -215,12 +193,12 @@ class EKFConfig:
     detector: DetectorConfig = DetectorConfig()
 
     def __post_init__(self) -> None:
-        for name in ("wheel_rate_std", "gyro_std", "gyro_bias_std", "compass_std", "accel_std",
+        for name in ("wheel_rate_std", "gyro_noise_std", "gyro_bias_std", "compass_noise_std", "accel_noise_std",
                      "camera_position_std", "camera_heading_std", "rest_speed_std", "accel_limit"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-        for name in ("gyro_bias_walk", "accel_psd", "yaw_accel_psd"):
+        for name in ("gyro_bias_walk_std", "accel_psd", "yaw_accel_psd"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
@@ -240,15 +218,15 @@ class EKFConfig:
         dt = 1.0 / control_hz
         values = dict(
             wheel_rate_std=encoder_rate_std(sc.counts_per_rev, dt),
-            gyro_std=max(sc.gyro_noise_std, GYRO_FLOOR),
+            gyro_noise_std=max(sc.gyro_noise_std, GYRO_FLOOR),
             gyro_bias_std=max(sc.gyro_bias_std, BIAS_FLOOR),
-            gyro_bias_walk=max(sc.gyro_bias_walk_std, BIAS_WALK_FLOOR),
-            compass_std=max(sc.compass_noise_std, COMPASS_FLOOR),
-            accel_std=max(ACCEL_INFLATION * math.hypot(sc.accel_noise_std, sc.accel_bias_std), ACCEL_FLOOR),
+            gyro_bias_walk_std=max(sc.gyro_bias_walk_std, BIAS_WALK_FLOOR),
+            compass_noise_std=max(sc.compass_noise_std, COMPASS_FLOOR),
+            accel_noise_std=max(ACCEL_INFLATION * math.hypot(sc.accel_noise_std, sc.accel_bias_std), ACCEL_FLOOR),
             camera_position_std=max(sc.camera_position_std, CAMERA_POSITION_FLOOR),
             camera_heading_std=max(sc.camera_heading_std, CAMERA_HEADING_FLOOR),
         )
-        return cls(**{**values, **overrides})
+        return cls(**{**values, **_new_names(overrides, 3)})
 
     @classmethod
     def for_env(cls, env, **overrides) -> EKFConfig:
@@ -257,7 +235,42 @@ class EKFConfig:
         return cls.from_sensor_config(cfg.sensor_config(), cfg.control_hz, **overrides)
 
     def with_changes(self, **changes) -> EKFConfig:
-        return replace(self, **changes)
+        return replace(self, **_new_names(changes, 3))
+
+    # The old names of the renamed noise levels, readable for a while (RENAMED_NOISE).
+    gyro_std = property(lambda self: _old_name(self, "gyro_std"))
+    gyro_bias_walk = property(lambda self: _old_name(self, "gyro_bias_walk"))
+    compass_std = property(lambda self: _old_name(self, "compass_std"))
+    accel_std = property(lambda self: _old_name(self, "accel_std"))
+
+
+def _new_names(values: dict, stacklevel: int) -> dict:
+    """``values`` with the old noise names (:data:`RENAMED_NOISE`) replaced by the new ones, warning once each."""
+    out = dict(values)
+    for old, new in RENAMED_NOISE.items():
+        if old in out:
+            if new in out:
+                raise TypeError(f"EKFConfig: give {new} only ({old} is its old name)")
+            warnings.warn(f"EKFConfig's {old} is now called {new}", DeprecationWarning, stacklevel=stacklevel)
+            out[new] = out.pop(old)
+    return out
+
+
+def _old_name(config: EKFConfig, old: str) -> float:
+    warnings.warn(f"EKFConfig's {old} is now called {RENAMED_NOISE[old]}", DeprecationWarning, stacklevel=3)
+    return getattr(config, RENAMED_NOISE[old])
+
+
+_dataclass_init = EKFConfig.__init__
+
+
+def _init_with_old_names(self, *args, **kwargs) -> None:
+    _dataclass_init(self, *args, **_new_names(kwargs, 3))
+
+
+_init_with_old_names.__doc__ = _dataclass_init.__doc__
+_init_with_old_names.__signature__ = inspect.signature(_dataclass_init)  # help() shows the fields
+EKFConfig.__init__ = _init_with_old_names
 
 
 def _joseph(x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray, R: np.ndarray,
@@ -300,21 +313,21 @@ class OmniEKF:
         c = self.config
         self._gates = {"wheels": c.gate(1), "gyro": c.gate(1), "compass": c.gate(1), "camera": c.gate(3),
                        "accel": c.gate(2)}
-        self._bias_psd = c.gyro_bias_walk**2
+        self._bias_psd = c.gyro_bias_walk_std**2
         # Constant measurement matrices and noise covariances.
         self._H_wheels = np.zeros((self.n, NX))
         self._H_wheels[:, VX:OM + 1] = self.W
         self._R_wheels = c.wheel_rate_std**2 * np.eye(self.n)
         self._H_gyro = np.zeros((1, NX))
         self._H_gyro[0, OM] = self._H_gyro[0, BG] = 1.0
-        self._R_gyro = np.array([[c.gyro_std**2]])
+        self._R_gyro = np.array([[c.gyro_noise_std**2]])
         self._H_compass = np.zeros((1, NX))
         self._H_compass[0, TH] = 1.0
-        self._R_compass = np.array([[c.compass_std**2]])
+        self._R_compass = np.array([[c.compass_noise_std**2]])
         self._H_camera = np.zeros((3, NX))
         self._H_camera[0, X] = self._H_camera[1, Y] = self._H_camera[2, TH] = 1.0
         self._R_camera = np.diag([c.camera_position_std**2, c.camera_position_std**2, c.camera_heading_std**2])
-        self._R_accel = c.accel_std**2 * np.eye(2)
+        self._R_accel = c.accel_noise_std**2 * np.eye(2)
         self.reset(np.zeros(3))
 
     # --- state ---------------------------------------------------------------------------------

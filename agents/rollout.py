@@ -139,7 +139,7 @@ def make_env(env_id: str, env_kwargs: dict | None = None, obs_mode: str = "senso
     import gymnasium as gym
 
     import omni_gym  # noqa: F401  (registers the ids)
-    from omni_gym.envs import ENV_IDS
+    from omni_gym.envs import all_ids
 
     if not isinstance(env_kwargs or {}, dict):
         raise ValueError(f"env_kwargs must be a dict (a JSON object), got {env_kwargs!r}")
@@ -154,9 +154,10 @@ def make_env(env_id: str, env_kwargs: dict | None = None, obs_mode: str = "senso
             importlib.import_module(module)
         spec = gym.spec(bare_id)
     except (gym.error.Error, ImportError) as exc:
-        raise ValueError(f"unknown environment id {env_id!r} ({exc}); omni-gym ids: {', '.join(ENV_IDS)}") from None
+        raise ValueError(f"unknown environment id {env_id!r} ({exc}); omni-gym ids: {', '.join(all_ids())}") from None
     if not str(spec.entry_point).startswith("omni_gym."):
-        raise ValueError(f"environment {env_id!r} is not an omni-gym environment; omni-gym ids: {', '.join(ENV_IDS)}")
+        raise ValueError(f"environment {env_id!r} is not an omni-gym environment; omni-gym ids: "
+                         f"{', '.join(all_ids())}")
     try:
         env = gym.make(env_id, **kwargs)
     except TypeError as exc:

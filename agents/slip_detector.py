@@ -7,7 +7,7 @@ Every control period the filter hands the detector the wheel-speed innovation ve
 where z are the encoder rates, W the wheel matrix, q̂⁻ = (vx, vy, ω) the filter's twist *before*
 any wheel is used (constant-velocity prediction refined by the gyro and the accelerometer) and P_qq
 its covariance. With R = σ_w²·I the Gaussian log-likelihood of ν splits exactly into two independent
-parts, which are the three cues of the issue:
+parts, which give the detector's three cues:
 
 * the **wheel-consistency residual** r = (I − W W⁺)·z = (I − W W⁺)·ν: the part of the encoder
   rates no rigid no-slip motion produces (zero for three wheels; one direction for four), covariance

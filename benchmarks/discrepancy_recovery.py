@@ -4,7 +4,7 @@ For every library effect x size x tracker noise x seed: synthesize a dataset wit
 (Williams robot, carpet, initial friction as the nominal model), run ``omni-gym gap`` on it, and
 record the named effect, the parameter error against the truth, the held-out gap reduction and the
 wall time. Null (``none``) and out-of-library (viscous drag -> ``unexplained``) rows too, and the
-wall time of one 10-run x 5 s dataset per effect (the issue's 2-minute budget on 2 cores).
+wall time of one 10-run x 5 s dataset per effect (its budget: 2 minutes on 2 cores).
 
     # the committed table (also `make bench-discrepancy`):
     python benchmarks/discrepancy_recovery.py --seeds 2 --runs 6 --duration 3 --jobs 2 --out benchmarks/results

@@ -1,6 +1,6 @@
 """How much better could a controller track if it knew the true state? A scripted headroom estimate.
 
-The learned privileged agents of issue 16 (PPO 3 M steps, SAC 300k steps on ``obs_mode="state"``) did not
+The learned privileged agents (PPO 3 M steps, SAC 300k steps on ``obs_mode="state"``) did not
 reach ``ekf-pid``, so they cannot say whether headroom exists. This script asks a simpler question with
 no training: a true-state feedback controller, reference feed-forward plus proportional feedback on the
 true position and heading errors,

@@ -1,6 +1,6 @@
 """Diagnosis of the privileged PPO agent: one factor changed per run, learning curves side by side.
 
-Each variant is a hyperparameter file in ``agents/hyperparams/diagnosis/`` (``base.yml``: the issue-16
+Each variant is a hyperparameter file in ``agents/hyperparams/diagnosis/`` (``base.yml``: the original
 ``ppo_privileged.yml`` entry; every other file changes one thing, said in its first line). Train a run::
 
     omni-gym train --algo ppo --env OmniPathFollow-Williams-v1 --hyperparams agents/hyperparams/diagnosis/VARIANT.yml \\

@@ -215,7 +215,7 @@ def score(sessions: list[Session], models: dict[str, SimModel], cal: KinematicCa
 
 
 def residual_analysis(sessions: list[Session], pred: dict, nominal: SimModel, cal: KinematicCalibration) -> dict:
-    """What the best held-out prediction leaves, per held-out session (the issue's "where, when, which wheel").
+    """What the best held-out prediction leaves, per held-out session ("where, when, which wheel").
 
     * ``oracle``: a kinematic calibration fitted on the session itself (in-sample): its D, L and position
       RMS [m]. Where it differs from the training calibration, the effective geometry changed between
@@ -466,7 +466,7 @@ def table(robot: Robot, stem: str, command: str, quick: bool, nominal: SimModel,
                      f"{mm(d['kinematic_sim'])} | {mm(d['extended'])} | {ratio:.2f} |")
     met = all(r <= 1.0 for r in ratios)
     lines += ["", f"Goal (extended ≤ kinematic on every held-out session): **{'met' if met else 'not met'}** "
-                  f"(ratios {', '.join(f'{r:.2f}' for r in ratios)}; moonshot 0.8).", ""]
+                  f"(ratios {', '.join(f'{r:.2f}' for r in ratios)}; stretch goal 0.8).", ""]
     lines += ["Per run (position RMS [mm]: nominal / kinematic / kinematic sim / extended):", ""]
     for s in sessions:
         cells = []

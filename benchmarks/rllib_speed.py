@@ -13,7 +13,7 @@ committed table, 2 min).
 Rows: SB3 (``--vec-env native``), and RLlib with 0 env runners (sampling in the driver), 1 and 2 env
 runner actors (64, 64 and 32 robots each: 64 in all; the fixed-budget row at 1 and 2 local workers).
 Rate = env steps / training wall time (SB3 ``learn()``; RLlib the ``train()`` loop; both without start-up);
-the start-up (Ray, actors, algorithm build) is a separate column. Target (issue 17): RLlib ≥ 0.5× SB3.
+the start-up (Ray, actors, algorithm build) is a separate column. Target: RLlib ≥ 0.5× SB3.
 The Ray cluster is local (127.0.0.1, 2 CPUs), started once. The machine may be shared: the table records the
 load average; compare ratios measured in one run.
 """

@@ -1,4 +1,4 @@
-"""Scaling of the recovery benchmark's case map from 1 to N local workers (issue 17 goal: efficiency >= 0.8 at 2).
+"""Scaling of the recovery benchmark's case map from 1 to N local workers (goal: efficiency >= 0.8 at 2).
 
 A fixed, balanced workload: ``--cases`` recovery cases of one effect (motor_lag, large, 1 mm noise),
 differing only in the data seed, so every case costs about the same; more cases than workers. Each

@@ -19,7 +19,7 @@ The same PPO configuration (SB3 defaults, MlpPolicy, ``n_steps=256``, ``batch_si
 
 Each runs for ``--seconds`` of wall time, and at least one whole PPO iteration (a rollout of 64 × 256
 steps and its update); the rate counts whole iterations, from the start of learning to the end of the
-last complete one. Targets (issue 16): the privileged native stacks ≥ 0.8× the Pendulum reference; the
+last complete one. Targets: the privileged native stacks ≥ 0.8× the Pendulum reference; the
 batched EKF stacks ≥ 10 000 steps/s and ≥ 25× the per-robot stack. The machine is shared (the table
 records the load average): compare the ratios, measured in one run, rather than absolute figures
 across runs.

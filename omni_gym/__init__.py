@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 # libgomp reads OMP_WAIT_POLICY once, when it is loaded, and the first parallel call may come from
 # any module (the discrepancy workflow's batched replay, the vector env), so the kernel's own warm-up
 # (physics.kernel._passive_openmp) is not enough: setting it only there made `make test` run 35
-# CPU-minutes instead of 19. Hence this one process-wide default at import (issue 14 item 7: kept,
+# CPU-minutes instead of 19. Hence this one process-wide default at import (kept
 # and documented); a value the user set is never changed.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 

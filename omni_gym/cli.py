@@ -20,6 +20,7 @@ from omni_gym.interrupts import EXIT_INTERRUPTED, main_handler
 from omni_gym.interrupts import MESSAGE as INTERRUPTED
 from omni_gym.parallel import add_ray_option, backend_from_options, usable_cores
 from omni_gym.physics.friction import FRICTION_MODELS, SURFACES
+from omni_gym.physics.robot import PRESETS
 
 EXIT_BAD_INPUT = 2
 
@@ -37,7 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
     model = sub.add_parser("model", help="inspect robot models")
     msub = model.add_subparsers(dest="model_command", required=True)
     show = msub.add_parser("show", help="print a model (preset name or JSON file)")
-    show.add_argument("name", help="williams2002, phunopas2018, regularN or a model JSON file")
+    show.add_argument("name", help=f"{', '.join(PRESETS)}, regularN or a model JSON file")
     _add_model_options(show)
     show.add_argument("--json", action="store_true", help="print JSON (the machine-readable contract)")
 

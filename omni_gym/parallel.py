@@ -1,4 +1,4 @@
-"""Where independent tasks run: this process, local worker processes, or Ray (issue 17).
+"""Where independent tasks run: this process, local worker processes, or Ray.
 
 One ordered map of a picklable function over task arguments, with a backend chosen by :class:`Backend`:
 

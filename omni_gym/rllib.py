@@ -27,7 +27,7 @@ import importlib.util
 from dataclasses import dataclass
 from typing import Any
 
-from omni_gym.envs import CUSTOM_ID, ENV_IDS
+from omni_gym.envs import all_ids
 
 RLLIB_EXTRA = "pip install -c constraints.txt 'omni-gym[rllib]'"
 
@@ -71,7 +71,7 @@ def register_envs() -> list[str]:
     require_ray("omni_gym.rllib.register_envs")
     from ray.tune.registry import register_env
 
-    ids = [*ENV_IDS, CUSTOM_ID]
+    ids = list(all_ids())
     for env_id in ids:
         register_env(env_id, EnvCreator(env_id))
     return ids

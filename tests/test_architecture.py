@@ -1,4 +1,4 @@
-"""The package's imports layer without circles (issue 14 item 3).
+"""The package's imports layer without circles.
 
 Every module of ``omni_gym/`` and ``agents/`` is parsed with ``ast``; every import counts, at module
 level and inside functions (a function-level import runs too, it only runs later), relative imports
@@ -57,7 +57,7 @@ ALLOWED_UP = {
     # Importing omni_gym registers the environment ids with Gymnasium (gym.make("OmniGoToPose-v0")
     # works after `import omni_gym`); the package module re-exports, it is not a core module.
     ("omni_gym", "omni_gym.envs"),
-    # Data made by an independent implementation (issue 15 item 6): the validation integrator generates
+    # Data made by an independent implementation: the validation integrator generates
     # test datasets for the workflow. Only this generator may use it; the workflow itself never does,
     # so the integrator stays independent of what it checks.
     ("omni_gym.discrepancy.synthetic.reference_data", "omni_gym.analysis"),

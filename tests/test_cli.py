@@ -112,7 +112,7 @@ def test_malformed_json_and_unknown_preset(tmp_path):
     assert res.returncode == 2 and "unknown robot 'hexapod'" in res.stderr
 
 
-# --- input files: BOM, CRLF, bounds, messages that name where (issues 12.7, 13.9, 13.12, 13.14) ----
+# --- input files: BOM, CRLF, bounds, messages that name where ---------------------------------------
 
 
 def _simulate(tmp_path, commands_text, *extra, model="williams2002", name="c.csv"):

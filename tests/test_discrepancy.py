@@ -178,6 +178,9 @@ def test_synth_rejects_unknown_effect_and_parameter(tmp_path):
 # --- gap: outputs, determinism, replay ------------------------------------------------------------
 
 
+# In make test-slow (two gap runs): make test checks gap's determinism bit for bit in test_fit_tasks.py (serial
+# against 2 workers) and test_ray_backend.py, and the JSON, --json and report files in test_gap_report.py.
+@pytest.mark.slow
 def test_gap_writes_report_and_json_and_is_deterministic(small_dataset, tmp_path, capsys):
     # One search step (motor_lag is named there): the second step's search adds a minute per run and
     # nothing to what this test checks (tests/test_discrepancy_multi.py covers several steps).
@@ -273,7 +276,7 @@ def null_results():
 @pytest.mark.slow
 def test_null_case_gives_none(null_results):
     named = [r["named"] for r in null_results]
-    # Issue 5: `none` in at least 95 % of seeds.
+    # The null data: `none` in at least 95 % of seeds.
     assert sum(n == "none" for n in named) >= 0.95 * len(named), named
 
 

@@ -1,4 +1,4 @@
-"""Issue 15 item 6: the workflow on data made by an independent implementation of the same equations.
+"""The workflow on data made by an independent implementation of the same equations.
 
 The data come from the validation integrator (omni_gym.analysis.reference: scipy's stiff solver with
 exact switching), not from the world the workflow fits with; tracker noise is white per channel (1 mm

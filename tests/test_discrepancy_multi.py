@@ -1,4 +1,4 @@
-"""Several effects at once (issue 15 item 3): the workflow names one effect, adds it to the model and
+"""Several effects at once: the workflow names one effect, adds it to the model and
 searches the remaining gap again, until the answer is `none` or `unexplained`."""
 
 from __future__ import annotations
@@ -76,8 +76,8 @@ def _check_staircase(result: dict) -> None:
     assert result["gap"]["after"] == pytest.approx(named[-1]["gap_after"])
     # Together the two effects remove more of the gap than either alone: the first step's best candidate
     # (motor_lag on this data) removes 67 %, short of the 70 % rule, so it is kept as a partial explanation;
-    # with wheel_radius the chain removes 87 % (measured; the rest is the noise estimate's own bias, issue 15
-    # item 6). 75 % sits between the two.
+    # with wheel_radius the chain removes 87 % (measured; the rest is the noise estimate's own bias,
+    # see test_discrepancy_independent.py). 75 % sits between the two.
     assert result["gap"]["after"] < 0.25 * result["gap"]["before"]
     assert result["effect"] != "unexplained"
 

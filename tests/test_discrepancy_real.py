@@ -1,4 +1,4 @@
-"""``gap`` end to end on real logs (issue 15 item 7): a small subset of the bundled OptiOdom runs.
+"""``gap`` end to end on real logs: a small subset of the bundled OptiOdom runs.
 
 Four runs of the training sessions (two clockwise circles, two squares; 220 s of
 robot time), fitted within a 20 s budget (one 5 s segment of each run, ``data/segments.py``), one search
@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from omni_gym.discrepancy.data.dataset import load_dataset, write_dataset
 from omni_gym.discrepancy.data.importers.optiodom import import_optiodom
 from omni_gym.discrepancy.workflow import gap
@@ -19,6 +21,7 @@ DATA = Path(__file__).resolve().parents[1] / "data" / "optiodom-omni3"
 RUNS = ("221220201701_run-01", "221220201701_run-02", "221220201953_run-01", "221220201953_run-02")
 
 
+@pytest.mark.slow  # the same end-to-end gap on real OptiOdom logs as test_discrepancy_real_omni4.py (make test)
 def test_gap_on_four_real_runs_adds_an_effect_and_shrinks_the_heldout_gap(tmp_path):
     """One test, not several sharing a module fixture: pytest-xdist would run the minute-long gap once per
     worker that draws one of them."""

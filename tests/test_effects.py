@@ -1,4 +1,4 @@
-"""Every registered effect round-trips: model JSON, the kernel, synth and a fit (issue 14 item 2).
+"""Every registered effect round-trips: model JSON, the kernel, synth and a fit.
 
 The effect library (:mod:`omni_gym.physics.effects`) is the one place an effect is defined; these
 tests run each registered effect through every consumer, so a new effect that forgets a part fails

@@ -181,7 +181,7 @@ def test_compass_and_camera_innovations_wrap_at_pi():
     ekf.reset(np.array([0.0, 0.0, -math.pi + eps]), pose_std=(0.01, 0.01, 0.1))  # gain 0.8: the update crosses −π
     P_th = ekf.P[TH, TH]
     nis, accepted = ekf.update_compass(math.pi - eps)
-    R = ekf.config.compass_std**2
+    R = ekf.config.compass_noise_std**2
     assert accepted
     assert nis == pytest.approx((2 * eps) ** 2 / (P_th + R), rel=1e-9)
     expected = -math.pi + eps - 2 * eps * P_th / (P_th + R)  # below −π: must come back as just under +π
@@ -224,7 +224,7 @@ def test_reduces_to_the_linear_kalman_filter():
     from the textbook P = (I − KH)P.
     """
     q = 0.3
-    cfg = EKFConfig(accel_psd=q, yaw_accel_psd=0.0, gyro_bias_walk=0.0, gate_probability=1.0, use_detector=False)
+    cfg = EKFConfig(accel_psd=q, yaw_accel_psd=0.0, gyro_bias_walk_std=0.0, gate_probability=1.0, use_detector=False)
     ekf = OmniEKF(ROBOT, cfg)
     ekf.reset(np.array([0.5, -0.5, 0.0]))
     P0 = np.diag([1e-4, 2e-4, 0.0, 0.01, 0.02, 0.0, 0.0])
@@ -287,18 +287,18 @@ def simulate_own_model(cfg: EKFConfig, runs: int, steps: int, rng: np.random.Gen
     for k in range(1, steps + 1):
         prev = x.copy()
         x[:, VX:OM + 1] += jump * rng.standard_normal((runs, 3))
-        x[:, BG] += cfg.gyro_bias_walk * math.sqrt(DT) * rng.standard_normal(runs)
+        x[:, BG] += cfg.gyro_bias_walk_std * math.sqrt(DT) * rng.standard_normal(runs)
         for j in range(runs):
             x[j] = motion_model(x[j], DT)[0]
         truth[k] = x
         d = prev[:, TH] - x[:, TH]
         c, s = np.cos(d), np.sin(d)
         turned = np.column_stack([c * prev[:, VX] - s * prev[:, VY], s * prev[:, VX] + c * prev[:, VY]])
-        acc = (x[:, VX:VY + 1] - turned) / DT + cfg.accel_std * rng.standard_normal((runs, 2))
+        acc = (x[:, VX:VY + 1] - turned) / DT + cfg.accel_noise_std * rng.standard_normal((runs, 2))
         readings.append(dict(
             enc=x[:, VX:OM + 1] @ W.T + cfg.wheel_rate_std * rng.standard_normal((runs, n)),
-            gyro=x[:, OM] + x[:, BG] + cfg.gyro_std * rng.standard_normal(runs),
-            compass=x[:, TH] + cfg.compass_std * rng.standard_normal(runs),
+            gyro=x[:, OM] + x[:, BG] + cfg.gyro_noise_std * rng.standard_normal(runs),
+            compass=x[:, TH] + cfg.compass_noise_std * rng.standard_normal(runs),
             accel=acc,
             camera=x[:, 0:3] + np.array([cfg.camera_position_std, cfg.camera_position_std, cfg.camera_heading_std])
             * rng.standard_normal((runs, 3)),
@@ -391,7 +391,7 @@ def constant_twist_run(fault, twist=(0.3, 0.1, 0.5), steps=300, seed=5):
     for k in range(1, steps + 1):
         x = motion_model(x, DT)[0]
         enc = W @ x[VX:OM + 1] + cfg.wheel_rate_std * rng.standard_normal(4) + fault(k)
-        gyro = x[OM] + x[BG] + cfg.gyro_std * rng.standard_normal()
+        gyro = x[OM] + x[BG] + cfg.gyro_noise_std * rng.standard_normal()
         c, s = math.cos(x[OM] * DT), math.sin(x[OM] * DT)  # body velocity held, world velocity turning
         accel = np.array([(1 - c) * x[VX] - s * x[VY], s * x[VX] + (1 - c) * x[VY]]) / DT
         accel += 0.05 * rng.standard_normal(2)
@@ -476,10 +476,10 @@ def test_config_for_env_matches_sensor_config():
     assert EKFConfig.for_env(env) == EKFConfig()
     env = gym.make(PHUNOPAS, obs_mode="sensors", sensor_noise=0.5, control_hz=50.0)
     c = EKFConfig.for_env(env)
-    assert c.gyro_std == pytest.approx(0.0025) and c.camera_position_std == pytest.approx(0.0025)
+    assert c.gyro_noise_std == pytest.approx(0.0025) and c.camera_position_std == pytest.approx(0.0025)
     assert c.wheel_rate_std == pytest.approx(2 * math.pi / 2048 / (0.02 * math.sqrt(6)))
     c0 = EKFConfig.for_env(gym.make(PHUNOPAS, obs_mode="sensors", sensor_noise=0.0))
-    assert c0.gyro_std > 0 and c0.compass_std > 0 and c0.accel_std > 0 and c0.camera_heading_std > 0
+    assert c0.gyro_noise_std > 0 and c0.compass_noise_std > 0 and c0.accel_noise_std > 0 and c0.camera_heading_std > 0
 
 
 def make_env(env_id=PHUNOPAS, **kw):
@@ -572,3 +572,23 @@ def test_env_grip_feedforward_pose_within_cm(noise, use, pos_tol, head_tol, env_
             err = info["pose"] - ekf.pose
             assert np.hypot(err[0], err[1]) < pos_tol, (seed, k, err)
             assert abs(wrap(err[2])) < head_tol, (seed, k, err)
+
+
+def test_noise_levels_carry_the_sensor_names_and_the_old_names_still_work():
+    """EKFConfig's noise levels are named as omni_gym.sensors.SensorConfig's; the old keyword and attribute
+    names map onto them with a DeprecationWarning, and giving both is refused."""
+    from agents.ekf import RENAMED_NOISE
+    from omni_gym.sensors import SensorConfig
+
+    new_names = set(RENAMED_NOISE.values())
+    assert new_names <= set(SensorConfig.__dataclass_fields__) and new_names <= set(EKFConfig.__dataclass_fields__)
+    for old, new in RENAMED_NOISE.items():
+        with pytest.warns(DeprecationWarning, match=f"{old} is now called {new}"):
+            cfg = EKFConfig(**{old: 0.123})
+        assert getattr(cfg, new) == 0.123
+        with pytest.warns(DeprecationWarning, match=new):
+            assert getattr(cfg, old) == 0.123
+        with pytest.warns(DeprecationWarning):
+            assert getattr(EKFConfig().with_changes(**{old: 0.5}), new) == 0.5
+        with pytest.raises(TypeError, match=f"give {new} only"):
+            EKFConfig(**{old: 0.1, new: 0.2})

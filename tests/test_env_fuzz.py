@@ -1,4 +1,4 @@
-"""Property-based fuzzing of environment keywords and actions (issue 13).
+"""Property-based fuzzing of environment keywords and actions.
 
 Property: for any keyword values (valid or not: numpy scalars, huge, tiny, NaN, negative, wrong types),
 ``gym.make`` either raises a one-line ValueError naming a keyword it was given, or the environment

@@ -320,7 +320,7 @@ BAD_KWARGS = [
     ({"randomize_sensor_noise": (1.0, 11.0)}, "randomize_sensor_noise=(1.0, 11.0)", ["high <= 10"]),
     ({"randomize_sensor_noise": 2.0}, "randomize_sensor_noise=2.0", ["(low, high)"]),
     ({"sufrace": "paper"}, "'sufrace'", ["surface", "obs_mode"]),
-    # issue 13, items 8-11: values that hung, overflowed, gave NaN or raised other exceptions.
+    # Values that once hung, overflowed, gave NaN or raised other exceptions.
     ({"control_hz": 1e-300}, "control_hz=1e-300", ["[1, 10000] Hz"]),
     ({"control_hz": 0.001}, "control_hz=0.001", ["[1, 10000] Hz"]),
     ({"max_speed": 1e308}, "max_speed=1e+308", ["[0.001, 10] m/s"]),
@@ -337,12 +337,12 @@ BAD_KWARGS = [
     ({"obstacles": (1, 2, 3)}, "obstacles[0]=1", ["(x, y, radius)"]),
     ({"obstacles": "abc"}, "obstacles='abc'", ["(x, y, radius)"]),
     ({"obstacles": [("a", 1.0, 0.1)]}, "obstacles[0]=('a', 1.0, 0.1)", ["numbers"]),
-    # Tiny rates are valid (issue 13 item 7: tests/test_liftoff_fuzz.py); above 1000 /s they are not.
+    # Tiny rates are valid (tests/test_liftoff_fuzz.py); above 1000 /s they are not.
     ({"lift_rate": 2000.0}, "lift_rate=2000.0", ["in [0, 1000] 1/s"]),
     ({"recover_rate": 1e308}, "recover_rate=1e+308", ["in [0, 1000] 1/s"]),
     ({"sensor_noise": 1e308}, "sensor_noise=1e+308", ["[0, 100]"]),
     ({"success_heading": 4.0}, "success_heading=4.0", ["(0, 3.14159] rad"]),
-    # issue 13, item 14: no silent conversion of strings, complex numbers or booleans into numbers.
+    # No silent conversion of strings, complex numbers or booleans into numbers.
     ({"max_speed": "0.5"}, "max_speed='0.5'", ["a number"]),
     ({"control_hz": "1_000"}, "control_hz='1_000'", ["a number"]),
     ({"ref_speed": 0.3 + 0j}, "ref_speed=(0.3+0j)", ["a number"]),
@@ -352,7 +352,7 @@ BAD_KWARGS = [
     ({"randomize_mass": (1, 10**400)}, "randomize_mass", ["low <= high"]),
     ({"randomize_mass": "12"}, "randomize_mass='12'", ["(low, high)"]),
     ({"walls": 1}, "walls=1", ["True", "False"]),
-    # issue 12, item 7: an obstacle or a wall at the start pose (the arena centre) would end every episode.
+    # An obstacle or a wall at the start pose (the arena centre) would end every episode.
     ({"obstacles": [(0.15, 0.0, 0.1)]}, "obstacles[0]", ["start pose", "body radius 0.1 m"]),
     ({"walls": True, "arena_half_size": 0.1}, "arena_half_size=0.1", ["walls", "start pose"]),
 ]

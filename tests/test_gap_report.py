@@ -26,7 +26,7 @@ from omni_gym.discrepancy.synthetic.recovery import nominal_model
 from omni_gym.discrepancy.synthetic.synth import pose_lever, write_synthetic
 from omni_gym.physics.effects import REGISTRY
 
-JUMP = 3.0  # m, the outlier: one tracked row 3 m off
+JUMP = 3.0  # m, the outlier: one tracked row 3 m off
 
 
 def _strict_load(text: str):

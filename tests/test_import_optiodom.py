@@ -1,4 +1,4 @@
-"""``omni-gym import optiodom`` on the bundled OptiOdom runs (issue 15 items 1 and 7).
+"""``omni-gym import optiodom`` on the bundled OptiOdom runs.
 
 Units, signs and timing are checked against an independent dead reckoning written here: the raw
 OptiOdom files read with numpy, wheel speeds from the ticks, the body twist by least squares on the
@@ -148,7 +148,7 @@ def test_replay_reproduces_dead_reckoning_within_1mm_on_a_kinematic_floor(short_
     command step is followed after a catch-up time of about Δv/(μ·g) with a lag of Δv²/(2μg): small
     but not zero on jerky tick-derived speeds. On a floor of μ_drive = 10 (the model bound's limit,
     free rollers; 0.1 ms substep, docs/bounds.md asks ≤ 0.25 ms above μ ≈ 5) the four whole runs of
-    session 221220201730 agree within 0.25–0.75 mm and 0.3–0.7 mrad (measured): the issue's 1 mm holds
+    session 221220201730 agree within 0.25–0.75 mm and 0.3–0.7 mrad (measured): the 1 mm bound holds
     over full runs. A command one cycle late or early gives 9–11 mm and 13–18 mrad, a unit or sign
     error metres.
     """

@@ -1,4 +1,4 @@
-"""Property-based fuzzing of the input files: commands CSVs and dataset folders (issue 13).
+"""Property-based fuzzing of the input files: commands CSVs and dataset folders.
 
 Each example starts from a valid file and applies random mutations: a byte-order mark, CRLF line
 ends, NaN/inf/huge/underscored/hex/non-ASCII-digit cells, missing or extra cells, binary bytes,

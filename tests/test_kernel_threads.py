@@ -1,4 +1,4 @@
-"""Item 7 of issue 14: the threaded kernel's OpenMP threads wait passively; a user's OMP_WAIT_POLICY is kept.
+"""The threaded kernel's OpenMP threads wait passively; a user's OMP_WAIT_POLICY is kept.
 
 Importing omni_gym sets OMP_WAIT_POLICY=PASSIVE unless the user set it (why: omni_gym/__init__.py).
 """

@@ -1,4 +1,4 @@
-"""Kinematic odometry calibration (issue 15 item 5): the anchor the workflow's extended model must beat.
+"""Kinematic odometry calibration: the anchor the workflow's extended model must beat.
 
 Synthetic runs are made here with their own integrator (midpoint quadrature of the world-frame
 velocity over 20 substeps per cycle), not with the module's arc formula, and with quantised encoders

@@ -1,4 +1,4 @@
-"""The wheel contact process terminates and stays finite for every allowed rate (issue 13 item 7).
+"""The wheel contact process terminates and stays finite for every allowed rate.
 
 Tiny rates used to hang or overflow the world's switch scheduling (``lift_rate=1e-30`` hung
 ``reset``, ``1e-16`` raised OverflowError, ``recover_rate=1e-30`` hung mid-episode). The code now
@@ -33,7 +33,7 @@ HANG_SECONDS = 300  # a hang guard, not a timing test: each guarded case needs w
 FUZZ = settings(derandomize=True, max_examples=40, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow])
 
-# The values from the issue: lift_rate 1e-30 hung reset, 1e-16 overflowed, 3.88e-78 came from fuzzing;
+# Values that once failed: lift_rate 1e-30 hung reset, 1e-16 overflowed, 3.88e-78 came from fuzzing;
 # recover_rate 1e-30 hung mid-episode.
 REPORTED = [pytest.param({"lift_rate": 1e-30}, id="lift1e-30"),
             pytest.param({"lift_rate": 1e-16}, id="lift1e-16"),
@@ -236,7 +236,7 @@ def test_synth_refuses_a_rate_above_the_bound(tmp_path, capsys):
 
 def test_scheduled_lift_event_beyond_the_horizon_never_fires():
     """The discrepancy workflow's replayed events go through the same scheduling: an event at 1e300 s
-    (a run ending at t = 1e308, issue 13 item 9) must neither hang nor fire."""
+    (a run ending at t = 1e308) must neither hang nor fire."""
     from omni_gym.physics.liftoff import ScheduledContactProcess
 
     world = World(load_model("phunopas2018"))

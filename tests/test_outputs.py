@@ -1,4 +1,4 @@
-"""Outputs are complete or absent (issue 13 items 1-6, 15): every case on a process the test starts.
+"""Outputs are complete or absent: every case on a process the test starts.
 
 A killed writer (SIGKILL, no chance to clean up) must leave the old output byte for byte, a second
 writer of the same target must be refused, an output that is an input must be refused before

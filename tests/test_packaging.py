@@ -39,9 +39,9 @@ def wheel(tmp_path_factory) -> Path:
 
 
 def test_wheel_ships_the_hyperparameter_files(wheel):
-    """Issue 12 item 3: a non-editable install left out agents/hyperparams/*.yml, so `omni-gym train` failed."""
+    """A non-editable install left out agents/hyperparams/*.yml, so `omni-gym train` failed."""
     names = set(zipfile.ZipFile(wheel).namelist())
-    for folder in ("hyperparams", "rllib"):  # agents/rllib/ppo.yml: omni-gym train --backend rllib (issue 17)
+    for folder in ("hyperparams", "rllib"):  # agents/rllib/ppo.yml: omni-gym train --backend rllib
         committed = sorted(p.relative_to(ROOT).as_posix() for p in (ROOT / "agents" / folder).glob("*.yml"))
         assert committed and set(committed) <= names
     for module in ("agents/train.py", "agents/callbacks.py", "omni_gym/cli.py", "omni_gym/envs/__init__.py"):

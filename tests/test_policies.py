@@ -310,7 +310,7 @@ BAD_CLI = {
     "zero_episodes": (["--policy", "open-loop", "--env", ENV, "--episodes", "0", "--seed", "0"],
                       "--episodes must be an integer in [1, 100000], got 0"),
     "negative_seed": (["--policy", "open-loop", "--env", ENV, "--episodes", "1", "--seed", "-1"],
-                      "--seed must be an integer in [0, 9007199254740992], got -1"),  # issue 13 item 12
+                      "--seed must be an integer in [0, 9007199254740992], got -1"),
     "bad_env_kwarg": (["--policy", "open-loop", "--env", ENV, "--episodes", "1", "--seed", "0", "--env-kwargs",
                        '{"surface": "ice"}'], "invalid surface='ice'"),
     "state_obs": (["--policy", "ekf-pid", "--env", ENV, "--episodes", "1", "--seed", "0", "--env-kwargs",

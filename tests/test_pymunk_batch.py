@@ -1,4 +1,4 @@
-"""The pymunk version gate of omni_gym.physics.pymunk_batch (issue 14 item 1)."""
+"""The pymunk version gate of omni_gym.physics.pymunk_batch."""
 
 from __future__ import annotations
 

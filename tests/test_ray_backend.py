@@ -1,4 +1,4 @@
-"""Issue 17 part 2: the execution backends (omni_gym.parallel) and ``omni-gym gap --ray``.
+"""The execution backends (omni_gym.parallel) and ``omni-gym gap --ray``.
 
 On the module's local Ray cluster (``ray_cluster``, tests/conftest.py: 127.0.0.1, 2 CPUs): ``gap``
 through Ray gives the local result byte for byte, also when a Ray worker is killed while it runs a fit

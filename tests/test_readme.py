@@ -22,7 +22,7 @@ from omni_gym.envs import RENAMED
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
 TOP_DIRS = ("omni_gym/", "agents/", "benchmarks/", "docs/", "data/", "tests/", ".ci/")
-PROCESS_WORDS = ("issue ", "issue\n", "moonshot", "session-start", "this session", "helper")
+PROCESS_WORDS = ("issue ", "issue\n", "session-start", "this session", "helper")
 
 
 def code_lines() -> list[str]:
@@ -87,6 +87,18 @@ def test_every_id_the_readme_names_is_registered_and_current():
     for env_id in ids:
         assert env_id in gym.registry, f"README names an unregistered id {env_id}"
         assert env_id not in RENAMED, f"README names the old id {env_id} (now {RENAMED[env_id]})"
+
+
+def test_the_readme_id_table_is_the_registry():
+    """The registry (omni_gym.envs.all_ids) is the one list of ids: the README's table has each once, with its
+    registered step limit, and nothing else."""
+    from omni_gym.envs import all_ids
+
+    table = README.split("## Environments", 1)[1].split("\n\n", 2)[1]
+    rows = [[c.strip() for c in line.strip("|").split("|")] for line in table.splitlines()[2:]]
+    listed = {row[0].strip("`"): int(row[-1]) for row in rows}
+    assert len(listed) == len(rows), "an id is listed twice"
+    assert listed == {i: gym.spec(i).max_episode_steps for i in all_ids()}
 
 
 def test_every_repository_file_the_readme_cites_exists():

@@ -186,3 +186,23 @@ def test_mecanum_wheels_show_their_roller_axis():
         assert tuple(on) == render.HEADING, (i, on)
         assert tuple(off) == render.ROLLING, (i, off)
     env.close()
+
+
+def test_a_headless_window_opens_on_the_offscreen_driver_without_probing_wayland():
+    """libwayland prints "error: XDG_RUNTIME_DIR is invalid ..." when SDL probes it on a machine with no
+    display; the renderer names SDL's offscreen driver (where SDL ends up anyway) for that one call."""
+    from types import SimpleNamespace
+
+    from omni_gym.envs.render import init_display
+
+    seen = []
+    environ: dict[str, str] = {}
+    pg = SimpleNamespace(display=SimpleNamespace(init=lambda: seen.append(environ.get("SDL_VIDEODRIVER"))))
+    init_display(pg, environ)
+    assert seen == ["offscreen"] and environ == {}  # the user's environment as it was
+    for given in ({"DISPLAY": ":0"}, {"WAYLAND_DISPLAY": "wayland-0"}, {"SDL_VIDEODRIVER": "dummy"}):
+        environ.clear()
+        environ.update(given)
+        init_display(pg, environ)
+        assert environ == given
+    assert seen == ["offscreen", None, None, "dummy"]

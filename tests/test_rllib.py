@@ -1,4 +1,4 @@
-"""RLlib integration (issue 17): Ray's env registry, PPO on each path-following id on a local Ray cluster
+"""RLlib integration: Ray's env registry, PPO on each path-following id on a local Ray cluster
 (``ray_cluster`` in conftest.py: 127.0.0.1, 2 CPUs, stopped after the module), the output directory, and
 evaluation of the checkpoint through ``omni-gym evaluate``.
 

@@ -363,7 +363,7 @@ def test_train_rejects_bad_input_in_one_line(tmp_path, capsys):
     ("--n-envs", "0"),
 ])
 def test_train_options_out_of_bounds_are_refused_before_anything_is_touched(option, value, tmp_path, capsys):
-    """Issue 13 items 5 and 14: e.g. --max-minutes -1 used to be accepted and overwrite the model directory."""
+    """E.g. --max-minutes -1 used to be accepted and overwrite the model directory."""
     out = tmp_path / "model"
     out.mkdir()
     (out / "meta.json").write_text("{}")  # an existing model directory: it must survive, byte for byte

@@ -133,10 +133,11 @@ class BatchEKF:
         self.detector = BatchSlipDetector(self.num, self.W, robot.wheel_radius, c.wheel_rate_std, c.detector)
         self._fp = np.zeros(k.N_FP)
         fp = self._fp
-        fp[k.F_ACCEL_PSD], fp[k.F_YAW_PSD], fp[k.F_BIAS_PSD] = c.accel_psd, c.yaw_accel_psd, c.gyro_bias_walk**2
-        fp[k.F_R_WHEEL], fp[k.F_R_GYRO], fp[k.F_R_COMPASS] = c.wheel_rate_std**2, c.gyro_std**2, c.compass_std**2
+        fp[k.F_ACCEL_PSD], fp[k.F_YAW_PSD], fp[k.F_BIAS_PSD] = c.accel_psd, c.yaw_accel_psd, c.gyro_bias_walk_std**2
+        fp[k.F_R_WHEEL], fp[k.F_R_GYRO] = c.wheel_rate_std**2, c.gyro_noise_std**2
+        fp[k.F_R_COMPASS] = c.compass_noise_std**2
         fp[k.F_R_CAM_POS], fp[k.F_R_CAM_HEAD] = c.camera_position_std**2, c.camera_heading_std**2
-        fp[k.F_R_ACCEL] = c.accel_std**2
+        fp[k.F_R_ACCEL] = c.accel_noise_std**2
         fp[k.F_GATE_WHEELS], fp[k.F_GATE_GYRO], fp[k.F_GATE_COMPASS] = c.gate(1), c.gate(1), c.gate(1)
         fp[k.F_GATE_CAMERA], fp[k.F_GATE_ACCEL] = c.gate(3), c.gate(2)
         fp[k.F_ACCEL_LIMIT] = c.accel_limit

@@ -26,10 +26,9 @@ import math
 import numba
 import numpy as np
 
+from agents.motion import BG, NX, OM, TH, VX, VY, X, Y
+from agents.motion import motion_into as _motion  # the single filter's motion model, the same compiled kernel
 from omni_gym.angles import wrap_angle_nb as _wrap
-
-NX = 7
-X, Y, TH, VX, VY, OM, BG = range(7)
 
 # Indices into the float parameter vector ``fp`` of ekf_process.
 F_DT = 0
@@ -239,39 +238,6 @@ def _mm_sparse_bt(A, B, out):
             if b != 0.0:
                 for i in range(A.shape[0]):
                     out[i, j] += A[i, k] * b
-
-
-@numba.njit(cache=True)
-def _sinc(phi):
-    if abs(phi) < 1e-4:
-        return 1.0 - phi * phi / 6.0, -phi / 3.0
-    s, c = math.sin(phi), math.cos(phi)
-    return s / phi, (phi * c - s) / (phi * phi)
-
-
-@numba.njit(cache=True)
-def _motion(x, dt, out, F):
-    """out = f(x), F its Jacobian, as agents.ekf.motion_model."""
-    th, vx, vy, om = x[TH], x[VX], x[VY], x[OM]
-    phi = 0.5 * om * dt
-    s, ds = _sinc(phi)
-    c, sn = math.cos(th + phi), math.sin(th + phi)
-    rvx, rvy = c * vx - sn * vy, sn * vx + c * vy
-    dvx, dvy = -sn * vx - c * vy, c * vx - sn * vy
-    for i in range(NX):
-        out[i] = x[i]
-        for j in range(NX):
-            F[i, j] = 1.0 if i == j else 0.0
-    out[X] += rvx * dt * s
-    out[Y] += rvy * dt * s
-    out[TH] = _wrap(th + om * dt)
-    F[X, TH], F[Y, TH] = dvx * dt * s, dvy * dt * s
-    F[X, VX], F[X, VY] = c * dt * s, -sn * dt * s
-    F[Y, VX], F[Y, VY] = sn * dt * s, c * dt * s
-    half = 0.5 * dt * dt
-    F[X, OM] = (dvx * s + rvx * ds) * half
-    F[Y, OM] = (dvy * s + rvy * ds) * half
-    F[TH, OM] = dt
 
 
 @numba.njit(cache=True)

@@ -51,6 +51,13 @@ CUSTOM = ({"episode_seconds": 20.0}, 2000)
 CUSTOM_ENTRY = "omni_gym.envs.omni_env:OmniCustomEnv"
 CUSTOM_VECTOR_ENTRY = "omni_gym.envs.vector:OmniCustomVectorEnv"
 
+
+
+def all_ids() -> tuple[str, ...]:
+    """Every id a user can make: the preset ids (:data:`ENV_IDS`), then :data:`CUSTOM_ID` (renamed ids left out)."""
+    return (*ENV_IDS, CUSTOM_ID)
+
+
 # Old id → its new name: making one raises an error that names the new id.
 RENAMED = {"OmniPathFollow-Williams-v0": "OmniPathFollow-WilliamsPaper-v0"}
 RENAMED_ENTRY = "omni_gym.envs:williams_v0_renamed"  # a string, as every omni-gym entry point ("omni_gym.…")

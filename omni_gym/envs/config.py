@@ -34,6 +34,8 @@ import numpy as np
 
 from omni_gym.bounds import RATE_MAX, Bound, wheel_count
 from omni_gym.checks import is_number, unknown_key
+from omni_gym.envs import CUSTOM_ID  # robot, floor and lift-off all from model= (omni_gym.envs.omni_env)
+from omni_gym.envs.reward import Reward, check_reward
 from omni_gym.io import read_json
 from omni_gym.physics import effects as effect_library
 from omni_gym.physics.friction import FRICTION_MODELS, SURFACES, Surface
@@ -49,7 +51,6 @@ OBS_MODES = ("state", "sensors")
 ACTION_MODES = ("wheels", "twist")
 KINEMATICS = ("nominal", "model")  # the wheel matrix of twist actions and controllers (omni_gym.physics.kinematics)
 RENDER_MODES = (None, "rgb_array", "human")
-CUSTOM_ID = "OmniPathFollow-Custom-v0"  # robot, floor and lift-off all from model= (omni_gym.envs.omni_env)
 MODEL_DEFINES = ("robot", "surface", "friction")  # the keywords a model replaces
 RESET_OPTIONS: tuple[str, ...] = ()  # reset(options=...) keys the environments understand (none yet)
 
@@ -61,7 +62,7 @@ MIN_OBSTACLE_RADIUS = 0.001  # m
 WALL_RADIUS = 0.01  # m, thickness of the wall segments (omni_gym.physics.world)
 
 # How a keyword is checked (Option.kind); the last four have checks of their own.
-KINDS = ("choice", "number", "range", "flag", "robot", "model", "obstacles", "floors")
+KINDS = ("choice", "number", "range", "flag", "robot", "model", "obstacles", "floors", "reward")
 
 
 @dataclass(frozen=True)
@@ -89,7 +90,7 @@ class Option:
     ``kind``: ``choice`` (one of ``choices``), ``number`` (finite, in [``lo``, ``hi``] ``unit``, open
     at ``lo`` if ``lo_open``), ``range`` (None or a (low, high) pair inside [``lo``, ``hi``]), ``flag``
     (True/False), or one of the keywords with their own check: ``robot``, ``model``, ``obstacles``,
-    ``floors``.
+    ``floors``, ``reward``.
     ``doc``: one line of meaning; ``also``: a condition across keywords (:func:`_check_combination`);
     ``reason``: why the bound is where it is (the keywords with one are the rows of ``docs/bounds.md``).
     """
@@ -311,6 +312,12 @@ class EnvConfig:
         None, "choice", choices=RENDER_MODES,
         doc="`rgb_array` (H×W×3 uint8) or `human` (pygame window); single environment only",
     )
+    reward: Reward | None = option(
+        None, "reward",
+        doc="the reward: None is the built-in tracking reward (`omni_gym.envs.reward.FORMULA`, computed in the "
+            "compiled observation kernel); your own is a callable on `omni_gym.envs.reward.RewardInputs` "
+            "returning one number per robot",
+    )
 
     @property
     def control_dt(self) -> float:
@@ -351,7 +358,7 @@ RANDOM_BOUNDS: dict[str, tuple[float, float]] = {name: (o.lo, o.hi) for name, o 
                                                  if o.kind == "range"}
 # The order of the checks, by kind (each kind in field order): the first bad keyword is the one named,
 # and obstacles are checked last, inside the arena already checked.
-CHECK_ORDER = (("robot", "choice", "model"), ("flag",), ("number",), ("range", "floors"), ("obstacles",))
+CHECK_ORDER = (("robot", "choice", "model", "reward"), ("flag",), ("number",), ("range", "floors"), ("obstacles",))
 assert sorted(k for kinds in CHECK_ORDER for k in kinds) == sorted(KINDS)
 
 
@@ -570,6 +577,9 @@ def make_config(**kwargs) -> EnvConfig:
         for name, opt in OPTIONS.items():
             if opt.kind in kinds:
                 values[name] = _check(opt, kwargs.get(name, getattr(d, name)), values)
+    model = values.get("model")
+    if model is not None:  # the keywords the model replaces show the model's values, not the id's ignored ones
+        values.update(robot=model.robot.name, surface=model.surface.name, friction=model.friction)
     cfg = EnvConfig(**values)
     _check_combination(cfg)
     return cfg
@@ -594,6 +604,8 @@ def _check(opt: Option, value, checked: dict):
         return _obstacles(value, checked["arena_half_size"])
     if kind == "floors":
         return _floors(name, value)
+    if kind == "reward":
+        return check_reward(value)
     raise AssertionError(f"option {name!r}: unknown kind {kind!r}")  # a declaration error, not user input
 
 

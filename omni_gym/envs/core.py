@@ -39,15 +39,13 @@ from omni_gym.envs.observations import (  # noqa: F401  (LOOKAHEAD_SECONDS, ACC_
     state_offsets,
 )
 from omni_gym.envs.references import draw_reference
+from omni_gym.envs.reward import RewardInputs, check_reward, evaluate, tracking_reward
 from omni_gym.physics.kinematics import WheelKinematics, effective_kinematics
 from omni_gym.physics.layout import SP_CX, SP_CY, WH_CMD
 from omni_gym.physics.liftoff import ContactProcess, contact_cases
 from omni_gym.physics.model import Actuation
 from omni_gym.physics.world import Arena, World
 from omni_gym.sensor_bank import SensorBank
-
-# Reward weights (docs/environments.md): r = W_POS·exp(−e/E_POS) + W_HEAD·exp(−|eθ|/E_HEAD) − W_EFFORT·mean(a²)
-W_POS, E_POS, W_HEAD, E_HEAD, W_EFFORT = 0.7, 0.1, 0.3, 0.3, 0.05
 
 
 @numba.njit(cache=True)
@@ -132,8 +130,7 @@ def _observe_robot(b, state, origins, sp, ref_pose, ref_vel, step, look, prev_ac
     for j in range(n_act):
         o[act + j] = prev_action[b, j]
         effort += prev_action[b, j] * prev_action[b, j]
-    out_reward[b] = (W_POS * math.exp(-out_err[b, 0] / E_POS) + W_HEAD * math.exp(-abs(dth) / E_HEAD)
-                     - W_EFFORT * effort / n_act)
+    out_reward[b] = tracking_reward(out_err[b, 0], dth, effort, n_act)  # the built-in; see observe()
     for j in range(o.shape[0]):
         if o[j] > OBS_CLIP:
             o[j] = OBS_CLIP
@@ -310,6 +307,7 @@ class TaskCore:
         self.scales = np.array([cfg.max_speed, cfg.max_yaw_rate])
         self.err = np.zeros((n_robots, 2))
         self.reward = np.zeros(n_robots)
+        self._custom_reward = check_reward(cfg.reward)  # None: the kernel's built-in (omni_gym.envs.reward)
         self._twist_mode = cfg.action_mode == "twist"
         self._action_scale = self.twist_scale if self._twist_mode else np.array([self.wheel_scale])
         self._clipped = np.zeros((n_robots, self.action_dim))
@@ -406,10 +404,11 @@ class TaskCore:
         is deterministic and leaves the other robots' values unchanged.
         """
         world = self.world
-        world._read_state()
-        self._observe_state(world._state_view, world.origins, world.sp, self.ref_pose, self.ref_vel, self.step_count,
+        self._observe_state(world.body_states(), world.origins, world.sp, self.ref_pose, self.ref_vel, self.step_count,
                       self.look, self.prev_action, self.scales, self._state_offsets, self._state_obs, self.err,
                       self.true, self.reward)
+        if self._custom_reward is not None:  # the kernel's built-in reward replaced by the user's
+            evaluate(self._custom_reward, self._reward_inputs(), self.reward)
         if self._sensors_mode:
             self._observe_sensors(self._all if robots is None else np.asarray(robots, dtype=np.int64))
         if not all_finite(self.obs, self.reward):
@@ -417,6 +416,15 @@ class TaskCore:
             bad = np.flatnonzero(~(np.isfinite(self.obs).all(axis=1) & np.isfinite(self.reward)))
             raise FloatingPointError(f"the simulation diverged (non-finite observation or reward) for robot(s) "
                                      f"{bad.tolist()}; please report the keywords and model that caused it")
+
+    def _reward_inputs(self) -> RewardInputs:
+        """What a user's reward sees (``omni_gym.envs.reward.RewardInputs``), after the state kernel ran."""
+        rows = np.arange(len(self.step_count))
+        return RewardInputs(position_error=self.err[:, 0], heading_error=self.err[:, 1], action=self.prev_action,
+                            pose=self.true[:, 0:3], velocity=self.true[:, 3:6],
+                            reference_pose=self.ref_pose[rows, self.step_count],
+                            reference_velocity=self.ref_vel[rows, self.step_count], step=self.step_count,
+                            control_dt=self.cfg.control_dt)
 
     def _observe_sensors(self, robots: np.ndarray) -> None:
         """Sample the sensors of ``robots`` (indices; one draw block each, see ``omni_gym.sensor_bank``) and

@@ -26,13 +26,20 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from omni_gym.envs import ENV_IDS
-from omni_gym.envs.config import MAX_OBSTACLES, MIN_OBSTACLE_RADIUS, OPTIONS, WHEEL_COUNT, EnvConfig, Option
+from omni_gym.envs.config import (
+    MAX_OBSTACLES,
+    MIN_OBSTACLE_RADIUS,
+    OBS_MODES,
+    OPTIONS,
+    WHEEL_COUNT,
+    EnvConfig,
+    Option,
+)
 from omni_gym.envs.observations import build_layout
 from omni_gym.physics.friction import FRICTION_MODELS, SURFACES
 from omni_gym.physics.robot import PRESETS
 
 ROOT = Path(__file__).resolve().parents[2]
-OBS_MODES = ("state", "sensors")
 
 
 def _value(v) -> str:
@@ -81,6 +88,8 @@ def allowed_cell(opt: Option) -> str:
         text = f"None or a non-empty tuple of {surfaces}, each optionally `:` {models}"
     elif opt.kind == "obstacles":
         text = f"at most {MAX_OBSTACLES} discs, radius ≥ {MIN_OBSTACLE_RADIUS:g}"
+    elif opt.kind == "reward":
+        text = "None, `BuiltinReward` (the built-in), a callable `f(RewardInputs) -> (B,) array`, or a class of such"
     else:
         raise ValueError(f"option {opt.name!r}: unknown kind {opt.kind!r}")
     return f"{text}; {opt.also}" if opt.also else text

@@ -73,9 +73,10 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
 
     ## Rewards
 
-    ``r = 0.7·exp(−e / 0.1 m) + 0.3·exp(−|e_θ| / 0.3 rad) − 0.05·mean(a²)`` with e [m] the distance
-    from the reference position, e_θ [rad] the heading error and a the clipped action: at most 1 per
-    step and positive while tracking, so ending early never pays.
+    The built-in tracking reward, :data:`omni_gym.envs.reward.FORMULA` (``docs/environments.md``), of the
+    distance e [m] from the reference position, the heading error e_θ [rad] and the clipped action a: at
+    most 1 per step and positive while tracking, so ending early never pays. ``reward=`` takes your own
+    (:mod:`omni_gym.envs.reward`).
 
     ## Starting State
 
@@ -100,7 +101,7 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
 
     | keyword | default | allowed | unit | meaning |
     |---|---|---|---|---|
-    | `robot` | `williams2002`; Phunopas-v0, GoToPose-v0: `phunopas2018`; Mecanum-v0: `optiodom_omni4` | `williams2002`, `phunopas2018`, `optiodom_omni4`, `regularN` (3 ≤ N ≤ 16) | — | robot preset (`optiodom_omni4` has mecanum wheels: needs `friction="initial"`); ignored when `model` is given |
+    | `robot` | `williams2002`; Phunopas-v0, GoToPose-v0: `phunopas2018`; Mecanum-v0: `optiodom_omni4` | `williams2002`, `phunopas2018`, `optiodom_omni3`, `optiodom_omni4`, `regularN` (3 ≤ N ≤ 16) | — | robot preset (`optiodom_omni4` has mecanum wheels: needs `friction="initial"`); ignored when `model` is given |
     | `surface` | `carpet` | `paper`, `carpet`, `grip` | — | floor, `omni_gym.physics.friction.SURFACES`; ignored when `model` is given |
     | `friction` | `roller_gap`; Mecanum-v0: `initial` | `initial`, `roller_gap` | — | friction model (`roller_gap`: omni wheels only); ignored when `model` is given |
     | `model` | None | None, a model JSON file path (str or `os.PathLike`), its dict, a `SimModel`; the model JSON bounds (`docs/bounds.md`), 3 to 16 wheels, a `wheel_liftoff` effect's rates within the `lift_rate`, `recover_rate` bounds (`recover_rate` only when `lift_rate` > 0) | — | a calibrated model; it defines the robot, surface, friction model and effects |
@@ -133,6 +134,7 @@ class OmniPathEnv(RobotEnvAttributes, gym.Env):
     | `randomize_lift_rate` | None | None or (lo, hi) with 0 ≤ lo ≤ hi ≤ 1000 | 1/s | `lift_rate` drawn from U(lo, hi) at each reset |
     | `randomize_sensor_noise` | None | None or (lo, hi) with 0 ≤ lo ≤ hi ≤ 10 | — | every sensor noise and bias std (on top of `sensor_noise`) scaled by one U(lo, hi) per robot at each reset |
     | `render_mode` | None | None, `rgb_array`, `human` | — | `rgb_array` (H×W×3 uint8) or `human` (pygame window); single environment only |
+    | `reward` | None | None, `BuiltinReward` (the built-in), a callable `f(RewardInputs) -> (B,) array`, or a class of such | — | the reward: None is the built-in tracking reward (`omni_gym.envs.reward.FORMULA`, computed in the compiled observation kernel); your own is a callable on `omni_gym.envs.reward.RewardInputs` returning one number per robot |
 
     ``model=`` takes a calibrated model (a model JSON file path or the dict ``omni-gym model show --json``
     prints, effects included): it then defines the robot, surface, friction model and effects,

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import importlib
 import math
+import os
 from types import ModuleType
 
 import numpy as np
@@ -74,6 +75,25 @@ def require(module: str, purpose: str) -> ModuleType:
         raise ModuleNotFoundError(f"{purpose} needs the {package!r} package ({module!r} could not be imported: "
                                   f"{exc}); install the render extra: {RENDER_EXTRA}",
                                   name=module.split(".")[0]) from None
+
+
+def init_display(pg: ModuleType, environ=os.environ) -> None:
+    """``pg.display.init()``, without SDL probing Wayland on a machine with no display.
+
+    With neither ``DISPLAY`` nor ``WAYLAND_DISPLAY`` set and no ``SDL_VIDEODRIVER`` of the user's, SDL tries
+    X11 and Wayland before it settles on its offscreen driver, and libwayland prints "error:
+    XDG_RUNTIME_DIR is invalid or not set in the environment" on the way. Naming the offscreen driver for
+    this one call gives the same window (none is shown: there is no display) without the message.
+    """
+    headless = not (environ.get("DISPLAY") or environ.get("WAYLAND_DISPLAY") or environ.get("SDL_VIDEODRIVER"))
+    if not headless:
+        pg.display.init()
+        return
+    environ["SDL_VIDEODRIVER"] = "offscreen"
+    try:
+        pg.display.init()
+    finally:
+        del environ["SDL_VIDEODRIVER"]
 
 
 def roller_stripe(axis, drive, half_len: float, half_wid: float) -> tuple[float, float]:
@@ -135,7 +155,7 @@ class Renderer:
         self.window = None
         self.clock = None
         if self.human:
-            pygame.display.init()
+            init_display(pygame)
             self.window = pygame.display.set_mode((self.width, self.height))
             pygame.display.set_caption(f"omni-gym: {robot.name}")
             self.clock = pygame.time.Clock()
@@ -267,7 +287,7 @@ class Renderer:
         if self.human:
             pg = self._pg
             if self.window is None:  # closed meanwhile: reopen
-                pg.display.init()
+                init_display(pg)
                 self.window = pg.display.set_mode((self.width, self.height))
                 self.clock = pg.time.Clock()
             self.window.blit(self.canvas, (0, 0))

@@ -101,8 +101,8 @@ class OmniPathVectorEnv(RobotEnvAttributes, VectorEnv):
 
     ## Rewards
 
-    Per robot, as the single environment: ``r = 0.7·exp(−e / 0.1 m) + 0.3·exp(−|e_θ| / 0.3 rad)
-    − 0.05·mean(a²)``; 0 on the autoreset step (``next_step`` mode).
+    Per robot, as the single environment (:data:`omni_gym.envs.reward.FORMULA`, or the ``reward=``
+    keyword's); 0 on the autoreset step (``next_step`` mode).
 
     ## Starting State
 

@@ -14,6 +14,7 @@ Frames and conventions (see ``docs/conventions.md``):
 
 from __future__ import annotations
 
+import difflib
 import math
 from dataclasses import dataclass, field, replace
 
@@ -177,16 +178,17 @@ class RobotSpec:
         return replace(self, **changes)
 
 
-def tangential_wheels(radius: float, angles: list[float]) -> tuple[Wheel, ...]:
+def tangential_wheels(radius: float, angles: list[float], clockwise: bool = False) -> tuple[Wheel, ...]:
     """Wheels on a circle of ``radius`` [m] at body-frame ``angles`` [rad], driving counter-clockwise.
 
     Wheel i sits at radius·(cos α_i, sin α_i) with drive (−sin α_i, cos α_i): all wheels turning
-    forward spin the robot counter-clockwise (positive yaw).
+    forward spin the robot counter-clockwise (positive yaw); ``clockwise``: drive (sin α_i, −cos α_i).
     """
+    sign = -1.0 if clockwise else 1.0
     return tuple(
         Wheel(
             position=(radius * math.cos(a), radius * math.sin(a)),
-            drive=(-math.sin(a), math.cos(a)),
+            drive=(sign * -math.sin(a), sign * math.cos(a)),
         )
         for a in angles
     )
@@ -336,6 +338,58 @@ def optiodom_omni4(l1: float = 0.2, l2: float = 0.2,
     )
 
 
+OPTIODOM_OMNI3_MASS = 8.0  # kg; see the assumptions of optiodom_omni3
+# omni3's wheels sit at distance L at these body-frame angles [deg] (x forward, y left) and drive clockwise
+# tangentially, d_i = (sin α_i, −cos α_i): the dataset README's table, (−0.866, −0.5), (0.866, −0.5), (0, 1).
+OPTIODOM_OMNI3_ANGLES_DEG = (-60.0, 60.0, 180.0)
+
+
+def _exact_zero(v: float, scale: float) -> float:
+    """cos(90°) and sin(180°) are 6e-17 in floating point: a written layout shows exact zeros."""
+    return 0.0 if abs(v) < 1e-12 * scale else v
+
+
+def optiodom_omni3(L: float = 0.195, diameter: float = 0.102) -> RobotSpec:
+    """The three-wheeled omni robot of the OptiOdom dataset (Sousa et al. 2022; ``data/optiodom-omni3/README.md``).
+
+    Wheels at distance ``L`` [m] from the centre at −60°, 60° and 180°, driving clockwise tangentially:
+    equal positive wheel speeds turn the robot clockwise (yaw rate −r·w/L), as the dataset README states.
+    ``diameter`` [m]: the nominal wheel diameter (the importer uses the mean of the logged ones and a
+    ``wheel_radius`` effect for their differences). Mass properties and rollers are assumed (below).
+    """
+    for name, value in (("L", L), ("diameter", diameter)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"optiodom_omni3: {name} must be a positive length [m], got {value!r}")
+    wheels = [Wheel(position=(_exact_zero(w.position[0], L), _exact_zero(w.position[1], L)),
+                    drive=(_exact_zero(w.drive[0], 1.0), _exact_zero(w.drive[1], 1.0)))
+              for w in tangential_wheels(L, [math.radians(deg) for deg in OPTIODOM_OMNI3_ANGLES_DEG], clockwise=True)]
+    rho = max(math.hypot(*w.position) for w in wheels)  # L, up to rounding
+    mass = OPTIODOM_OMNI3_MASS
+    return RobotSpec(
+        name="optiodom_omni3",
+        wheels=tuple(wheels),
+        wheel_radius=0.5 * diameter,
+        mass=mass,
+        inertia=0.5 * mass * rho**2,
+        rollers=18,
+        roller_fraction=1.0,
+        body_radius=rho + 0.05,
+        assumptions={
+            "mass": "8 kg: not published with the dataset; a three-wheeled base about 0.45 m across (wheels at "
+            "0.195 m, 102 mm wheels, geared DC motors, battery and computer on board) typically weighs this.",
+            "inertia": "0.5·m·L²: a uniform disc of the wheel-centre radius (the convention of regular()); no "
+            "number is published.",
+            "rollers": "18: a 102 mm (4-inch class) omni wheel is most often a double-row wheel with two staggered "
+            "rows of 9 rollers.",
+            "roller_fraction": "1.0: the staggered rows overlap, so a roller always touches the floor (friction "
+            "model initial, no roller-gap switching).",
+            "body_radius": "L + 0.05 m: the wheel-centre radius and about half a wheel (the world's walls).",
+            "surface": "not characterised with the data; the import of real runs uses grip, the rolling without "
+            "slip that OptiOdom's kinematic odometry assumes.",
+        },
+    )
+
+
 def optiodom_omni4_radius_scales(diameters) -> tuple[float, list[float]]:
     """(nominal wheel diameter [m] = mean of ``diameters``, per-wheel ``wheel_radius`` effect scales D_i / mean)."""
     d = [float(v) for v in diameters]
@@ -346,13 +400,14 @@ def optiodom_omni4_radius_scales(diameters) -> tuple[float, list[float]]:
 PRESETS = {
     "williams2002": williams2002,
     "phunopas2018": phunopas2018,
+    "optiodom_omni3": optiodom_omni3,
     "optiodom_omni4": optiodom_omni4,
 }
 
 
 def robot_preset(name: str) -> RobotSpec:
-    """A preset by name: ``williams2002``, ``phunopas2018``, ``optiodom_omni4`` or ``regularN`` (N from 3 to 16
-    wheels, ``omni_gym.bounds.wheel_count``)."""
+    """A preset by name (:data:`PRESETS`: ``williams2002``, ``phunopas2018``, ``optiodom_omni3``, ``optiodom_omni4``)
+    or ``regularN`` (N from 3 to 16 wheels, ``omni_gym.bounds.wheel_count``)."""
     if name in PRESETS:
         return PRESETS[name]()
     lo, hi = wheel_count()
@@ -363,8 +418,10 @@ def robot_preset(name: str) -> RobotSpec:
             shown = digits if len(digits) <= 12 else f"{digits[:6]}…({len(digits)} digits)"
             raise ValueError(f"robot {_short(name)}: regularN takes N from {lo} to {hi} wheels, got {shown}")
         return regular(int(digits))
-    raise ValueError(f"unknown robot {_short(name)}; choose one of {sorted(PRESETS)} or regularN, N from {lo} to {hi} "
-                     "(e.g. regular5)")
+    close = difflib.get_close_matches(name.replace("-", "_").lower(), PRESETS, n=1, cutoff=0.8)
+    hint = f"did you mean {close[0]}? " if close else ""
+    raise ValueError(f"unknown robot {_short(name)}; {hint}choose one of {sorted(PRESETS)} or regularN, N from {lo} "
+                     f"to {hi} (e.g. regular5)")
 
 
 def _short(name: str, limit: int = 40) -> str:

@@ -412,11 +412,21 @@ class World:
             batch.read()
             self._state_view[self._bounds[k]:self._bounds[k + 1]] = batch.states
 
+    def body_states(self) -> np.ndarray:
+        """(B, 6): each robot's centre of mass x, y [m] in the space's frame (its arena origin included,
+        :attr:`origins`), heading θ [rad], world-frame velocity vx, vy [m/s] and yaw rate ω [rad/s], read now.
+
+        The array is the world's own buffer, not a copy: it is refreshed by the next call and must not be
+        written. The environments' compiled observation reads it once per control period; :attr:`pose` and
+        :attr:`velocity` are the copying, geometric-centre forms.
+        """
+        self._read_state()
+        return self._state_view
+
     @property
     def pose(self) -> np.ndarray:
         """(B, 3): x, y [m] of each geometric centre in its arena frame, heading θ [rad]."""
-        self._read_state()
-        st = self._state_view
+        st = self.body_states()
         out = st[:, 0:3].copy()
         out[:, 0:2] -= self.origins
         return out
@@ -424,8 +434,7 @@ class World:
     @property
     def velocity(self) -> np.ndarray:
         """(B, 3): world-frame velocity ẋ, ẏ [m/s] of each geometric centre and yaw rate [rad/s]."""
-        self._read_state()
-        st = self._state_view
+        st = self.body_states()
         theta, om = st[:, 2], st[:, 5]
         com = self.sp[:, [SP_CX, SP_CY]]
         c, s = np.cos(theta), np.sin(theta)

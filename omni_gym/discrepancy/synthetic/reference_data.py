@@ -31,7 +31,7 @@ from omni_gym.discrepancy.data.dataset import Run, write_dataset
 from omni_gym.discrepancy.synthetic.synth import COUNTS_PER_REV, RATE
 from omni_gym.physics.model import SimModel
 
-NOISE_XY = 0.001  # m: tracker noise in x and y (issue 15 item 6)
+NOISE_XY = 0.001  # m: tracker noise in x and y
 NOISE_HEADING = 0.002  # rad: tracker noise in heading
 TRACKER = ("tracker_offset", "time_offset")  # measurement effects this module applies itself
 

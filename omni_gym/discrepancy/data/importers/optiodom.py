@@ -58,7 +58,7 @@ from omni_gym.io import InputError, read_text
 from omni_gym.outputs import Output
 from omni_gym.physics.friction import surface_preset
 from omni_gym.physics.model import SimModel
-from omni_gym.physics.robot import OPTIODOM_MASS, optiodom_omni4, robot_preset
+from omni_gym.physics.robot import PRESETS, RobotSpec
 
 # --- the nominal models: geometry from the data's READMEs, assumptions where nothing is published -------
 
@@ -89,32 +89,18 @@ TYPES: dict[str, RobotType] = {
     "omni4": RobotType("omni4", 4, 2, "odo", False, 0.01),
 }
 
-# omni3: wheel i sits at distance Li at these body-frame angles [deg] (x forward, y left) and drives
-# clockwise tangentially, d_i = (sin α_i, −cos α_i): the README's table, (−0.866, −0.5), (0.866, −0.5),
-# (0, 1). Equal positive ticks then turn the robot clockwise (yaw rate −r·w/Li), as the README states.
-WHEEL_ANGLES_DEG = (-60.0, 60.0, 180.0)
-
-# Not published with the data. omni3 is a three-wheeled base about 0.45 m across (wheels at 0.195 m,
-# 102 mm wheels, geared DC motors, battery and computer on board): 8 kg is an assumed, typical mass for
-# such a base. omni4's mass, inertia, rollers and body radius are the physics preset ``optiodom_omni4``'s
-# (omni_gym.physics.robot, with the reasons for each assumed value). On the default floor (SURFACE) the replay
-# hardly depends on either mass (the wheels do not slip); ``--mass`` changes it.
-MASS = 8.0  # kg, omni3
-# Yaw inertia [kg·m²] default: 0.5·m·ρ², a uniform disc of the radius ρ of the wheel centres (the
-# convention of the project's presets, omni_gym.physics.robot.regular); ``--inertia`` changes it.
-INERTIA_DISC_FACTOR = 0.5
-# A 102 mm (4-inch class) omni wheel is most often a double-row wheel with two staggered rows of 9
-# rollers: 18 rollers; a 60 mm mecanum wheel has its rollers overlapping along the rim (9 is common).
-# Either way a roller always touches the floor, so no rigid material does: roller_fraction 1.0 and the
-# ``initial`` friction model (no roller-gap switching).
-ROLLERS = 18
+# Each robot type's geometry, mass properties, rollers and body radius are the physics presets
+# ``optiodom_omni3`` and ``optiodom_omni4`` (omni_gym.physics.robot, with the reasons for each assumed
+# value: mass, inertia and rollers are not published with the data), at the session's lengths and wheel
+# diameters. On the default floor (SURFACE) the replay hardly depends on the mass (the wheels do not slip);
+# ``--mass`` and ``--inertia`` change it. Both presets' rollers always touch the floor: roller_fraction 1.0
+# and the ``initial`` friction model (no roller-gap switching).
 ROLLER_FRACTION = 1.0
 FRICTION = "initial"
 # The floor is not characterised. OptiOdom (like every kinematic odometry calibration) assumes the
 # wheels roll without slipping; ``grip`` is the project's no-slip floor (drive μ 2, free rollers), so
 # the nominal model is the kinematic model the data's authors used. ``--surface`` picks another preset.
 SURFACE = "grip"
-BODY_MARGIN = 0.05  # m: collision disc radius = wheel-centre radius + about half a wheel (the world's walls)
 
 N_WHEELS = 3  # omni3 (kept for callers of the first version)
 RUN_COLUMNS = TYPES["omni3"].run_columns()
@@ -127,7 +113,7 @@ _NAN = re.compile(r"[+-]?nan", re.IGNORECASE)
 
 def default_mass(kind: str) -> float:
     """The assumed mass [kg] of a robot type's nominal model (not published with the data)."""
-    return OPTIODOM_MASS if kind == "omni4" else MASS
+    return PRESETS[f"optiodom_{kind}"]().mass
 
 
 @dataclass(frozen=True)
@@ -451,41 +437,36 @@ def _fmt(value) -> str:
 # --- the nominal model --------------------------------------------------------------------------------
 
 
+def _wheels_json(robot: RobotSpec) -> list[dict]:
+    """A preset's wheels as model JSON: positions [m], unit drive directions, roller angles [rad] where not 0."""
+    return [{"position": list(w.position), "drive": list(w.drive),
+             **({"roller_angle": w.roller_angle} if w.roller_angle else {})} for w in robot.wheels]
+
+
 def wheel_layout(L: float) -> list[dict]:
-    """omni3: the three wheels at distance ``L`` [m]: positions [m] and unit drive directions, body frame."""
-    wheels = []
-    for deg in WHEEL_ANGLES_DEG:
-        a = math.radians(deg)
-        pos = [L * math.cos(a), L * math.sin(a)]
-        drive = [math.sin(a), -math.cos(a)]
-        # cos(90°) and sin(180°) are 6e-17 in floating point: write exact zeros.
-        wheels.append({"position": [_zero(v, L) for v in pos], "drive": [_zero(v, 1.0) for v in drive]})
-    return wheels
+    """omni3: the three wheels of the physics preset ``optiodom_omni3`` at distance ``L`` [m], body frame."""
+    return _wheels_json(PRESETS["optiodom_omni3"](L))
 
 
 def omni4_wheel_layout(l1: float, l2: float) -> list[dict]:
     """omni4: the four mecanum wheels of the physics preset ``optiodom_omni4`` at (±l1/2, ±l2/2) [m], with
     drive directions and roller angles [rad] (model JSON ``wheels[i].roller_angle``); its wheel matrix is
     the data README's inverse kinematics (OptiOdom's simulateRobot_omni4.m)."""
-    return [{"position": list(w.position), "drive": list(w.drive), "roller_angle": w.roller_angle}
-            for w in optiodom_omni4(l1, l2).wheels]
+    return _wheels_json(PRESETS["optiodom_omni4"](l1, l2))
 
 
 def layout(meta: Metadata) -> list[dict]:
     """The model JSON ``wheels`` list of a session's robot type and lengths."""
-    return omni4_wheel_layout(*meta.Li) if meta.kind == "omni4" else wheel_layout(meta.L)
+    return _wheels_json(_preset(meta))
 
 
-def _zero(v: float, scale: float) -> float:
-    return 0.0 if abs(v) < 1e-12 * scale else v
-
-
-def _omni4_preset(meta: Metadata):
-    """The physics' OptiOdom omni4 preset at this session's l1, l2 and mean diameter (its wheels, inertia,
-    rollers and body radius are the nominal model's)."""
-
+def _preset(meta: Metadata) -> RobotSpec:
+    """The physics preset of the session's robot type at its lengths and mean wheel diameter (wheels,
+    inertia, rollers and body radius of the nominal model)."""
     mean = float(np.mean(meta.D))
-    return optiodom_omni4(meta.Li[0], meta.Li[1], (mean,) * 4)
+    if meta.kind == "omni4":
+        return PRESETS["optiodom_omni4"](meta.Li[0], meta.Li[1], (mean,) * 4)
+    return PRESETS["optiodom_omni3"](meta.L, mean)
 
 
 def nominal_model_json(meta: Metadata, mass: float | None = None, inertia: float | None = None,
@@ -493,24 +474,18 @@ def nominal_model_json(meta: Metadata, mass: float | None = None, inertia: float
     """The nominal model of a session as model JSON (``docs/formats.md``): geometry and wheel size from the
     metadata, assumed mass properties (:func:`nominal_model` builds it).
 
-    ``mass`` [kg] (default :func:`default_mass`); ``inertia`` [kg·m²] (default: omni3 0.5·mass·L², a disc
-    of the wheel circle; omni4 the physics preset ``optiodom_omni4``'s, a plate the size of the footprint,
-    scaled to ``mass``); ``surface``: a preset name. If the Di differ, ``wheel_radius`` is mean(Di)/2 and a
-    ``wheel_radius`` effect carries the scales Di/mean. omni4 wheels, rollers and body radius come from the
-    physics preset ``optiodom_omni4``.
+    ``mass`` [kg] (default :func:`default_mass`); ``inertia`` [kg·m²] (default: the physics preset's,
+    scaled to ``mass``: omni3 0.5·mass·L², a disc of the wheel circle; omni4 a plate the size of the
+    footprint); ``surface``: a preset name. If the Di differ, ``wheel_radius`` is mean(Di)/2 and a
+    ``wheel_radius`` effect carries the scales Di/mean. Wheels, rollers and body radius come from the
+    physics presets ``optiodom_omni3`` and ``optiodom_omni4``.
     """
     mass = default_mass(meta.kind) if mass is None else mass
     MODEL_BOUNDS["mass"].check(mass, "--mass")
-    wheels = layout(meta)
-    rho = max(math.hypot(*w["position"]) for w in wheels)
-    body_radius = rho + BODY_MARGIN
-    rollers = ROLLERS
-    default_inertia = INERTIA_DISC_FACTOR * mass * rho**2
-    preset = _omni4_preset(meta) if meta.kind == "omni4" else None
-    if preset is not None:  # the wheels are already the preset's (layout)
-        default_inertia = preset.inertia * mass / preset.mass
-        body_radius, rollers = preset.body_radius, preset.rollers
-    inertia = default_inertia if inertia is None else inertia
+    preset = _preset(meta)
+    wheels = _wheels_json(preset)
+    body_radius, rollers = preset.body_radius, preset.rollers
+    inertia = preset.inertia * mass / preset.mass if inertia is None else inertia
     MODEL_BOUNDS["inertia"].check(inertia, "--inertia")
     D = np.asarray(meta.D, dtype=float)
     mean = float(np.mean(D))
@@ -549,7 +524,7 @@ def describe(metas: list[Metadata], n_runs: int, mass: float, inertia: float, su
     ids = ", ".join(m.session for m in metas)
     kind = metas[0].kind
     counts = "wheel revolutions per 10 ms" if kind == "omni4" else "encoder ticks per 40 ms"
-    rollers = robot_preset("optiodom_omni4").rollers if kind == "omni4" else ROLLERS
+    rollers = PRESETS[f"optiodom_{kind}"]().rollers
     return (f"OptiOdom {kind} sessions {ids} ({n_runs} runs; {counts} and motion capture, public OptiOdom "
             f"dataset, MIT licence), imported by omni-gym import optiodom. Geometry and wheel diameters from the "
             f"metadata; assumed (not published): mass {mass:g} kg, inertia {inertia:.4g} kg·m², {rollers} rollers, "
