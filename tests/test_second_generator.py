@@ -32,12 +32,19 @@ def _lever(model) -> float:
     return max(math.hypot(*w.position) for w in model.robot.wheels)
 
 
-@pytest.mark.parametrize("robot,friction,family", [("williams2002", "initial", "steps"),
-                                                    ("williams2002", "roller_gap", "turns"),
-                                                    ("optiodom_omni4", "initial", "smooth")])
-def test_world_and_second_integrator_agree(robot, friction, family):
-    model = load_model(robot, surface="carpet", friction=friction)
-    times, cmd = run_commands(model, family, 2.5, 100.0, np.random.default_rng(11))
+@pytest.mark.parametrize("robot,friction,family,effects", [
+    ("williams2002", "initial", "steps", {}),
+    ("williams2002", "roller_gap", "turns", {}),
+    ("optiodom_omni4", "initial", "smooth", {}),
+    # a lagged wheel switching between roller and rigid material: the gap events on the integrated angle
+    ("williams2002", "roller_gap", "steps", {"motor_lag": {"tau": 0.05}}),
+])
+def test_world_and_second_integrator_agree(robot, friction, family, effects):
+    nominal = load_model(robot, surface="carpet", friction=friction)
+    model = nominal
+    for name, params in effects.items():
+        model = model.with_effect(name, params)
+    times, cmd = run_commands(nominal, family, 2.5, 100.0, np.random.default_rng(11))
     mine = integrate(build_plant(model), times, cmd, times).pose
     lever = _lever(model)
     coarse = _pooled_mm(mine, simulate_commands(model, times, cmd, dt=1e-3)[:, :3], lever)
