@@ -175,3 +175,12 @@ def test_bad_settings_are_refused_in_one_line(tmp_path, kw, match):
     with pytest.raises(ValueError, match=match) as info:
         write_second_dataset(tmp_path / "d", **args)
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("family", ["steps", "smooth", "turns"])
+def test_runs_rest_at_both_ends(family):
+    model = load_model("optiodom_omni4", surface="carpet", friction="initial")
+    times, cmd = run_commands(model, family, 3.0, 100.0, np.random.default_rng(3), start_rest=0.5)
+    moving = np.any(cmd != 0.0, axis=1)
+    assert not moving[times < 0.5].any() and moving[(times > 0.5) & (times < 1.5)].any()
+    assert not moving[times >= 3.0 - 0.3].any()
