@@ -32,12 +32,19 @@ def _lever(model) -> float:
     return max(math.hypot(*w.position) for w in model.robot.wheels)
 
 
-@pytest.mark.parametrize("robot,friction,family", [("williams2002", "initial", "steps"),
-                                                    ("williams2002", "roller_gap", "turns"),
-                                                    ("optiodom_omni4", "initial", "smooth")])
-def test_world_and_second_integrator_agree(robot, friction, family):
-    model = load_model(robot, surface="carpet", friction=friction)
-    times, cmd = run_commands(model, family, 2.5, 100.0, np.random.default_rng(11))
+@pytest.mark.parametrize("robot,friction,family,effects", [
+    ("williams2002", "initial", "steps", {}),
+    ("williams2002", "roller_gap", "turns", {}),
+    ("optiodom_omni4", "initial", "smooth", {}),
+    # a lagged wheel switching between roller and rigid material: the gap events on the integrated angle
+    ("williams2002", "roller_gap", "steps", {"motor_lag": {"tau": 0.05}}),
+])
+def test_world_and_second_integrator_agree(robot, friction, family, effects):
+    nominal = load_model(robot, surface="carpet", friction=friction)
+    model = nominal
+    for name, params in effects.items():
+        model = model.with_effect(name, params)
+    times, cmd = run_commands(nominal, family, 2.5, 100.0, np.random.default_rng(11))
     mine = integrate(build_plant(model), times, cmd, times).pose
     lever = _lever(model)
     coarse = _pooled_mm(mine, simulate_commands(model, times, cmd, dt=1e-3)[:, :3], lever)
@@ -168,3 +175,12 @@ def test_bad_settings_are_refused_in_one_line(tmp_path, kw, match):
     with pytest.raises(ValueError, match=match) as info:
         write_second_dataset(tmp_path / "d", **args)
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("family", ["steps", "smooth", "turns"])
+def test_runs_rest_at_both_ends(family):
+    model = load_model("optiodom_omni4", surface="carpet", friction="initial")
+    times, cmd = run_commands(model, family, 3.0, 100.0, np.random.default_rng(3), start_rest=0.5)
+    moving = np.any(cmd != 0.0, axis=1)
+    assert not moving[times < 0.5].any() and moving[(times > 0.5) & (times < 1.5)].any()
+    assert not moving[times >= 3.0 - 0.3].any()

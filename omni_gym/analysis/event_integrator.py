@@ -492,8 +492,16 @@ def integrate(plant: Plant, times: np.ndarray, commands: np.ndarray, sample_time
                     ev_hi = _angle_event(6 + i, hi, +1.0)
                     events += [ev_lo, ev_hi]
                     owners += [(i, -1, lo), (i, +1, hi)]
-            sol = solve_ivp(rhs, (t, b), state, method=method, rtol=rtol, atol=atol, dense_output=True,
-                            events=events or None)
+            try:
+                sol = solve_ivp(rhs, (t, b), state, method=method, rtol=rtol, atol=atol, dense_output=True,
+                                events=events or None)
+            except ValueError:
+                # The event root search brackets on the step's interpolant; should it disagree in sign
+                # with the step's end values (seen with LSODA's interpolant), Radau's collocation
+                # polynomial passes through them.
+                sol = solve_ivp(rhs, (t, b), state, method="Radau", rtol=rtol, atol=atol, dense_output=True,
+                                events=events or None)
+                counts["radau_retries"] = counts.get("radau_retries", 0) + 1
             if sol.status < 0:
                 raise RuntimeError(f"solve_ivp failed at t = {t:.6f} s: {sol.message}")
             counts["pieces"] += 1

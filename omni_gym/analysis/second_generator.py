@@ -12,12 +12,13 @@ What a run is:
 * **Commands.** A body twist (vx, vy [m/s], ω [rad/s], geometric centre, body frame) from the
   manoeuvre family, held per tracker row (a 100 Hz default), turned into wheel speeds by the
   **nominal** wheel matrix, w_i = (v + ω z × p_i)·(d_i + tan γ_i a_i) / r (what the robot's own
-  controller would command; the hidden effect is not known to it). Every run starts at rest and ends
-  with at least 0.3 s of rest. Families: ``steps`` (random twist steps of 0.3-1 s, speed 0.1-0.4 m/s
-  in a random direction and |ω| ≤ 1.8 rad/s, one step in five a rest), ``smooth`` (each twist
-  component a sum of three sinusoids of 0.1-0.8 Hz scaled to a peak speed 0.2-0.4 m/s and yaw rate
-  0.8-1.8 rad/s, faded in and out over 0.5 s), ``turns`` (turns in place at 1-2 rad/s for 0.5-1.2 s,
-  then 0.3-0.6 s translations at 0.15-0.35 m/s, short rests between).
+  controller would command; the hidden effect is not known to it). Every run starts at rest
+  (optionally standing still for ``start_rest`` seconds first) and ends with at least 0.3 s of rest.
+  Families: ``steps`` (random twist steps of 0.3-1 s, speed 0.1-0.4 m/s in a random direction and
+  |ω| ≤ 1.8 rad/s, one step in five a rest), ``smooth`` (each twist component a sum of three
+  sinusoids of 0.1-0.8 Hz scaled to a peak speed 0.2-0.4 m/s and yaw rate 0.8-1.8 rad/s, faded in and
+  out over 0.5 s), ``turns`` (turns in place at 1-2 rad/s for 0.5-1.2 s, then 0.3-0.6 s translations
+  at 0.15-0.35 m/s, short rests between).
 * **Physics.** The nominal model (robot preset, surface, friction) with the hidden physics effect,
   integrated by :func:`.event_integrator.integrate` from rest at the run's start pose (x, y uniform in
   ±0.5 m, θ uniform in [−π, π)). ``wheel_liftoff``: the run's lift switches are drawn by
@@ -134,11 +135,15 @@ def manoeuvre_twist(family: str, t: np.ndarray, duration: float, rng: np.random.
 
 
 def run_commands(model: SimModel, family: str, duration: float, rate: float,
-                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """(times (K,) [s], wheel commands (K, n) [rad/s]) of one run; the last row (t = duration) ends it."""
+                 rng: np.random.Generator, start_rest: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(times (K,) [s], wheel commands (K, n) [rad/s]) of one run; the last row (t = duration) ends it.
+
+    ``start_rest`` [s]: the robot stands still that long before the manoeuvre starts.
+    """
     rows = int(round(duration * rate))
     t = np.arange(rows + 1) / rate
-    twist = manoeuvre_twist(family, t, duration, rng)
+    twist = manoeuvre_twist(family, t - start_rest, duration - start_rest, rng)
+    twist[t < start_rest] = 0.0
     return t, twist @ wheel_matrix(model).T
 
 
@@ -207,14 +212,16 @@ def write_second_dataset(folder, *, robot: str = "williams2002", hidden: dict | 
                          duration: float = 3.0, manoeuvre: str = "steps", position_noise: float = 0.001,
                          heading_noise: float = 0.002, encoder_counts: int = 2048, seed: int = 0,
                          surface: str = "carpet", friction: str = "initial", tracker_rate: float = 100.0,
-                         force: bool = False) -> Path:
+                         start_rest: float = 0.0, force: bool = False) -> Path:
     """Write a dataset folder and ``FOLDER.truth.json`` beside it; return the folder's path.
 
     ``robot``: ``williams2002`` (3 omni wheels) or ``optiodom_omni4`` (4 mecanum wheels); ``hidden``:
     None or {effect: params} (a library effect, ``tracker_offset``/``time_offset``, or ``drag``);
     ``runs`` 3-12 of ``duration`` 2.5-10 s; ``manoeuvre`` ``steps``/``smooth``/``turns``; noise std
     ``position_noise`` [m] and ``heading_noise`` [rad]; ``encoder_counts`` per wheel turn;
-    ``tracker_rate`` [Hz] of the rows. Bad input raises a one-line ValueError naming it.
+    ``tracker_rate`` [Hz] of the rows; ``start_rest`` [s] at rest before the manoeuvre (0: the robot
+    moves from the first row, whose tracked pose is as noisy as any other). Bad input raises a one-line
+    ValueError naming it.
     """
     if robot not in ROBOTS:
         raise ValueError(f"robot: unknown robot {robot!r} (known: {', '.join(ROBOTS)})")
@@ -226,6 +233,7 @@ def write_second_dataset(folder, *, robot: str = "williams2002", hidden: dict | 
     position_noise = _check_number(position_noise, "position_noise", 0.0, 0.01)
     heading_noise = _check_number(heading_noise, "heading_noise", 0.0, 0.1)
     tracker_rate = _check_number(tracker_rate, "tracker_rate", 10.0, 1000.0)
+    start_rest = _check_number(start_rest, "start_rest", 0.0, 1.0)
     if isinstance(encoder_counts, bool) or not isinstance(encoder_counts, (int, np.integer)) \
             or not 16 <= encoder_counts <= 1 << 20:
         raise ValueError(f"encoder_counts: expected an integer in [16, 1048576], got {encoder_counts!r}")
@@ -242,7 +250,7 @@ def write_second_dataset(folder, *, robot: str = "williams2002", hidden: dict | 
     q = 2 * math.pi / int(encoder_counts)
     run_list, truth_runs = [], []
     for k in range(runs):
-        times, commands = run_commands(model, manoeuvre, duration, tracker_rate, rng)
+        times, commands = run_commands(model, manoeuvre, duration, tracker_rate, rng, start_rest)
         start = np.array([rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(-math.pi, math.pi)])
         sim = simulate_run(model, hidden, times, commands, start, rng)
         pose = sim["pose"].copy()
@@ -262,7 +270,8 @@ def write_second_dataset(folder, *, robot: str = "williams2002", hidden: dict | 
                    f"{encoder_counts} encoder counts per turn")
     settings = {"robot": robot, "surface": surface, "friction": friction, "runs": int(runs), "duration": duration,
                 "manoeuvre": manoeuvre, "position_noise": position_noise, "heading_noise": heading_noise,
-                "encoder_counts": int(encoder_counts), "tracker_rate": tracker_rate, "seed": int(seed)}
+                "encoder_counts": int(encoder_counts), "tracker_rate": tracker_rate, "start_rest": start_rest,
+                "seed": int(seed)}
     with outputs.Output(folder, "dir", force=force, marker="dataset.json", what="dataset",
                         companions=(truth_path,)) as tx:
         _write_folder(tx.path, model, description, run_list)
