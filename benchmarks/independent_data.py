@@ -144,6 +144,37 @@ def cases(kinds: tuple[str, ...] = KINDS, robots: tuple[str, ...] = ROBOTS, per_
                        "hidden": hidden_effect(kind, rng, model)}
 
 
+def interleaved(todo: list[dict]) -> list[dict]:
+    """``todo`` in round-robin order over (robot, category), so that a study stopped part way has covered every
+    category about equally."""
+    groups: dict[tuple, list[dict]] = {}
+    for c in todo:
+        groups.setdefault((c["robot"], c["kind"]), []).append(c)
+    out = []
+    while any(groups.values()):
+        for g in groups.values():
+            if g:
+                out.append(g.pop(0))
+    return out
+
+
+def previous(log: Path, todo: list[dict], generator: str) -> list[dict]:
+    """The results in ``log`` (JSON lines printed by an earlier run) of cases that are in ``todo`` exactly
+    (same robot, category, seed and generator settings); other lines are ignored."""
+    want = {(c["robot"], c["kind"], c["seed"]): c for c in todo}
+    out = []
+    with open(log, encoding="utf-8") as fh:
+        for line in fh:
+            try:
+                r = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            c = want.get((r.get("robot"), r.get("kind"), r.get("seed"))) if isinstance(r, dict) else None
+            if c is not None and all(r.get(k) == v for k, v in c.items()) and r.get("generator", "second") == generator:
+                out.append(r)
+    return out
+
+
 def write_case(case: dict, folder: Path, generator: str = "second") -> None:
     """Write the dataset of ``case`` into ``folder`` with ``generator`` (``second`` or ``reference``)."""
     if generator == "second":
@@ -171,12 +202,14 @@ def run(case: dict, generator: str = "second") -> dict:
         proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "MPLBACKEND": "Agg"})
         wall = time.perf_counter() - t0
     if proc.returncode != 0:
-        return {**case, "effect": f"error (exit {proc.returncode})", "effects": [], "why": proc.stderr[-300:],
+        return {**case, "generator": generator, "effect": f"error (exit {proc.returncode})", "effects": [],
+                "why": proc.stderr[-300:],
                 "nominal_rms_mm": math.nan, "floor_mm": None, "start": "-", "wall_s": wall, "correct": False}
     result = json.loads(proc.stdout)
     g = result["gap"]
     floor = g["noise_components"]["floor"]
-    out = {**case, "effect": result["effect"], "effects": result["effects"], "why": result["why"],
+    out = {**case, "generator": generator, "effect": result["effect"], "effects": result["effects"],
+           "why": result["why"],
            "start": result["start"]["kind"], "nominal_rms_mm": 1e3 * g["rms_before"],
            "floor_mm": None if floor is None else 1e3 * floor, "reduction": g["reduction"], "wall_s": wall,
            "fitted": result.get("params")}
@@ -276,6 +309,8 @@ def _round(text: str) -> str:
 def _command(args: argparse.Namespace) -> str:
     """The command line of this run, with the options that differ from the defaults."""
     parts = ["python benchmarks/independent_data.py", f"--jobs {args.jobs}"]
+    if args.resume is not None:
+        parts.append(f"--resume {args.resume}")
     if list(args.kinds) != list(KINDS):
         parts.append("--kinds " + " ".join(args.kinds))
     if list(args.robots) != list(ROBOTS):
@@ -302,10 +337,16 @@ def main() -> None:
     ap.add_argument("--generator", choices=("second", "reference"), default="second",
                     help="the independent integrator that writes the data (default: the second one)")
     ap.add_argument("--out", type=Path, default=None, help="markdown table (and .json beside it)")
+    ap.add_argument("--resume", type=Path, default=None, metavar="LOG",
+                    help="the JSON lines an earlier run of the same cases printed: cases found there are not run "
+                         "again (a long study survives an interruption)")
     args = ap.parse_args()
-    todo = list(cases(tuple(args.kinds), tuple(args.robots), args.per_kind, args.seed0))
-    print(f"independent_data: {len(todo)} cases, {args.jobs} at a time", file=sys.stderr, flush=True)
-    done = []
+    todo = interleaved(list(cases(tuple(args.kinds), tuple(args.robots), args.per_kind, args.seed0)))
+    done = previous(args.resume, todo, args.generator) if args.resume is not None else []
+    seen = {(r["robot"], r["kind"], r["seed"]) for r in done}
+    todo = [c for c in todo if (c["robot"], c["kind"], c["seed"]) not in seen]
+    print(f"independent_data: {len(todo)} cases to run ({len(done)} from {args.resume}), {args.jobs} at a time",
+          file=sys.stderr, flush=True)
     with ProcessPoolExecutor(max(args.jobs, 1)) as pool:
         futures = [pool.submit(run, c, args.generator) for c in todo]
         for fut in as_completed(futures):
