@@ -129,17 +129,36 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--out", required=True, help="dataset folder to write")
     _add_force_option(sy, "an existing dataset folder and its DATASET.truth.json")
     sy.set_defaults(handler=_cmd_synth)
-    im = sub.add_parser("import", help="write a dataset from another log format (OptiOdom omni3 or omni4 sessions)")
-    im.add_argument("format", choices=sorted(IMPORT_FORMATS), help="log format: optiodom")
-    im.add_argument("sessions", nargs="+", metavar="SESSION_DIR",
-                    help="session folder(s) of one robot with <id>_metadata.csv and <id>_run-NN.csv[.gz]")
+    im = sub.add_parser("import", help="write a dataset from another log format (ROS 2 bags, CSV logs, OptiOdom "
+                                       "sessions; docs/formats.md)")
+    im.add_argument("format", choices=sorted(IMPORT_FORMATS), help="log format: rosbag2, csv or optiodom")
+    im.add_argument("sessions", nargs="+", metavar="INPUT",
+                    help="rosbag2: bag folder(s), one run each; csv: CSV file(s), one run each; optiodom: session "
+                         "folder(s) of one robot with <id>_metadata.csv and <id>_run-NN.csv[.gz]")
     im.add_argument("--out", required=True, help="dataset folder to write")
-    im.add_argument("--mass", type=float, default=None, help="assumed robot mass [kg] (not published; default and "
-                    "why in docs/formats.md, 'Importing OptiOdom logs')")
+    im.add_argument("--mass", type=float, default=None, help="optiodom: assumed robot mass [kg] (not published; "
+                    "default and why in docs/formats.md, 'Importing OptiOdom logs')")
     im.add_argument("--inertia", type=float, default=None,
-                    help="assumed yaw inertia [kg·m²] (default 0.5·mass·ρ², ρ the wheel centres' distance)")
+                    help="optiodom: assumed yaw inertia [kg·m²] (default 0.5·mass·ρ², ρ the wheel centres' distance)")
     im.add_argument("--surface", choices=sorted(SURFACES), default=None,
-                    help="floor preset of the nominal model (default grip: no slip, as kinematic odometry assumes)")
+                    help="floor preset of the nominal model (optiodom default grip: no slip, as kinematic odometry "
+                         "assumes; csv, rosbag2: overrides the --model's)")
+    lg = im.add_argument_group("csv and rosbag2 (docs/formats.md, 'Importing ROS 2 bags and CSV logs')")
+    lg.add_argument("--model", help="nominal model: preset name or model JSON file (required)")
+    lg.add_argument("--units", default=None, help="log units, e.g. mm,deg,ms,wheel=rev (default m, rad, s)")
+    lg.add_argument("--window", action="append", metavar="[NAME=]START:END",
+                    help="one run per window [s from the first wheel sample] of each input (repeatable)")
+    lg.add_argument("--max-gap", type=float, default=0.25,
+                    help="pose samples further apart [s] leave the rows between unobserved (default 0.25)")
+    lg.add_argument("--columns", help="csv: NAME=COLUMN pairs t,x,y,theta and enc1…encn (or w1…wn); -COLUMN flips a "
+                                      "wheel")
+    lg.add_argument("--joints", help="rosbag2: one joint per model wheel in model order; -NAME flips a wheel")
+    lg.add_argument("--joint-topic", default="/joint_states", help="rosbag2: JointState topic (default /joint_states)")
+    lg.add_argument("--wheel-field", choices=("position", "velocity"), default="position",
+                    help="rosbag2: JointState field of the wheels (default position)")
+    lg.add_argument("--pose-topic", help="rosbag2: PoseStamped, PoseWithCovarianceStamped, Odometry or tf topic")
+    lg.add_argument("--frames", help="rosbag2: PARENT:CHILD of the tracked transform (tf topics; checks the parent "
+                                     "frame of the others)")
     _add_force_option(im, "an existing dataset folder")
     im.set_defaults(handler=_cmd_import)
     ca = sub.add_parser("calibrate", help="kinematic odometry calibration of a dataset with wheel odometry (wheel "
@@ -443,8 +462,13 @@ def _cmd_synth(args: argparse.Namespace) -> int:
 def _cmd_import(args: argparse.Namespace) -> int:
     from omni_gym.outputs import Output
 
-    # Refuse a bad --out before reading the logs; import_optiodom checks again under the lock.
+    # Refuse a bad --out before reading the logs; the importers check again under the lock.
     Output(args.out, "dir", force=args.force, inputs=args.sessions, marker="dataset.json", what="dataset").preflight()
+    if args.format != "optiodom":
+        from omni_gym.discrepancy.data.importers.options import import_logs
+
+        print("\n".join(import_logs(args)))
+        return 0
     from omni_gym.discrepancy.data.importers import optiodom
 
     surface = optiodom.SURFACE if args.surface is None else args.surface
