@@ -136,16 +136,18 @@ def read_bag(bag: str | Path, bmap: BagMap, units: Units) -> tuple[WheelLog, Pos
     """The wheel and pose streams of one bag (SI, seconds from the first wheel stamp) and what was found
     (``frame``: the pose's header frame). InputError naming bag, topic, joint or message."""
     bag = Path(bag)
-    try:
-        from rosbags.highlevel import AnyReaderError
-    except ImportError:
-        raise InputError(MISSING) from None
-
+    folder = bag.parent if bag.is_file() else bag
+    if folder.is_dir() and not (folder / "metadata.yaml").is_file():
+        raise InputError(f"{bag}: not a rosbag2 folder (no metadata.yaml)")
     try:
         with _reader(bag) as reader:
             wheel = _read_joints(reader, bag, bmap)
             pose, info = _read_pose(reader, bag, bmap)
-    except AnyReaderError as exc:
+    except InputError:
+        raise
+    except Exception as exc:  # the reader's own errors (a damaged bag, an unknown storage): one line
+        if not type(exc).__module__.startswith("rosbags"):
+            raise
         raise InputError(f"{bag}: cannot read the bag ({' '.join(str(exc).split())})") from None
     t_ns, values = wheel
     where_w = f"{bag}: {bmap.joint_topic}"
