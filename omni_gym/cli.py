@@ -323,6 +323,11 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     check_evaluate_args(args)
     options = ModelOptions(args.algo, args.wrapper, args.residual_scale, args.vecnormalize)
     kwargs = parse_env_kwargs(args.env_kwargs) or {}
+    if "model" in kwargs and "kinematics" not in kwargs and args.env.rpartition(":")[2] != "OmniPathFollow-Custom-v0":
+        print(f"note: {args.env} with model= keeps the robot preset's nominal kinematics; add "
+              "\"kinematics\": \"model\" to --env-kwargs for the model's calibrated wheel matrix "
+              "(OmniPathFollow-Custom-v0's default)",
+              file=sys.stderr)
     try:
         if args.against is not None:  # a typo in the second policy fails before the first runs
             try:
