@@ -167,6 +167,15 @@ def build_parser() -> argparse.ArgumentParser:
     ca.add_argument("--out", required=True, help="model JSON to write (the nominal model with the fitted values)")
     _add_force_option(ca, "an existing --out file")
     ca.set_defaults(handler=_cmd_calibrate)
+    xp = sub.add_parser("export", help="a trained agent -> ONNX (and TorchScript) with its observation "
+                                       "normalisation and a JSON sidecar, for the robot's computer")
+    xp.add_argument("policy", help="model directory, RL Zoo folder, SB3 .zip or RLlib model (as evaluate --policy)")
+    xp.add_argument("--out", required=True, help="folder to write: policy.onnx, policy.json[, policy.pt]")
+    xp.add_argument("--env", default=None, help="environment id (default: the one the model records)")
+    xp.add_argument("--env-kwargs", default=None, help="JSON keywords of the environment (e.g. its model=)")
+    xp.add_argument("--torchscript", action="store_true", help="also write policy.pt (TorchScript)")
+    _add_force_option(xp, "an existing export folder")
+    xp.set_defaults(handler=_cmd_export)
     # Further subcommands register here with their own set_defaults(handler=...).
     return parser
 
@@ -482,6 +491,21 @@ def _cmd_import(args: argparse.Namespace) -> int:
                                  surface=surface)
     print(f"imported {s.runs} runs from {len(s.sessions)} session(s), {s.duration:.1f} s of robot time "
           f"(assumed: mass {s.mass:g} kg, inertia {s.inertia:.4g} kg·m², surface {s.surface}) -> {s.out}")
+    return 0
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    _require_our_agents()
+    from agents.export import export
+    from agents.options import parse_env_kwargs
+
+    side = export(args.policy, args.out, args.env, parse_env_kwargs(args.env_kwargs), torchscript=args.torchscript,
+                  force=args.force)
+    files = "policy.onnx, policy.json" + (", policy.pt" if args.torchscript else "")
+    print(f"exported {args.policy} -> {args.out} ({files}): observation {side['observation']['mode']} "
+          f"({side['input']['shape'][1]} values), action {side['action']['mode']}, control period "
+          f"{side['control_period_s']:g} s; onnxruntime matches the policy within "
+          f"{side['parity']['max_abs_difference']:.1e} on {side['parity']['observations']} observations")
     return 0
 
 
