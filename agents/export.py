@@ -144,7 +144,10 @@ def sidecar(spec: str, env_id: str, env, kind: str, normalised: bool, parity: fl
     if cfg.action_mode == "twist":
         action = {"mode": "twist", "scale": {"vx": [cfg.max_speed, "m/s"], "vy": [cfg.max_speed, "m/s"],
                                              "omega": [cfg.max_yaw_rate, "rad/s"]},
-                  "meaning": "body-frame twist (vx, vy, ω) = action · scale, clipped to [-1, 1] first"}
+                  "meaning": "body-frame twist (vx, vy, ω) = action · scale, clipped to [-1, 1] first",
+                  # what the environment's inverse kinematics does: wheel speeds [rad/s] = W · twist
+                  "wheel_matrix": np.asarray(u.wheel_matrix, dtype=float).tolist(),
+                  "wheel_speeds": "w [rad/s] = wheel_matrix (n × 3) · (vx, vy, ω)"}
     else:
         action = {"mode": "wheels", "scale": {"w": [float(u.wheel_scale), "rad/s"]},
                   "meaning": "wheel speed commands = action · w_max"}
