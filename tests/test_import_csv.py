@@ -147,3 +147,18 @@ def test_column_map_errors():
     with pytest.raises(InputError, match="no theta"):
         parse_columns("t=a,x=b,y=c,enc1=e", 1)
     assert parse_columns("t=a,x=b,y=c,theta=d,enc1=-e", 1).wheels == (("e", -1.0),)
+
+
+def test_reads_are_bounded(sim, tmp_path, monkeypatch):
+    from omni_gym.discrepancy.data.importers import csv_log
+
+    model, runs = sim
+    f = tmp_path / "log.csv"
+    write_log(f, runs[0])
+    monkeypatch.setattr(csv_log, "MAX_BYTES", 100)
+    with pytest.raises(InputError, match=r"log.csv: .* MiB; at most"):
+        import_csv([f], tmp_path / "ds", model, COLUMNS, parse_units("ms,mm,deg"))
+    monkeypatch.setattr(csv_log, "MAX_BYTES", 2**30)
+    monkeypatch.setattr(csv_log, "MAX_ROWS", 10)
+    with pytest.raises(InputError, match=r"rows; at most 10 per file"):
+        import_csv([f], tmp_path / "ds", model, COLUMNS, parse_units("ms,mm,deg"))

@@ -40,7 +40,8 @@ from omni_gym.io import InputError, read_csv_rows
 from omni_gym.physics.model import SimModel
 
 _NUMBER = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
-MAX_ROWS = 10_000_000  # rows per file: 28 hours at 100 Hz; a larger file is refused before it is parsed
+MAX_ROWS = 10_000_000  # rows per file: 28 hours at 100 Hz
+MAX_BYTES = 2**30  # 1 GiB per file (10^7 rows of 100 characters): a larger file is refused before it is read
 
 
 @dataclass(frozen=True)
@@ -105,6 +106,12 @@ def parse_columns(spec: str, n_wheels: int, option: str = "--columns") -> Column
 def read_log(path: str | Path, columns: ColumnMap, units: Units) -> tuple[WheelLog, PoseLog]:
     """Read one CSV log into SI wheel and pose streams; InputError naming file, row and column."""
     path = Path(path)
+    try:
+        size = path.stat().st_size
+    except OSError:
+        size = 0  # a missing file: read_csv_rows names it
+    if size > MAX_BYTES:
+        raise InputError(f"{path}: {size / 2**20:.0f} MiB; at most {MAX_BYTES // 2**20} MiB per file (split the log)")
     rows = read_csv_rows(path)
     if len(rows) > MAX_ROWS + 1:
         raise InputError(f"{path}: {len(rows) - 1} rows; at most {MAX_ROWS} per file (split the log)")
