@@ -88,3 +88,38 @@ def test_bad_input_one_line(tmp_path, capsys):
     assert main(["export", str(tmp_path / "nothing"), "--out", str(tmp_path / "x")]) == 2
     assert "no such folder or file" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+TINY_RLLIB = """OmniPathFollow-Phunopas-v0:
+  env_kwargs: {obs_mode: state}
+  env_wrapper:
+    - agents.rewards.TrackingReward: {reward: squared}
+  n_envs: 4
+  training: {train_batch_size_per_learner: 128, minibatch_size: 64, num_epochs: 1}
+  model: {fcnet_hiddens: [16, 16]}
+"""
+
+
+def test_rllib_model_parity(ray_cluster, tmp_path, capsys):
+    """An RLlib model (one tiny PPO iteration): the exported mean action equals RLlibPolicy's."""
+    pytest.importorskip("ray")
+    hp = tmp_path / "tiny.yml"
+    hp.write_text(TINY_RLLIB)
+    model = tmp_path / "model"
+    short = json.dumps({"episode_seconds": 2.0})
+    assert main(["train", "--backend", "rllib", "--env", "OmniPathFollow-Phunopas-v0", "--hyperparams", str(hp),
+                 "--timesteps", "128", "--seed", "3", "--out", str(model), "--eval-freq", "0", "--env-kwargs", short,
+                 "--address", ray_cluster, "--num-env-runners", "1", "--no-progress"]) == 0
+    out = tmp_path / "export"
+    assert main(["export", str(model), "--out", str(out), "--env-kwargs", short]) == 0
+    side = json.loads((out / "policy.json").read_text())
+    assert side["backend"] == "rllib" and side["observation"]["mode"] == "state"
+    env, policy = find_loader(str(model)).load(str(model), "OmniPathFollow-Phunopas-v0", {"episode_seconds": 2.0},
+                                               None)
+    try:
+        obs = parity_observations(env, policy, seed=123)
+        want = np.asarray(policy.act(obs), dtype=np.float32)
+    finally:
+        env.close()
+    got = ort.InferenceSession(str(out / "policy.onnx")).run(["action"], {"obs": obs})[0]
+    assert np.max(np.abs(got - want)) <= TOL
