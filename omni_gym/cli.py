@@ -159,6 +159,8 @@ def build_parser() -> argparse.ArgumentParser:
     lg.add_argument("--pose-topic", help="rosbag2: PoseStamped, PoseWithCovarianceStamped, Odometry or tf topic")
     lg.add_argument("--frames", help="rosbag2: PARENT:CHILD of the tracked transform (tf topics; checks the parent "
                                      "frame of the others)")
+    lg.add_argument("--command-topic", help="rosbag2: wheel commands (JointState velocities, or Float64MultiArray in "
+                                            "--joints order); rows are then the commands")
     _add_force_option(im, "an existing dataset folder")
     im.set_defaults(handler=_cmd_import)
     ca = sub.add_parser("calibrate", help="kinematic odometry calibration of a dataset with wheel odometry (wheel "

@@ -38,7 +38,8 @@ def write_bag(path: Path, segments: list[tuple[np.ndarray, np.ndarray, np.ndarra
               signs: list[float], *, storage: str = "sqlite3", field: str = "position", pose_kind: str = "pose",
               pose_topic: str = "/tracker/pose", frame: str = "world", child: str = "base_link",
               length_scale: float = 1.0, pose_every: int = 1, seed: int = 0, gap_s: float = 0.0,
-              arrival_t: np.ndarray | None = None) -> None:
+              arrival_t: np.ndarray | None = None, commands: list[np.ndarray] | None = None,
+              command_topic: str = "/wheel_commands", command_type: str = "joint_state") -> None:
     """Write a bag of ``segments`` (t (K,) [s], wheel values (K, n) in model order, pose (K, 3)) one after
     another (``gap_s`` [s] of nothing between them, wheels continuing from where they were).
 
@@ -47,7 +48,9 @@ def write_bag(path: Path, segments: list[tuple[np.ndarray, np.ndarray, np.ndarra
     this (1000: millimetres); ``pose_every``: a pose message every this many wheel samples, stamped with
     that sample's time;
     ``arrival_t`` (K,) [s]: when each sample reached the recorder (default its stamp: a publisher whose clock
-    jumps back stamps out of arrival order).
+    jumps back stamps out of arrival order). ``commands``: per segment (K, n) wheel speed commands [rad/s] in
+    model order, written on ``command_topic`` as JointState velocities (``command_type`` "joint_state") or
+    a Float64MultiArray in joint order ("array": no header, the arrival time is all a reader has).
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
 
@@ -64,9 +67,12 @@ def write_bag(path: Path, segments: list[tuple[np.ndarray, np.ndarray, np.ndarra
             pc = w.add_connection(pose_topic, "nav_msgs/msg/Odometry", typestore=ts)
         else:
             pc = w.add_connection(pose_topic, PS.__msgtype__, typestore=ts)
+        MA = "std_msgs/msg/Float64MultiArray"
+        cc = None if commands is None else w.add_connection(
+            command_topic, JS.__msgtype__ if command_type == "joint_state" else MA, typestore=ts)
         offset_s = 0.0
         last = np.zeros(len(joints))
-        for t, wheels, pose in segments:
+        for s_i, (t, wheels, pose) in enumerate(segments):
             if field == "position":
                 wheels = wheels - wheels[0] + last
                 last = wheels[-1]
@@ -81,6 +87,15 @@ def write_bag(path: Path, segments: list[tuple[np.ndarray, np.ndarray, np.ndarra
                          position=values if field == "position" else np.zeros(len(joints)),
                          velocity=values if field == "velocity" else empty, effort=empty)
                 w.write(jc, arrival, ts.serialize_cdr(msg, JS.__msgtype__))
+                if cc is not None:
+                    c = np.asarray(commands[s_i][k], dtype=float) * np.array(signs)
+                    if command_type == "joint_state":
+                        cm = JS(header=_header(ts, ns, ""), name=list(joints), position=np.zeros(0), velocity=c,
+                                effort=np.zeros(0))
+                    else:
+                        layout = ts.types["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
+                        cm = ts.types[MA](layout=layout, data=c)
+                    w.write(cc, arrival - 500_000, ts.serialize_cdr(cm, cc.msgtype))
                 if k % pose_every:
                     continue
                 x, y, th = pose[k]

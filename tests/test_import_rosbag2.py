@@ -157,3 +157,24 @@ def test_without_rosbags_one_line(sim, tmp_path, capsys, monkeypatch):
     write_bag(bag, [(runs[0].t, runs[0].enc, runs[0].pose)], JOINTS, SIGNS)
     monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)  # as if the extra were not installed
     assert "pip install 'omni-gym[ros]'" in _bad(tmp_path, capsys, bag, "--pose-topic", "/tracker/pose")
+
+
+@pytest.mark.parametrize("command_type", ["joint_state", "array"])
+def test_wheel_command_topic(sim, tmp_path, command_type):
+    """Commands from their own topic: the rows are the commands (held), enc the joint angles at those times."""
+    _, runs = sim
+    run = runs[0]
+    bag = tmp_path / "cmd"
+    write_bag(bag, [(run.t, run.enc, run.pose)], JOINTS, SIGNS, commands=[run.cmd], command_type=command_type)
+    out = tmp_path / "ds"
+    assert _import(bag, out, "--pose-topic", "/tracker/pose", "--command-topic", "/wheel_commands") == 0
+    got = load_dataset(out).runs[0]
+    assert "/wheel_commands" in load_dataset(out).description
+    if command_type == "joint_state":  # header stamps: the rows are the simulated rows exactly
+        np.testing.assert_allclose(got.t, run.t, rtol=0, atol=2e-9)
+        np.testing.assert_array_equal(got.cmd[:-1], run.cmd[:-1])
+        np.testing.assert_allclose(got.enc, run.enc, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(got.pose[:, :2], run.pose[:, :2], rtol=0, atol=1e-12)
+    else:  # arrival times: 1-9 ms after the stamps (bag_writer), so only the command values are exact
+        np.testing.assert_array_equal(got.cmd[:-1], run.cmd[: len(got.cmd) - 1])
+        assert np.all(np.abs(np.diff(got.t) - np.diff(run.t[: len(got.t)])) < 0.01)

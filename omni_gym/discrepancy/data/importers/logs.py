@@ -6,6 +6,8 @@ A robot logs its wheels and its tracked pose as two streams with their own clock
 
 * The run's rows are the wheel samples inside the run's time window and inside the pose stream's time
   span (so the first row has a tracked pose); times are shifted so the first row is t = 0.
+* With a wheel-**command** stream (speeds [rad/s], what the robot was told), the rows are its samples
+  instead, each command held until the next, and ``enc`` the wheel angles interpolated at the row times.
 * Wheel **angles** θ_k [rad] (``kind="position"``): the command held from t_k to t_{k+1} is the mean speed
   (θ_{k+1} − θ_k) / (t_{k+1} − t_k) (the wheel's measured motion stands in for the command, as in the OptiOdom
   import); ``enc`` = θ − θ_0. Wheel **speeds** ω_k [rad/s] (``kind="velocity"``): the held command is the
@@ -166,31 +168,46 @@ def parse_windows(specs: list[str] | None, option: str = "--window") -> list[Win
 
 
 def make_run(name: str, wheels: WheelLog, pose: PoseLog, wheel_radius: float, window: Window | None = None,
-             max_gap: float = 0.25, session: str | None = None) -> Run:
+             max_gap: float = 0.25, session: str | None = None, commands: WheelLog | None = None) -> Run:
     """One dataset run from a wheel stream and a pose stream (mapping in the module docstring).
 
     ``window`` [s] relative to the wheel stream's first sample (None: all of it); ``max_gap`` [s]: pose samples
     further apart than this do not interpolate (the rows between are unobserved); ``wheel_radius`` [m]: the
-    model's, for the units check. InputError naming the source on bad input.
+    model's, for the units check. ``commands``: a wheel-command stream (speeds [rad/s], each held until the
+    next): the rows are then its samples, ``w`` its values, and ``enc`` the wheel angles interpolated linearly
+    at the row times (``wheels`` of kind "position"; None for wheel speeds). InputError naming the source on
+    bad input.
     """
     t_w = wheels.t
     t0_log = float(t_w[0])
     lo, hi = max(float(pose.t[0]), t0_log), float(pose.t[-1])
+    if commands is not None:
+        hi = min(hi, float(t_w[-1]))  # the wheel angles must cover every row
     if window is not None:
         lo, hi = max(lo, t0_log + window.start), min(hi, t0_log + window.end)
-    keep = (t_w >= lo) & (t_w <= hi)
-    where = f"{wheels.where} and {pose.where}" + (f", window {window.name}" if window else "")
+    rows_from = wheels if commands is None else commands
+    t_r = rows_from.t
+    keep = (t_r >= lo) & (t_r <= hi)
+    where = f"{rows_from.where} and {pose.where}" + (f", window {window.name}" if window else "")
     if np.count_nonzero(keep) < 2:
-        raise InputError(f"{where}: fewer than two wheel samples where the pose is tracked "
-                         f"(wheels {t_w[0] - t0_log:.3f}…{t_w[-1] - t0_log:.3f} s, pose "
+        what = "wheel samples" if commands is None else "wheel commands"
+        raise InputError(f"{where}: fewer than two {what} where the pose is tracked "
+                         f"({what} {t_r[0] - t0_log:.3f}…{t_r[-1] - t0_log:.3f} s, pose "
                          f"{pose.t[0] - t0_log:.3f}…{pose.t[-1] - t0_log:.3f} s of the log)")
-    t = t_w[keep]
-    v = wheels.values[keep]
+    t = t_r[keep]
+    v = rows_from.values[keep]
     K, n = v.shape
     dt = np.diff(t)
     cmd = np.zeros((K, n))
-    enc = np.zeros((K, n))
-    if wheels.kind == "position":
+    enc: np.ndarray | None = np.zeros((K, n))
+    if commands is not None:
+        cmd[:-1] = v[:-1]
+        if wheels.kind == "position":
+            angles = np.column_stack([np.interp(t, t_w, wheels.values[:, i]) for i in range(n)])
+            enc = angles - angles[0]
+        else:
+            enc = None
+    elif wheels.kind == "position":
         cmd[:-1] = np.diff(v, axis=0) / dt[:, None]
         enc = v - v[0]
     else:
@@ -205,7 +222,7 @@ def make_run(name: str, wheels: WheelLog, pose: PoseLog, wheel_radius: float, wi
     gap = (pose.t[j] - pose.t[j - 1] > max_gap) & ~exact & (pose.t[j] != t)
     rows[gap] = np.nan
     t = t - t[0]
-    run = Run(name=name, t=t + 0.0, cmd=cmd + 0.0, pose=rows, enc=enc + 0.0, session=session)
+    run = Run(name=name, t=t + 0.0, cmd=cmd + 0.0, pose=rows, enc=None if enc is None else enc + 0.0, session=session)
     check_run_bounds(run, where)
     check_run_units(where, run.t, run.cmd, run.pose, wheel_radius)  # type: ignore[arg-type]  # named in the message
     return run

@@ -14,7 +14,7 @@ from omni_gym.io import InputError
 from omni_gym.physics.model import load_model
 
 # Options that belong to one format only: given with another format, they would be silently ignored.
-ONLY = {"columns": "csv", "joints": "rosbag2", "pose_topic": "rosbag2", "frames": "rosbag2",
+ONLY = {"columns": "csv", "joints": "rosbag2", "pose_topic": "rosbag2", "frames": "rosbag2", "command_topic": "rosbag2",
         "mass": "optiodom", "inertia": "optiodom"}
 
 
@@ -46,7 +46,7 @@ def import_logs(args: Namespace) -> list[str]:
         if not args.joints or not args.pose_topic:
             raise InputError("import rosbag2: --joints (one joint per model wheel) and --pose-topic are required")
         bmap = BagMap(parse_joints(args.joints, model.n_wheels), args.joint_topic, args.wheel_field,
-                      args.pose_topic, parse_frames(args.frames))
+                      args.pose_topic, parse_frames(args.frames), args.command_topic)
         names, desc = import_rosbag2(args.sessions, args.out, model, bmap, units, windows, args.max_gap,
                                      args.force, args.model)
     return [f"imported {len(names)} run(s) ({', '.join(names)}) -> {args.out}", f"assumptions: {desc}"]

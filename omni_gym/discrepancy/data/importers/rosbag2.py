@@ -10,6 +10,10 @@ optional extra ``omni-gym[ros]``; no ROS installation needed):
 * **Pose**: ``--pose-topic`` of type ``geometry_msgs/msg/PoseStamped``, ``PoseWithCovarianceStamped``,
   ``nav_msgs/msg/Odometry`` or ``tf2_msgs/msg/TFMessage`` (``/tf``: the transform ``--frames PARENT:CHILD``);
   the heading is the yaw of the orientation quaternion.
+* **Wheel commands** (optional, ``--command-topic``): what the robot was told, ``JointState`` velocities
+  [rad/s] by the same joint names, or a ``std_msgs/msg/Float64MultiArray`` in ``--joints`` order (no header:
+  stamped by the bag's arrival time, which the description says). The rows are then the commands, each held
+  until the next; the JointState wheel angles become ``enc`` (interpolated at the command times).
 * **Times** are the messages' header stamps (when the sensor measured), never the bag's arrival times;
   the run starts at the first wheel sample with a tracked pose. Stamps must be strictly increasing per
   topic (a zero stamp, i.e. never set, is refused).
@@ -42,6 +46,7 @@ from omni_gym.physics.model import SimModel
 
 MISSING = "omni-gym import rosbag2 needs the optional package 'rosbags': pip install 'omni-gym[ros]'"
 JOINT_STATE = "sensor_msgs/msg/JointState"
+MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
 POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped",
               "nav_msgs/msg/Odometry", "tf2_msgs/msg/TFMessage")
 MAX_MESSAGES = 50_000_000  # per topic: 58 days at 10 Hz; a longer read is refused rather than filling memory
@@ -58,12 +63,16 @@ class BagMap:
     wheel_field: str = "position"
     pose_topic: str = "/pose"
     frames: tuple[str, str] | None = None
+    command_topic: str | None = None
 
     def describe(self) -> str:
         joints = ", ".join(f"w{i + 1}={'-' if s < 0 else ''}{j}" for i, (j, s) in enumerate(self.joints))
         frames = f" (transform {self.frames[0]} -> {self.frames[1]})" if self.frames else ""
+        command = (f"; wheel commands: {self.command_topic} (JointState velocities by joint, or a Float64MultiArray "
+                   "in --joints order stamped by arrival time), each held until the next" if self.command_topic
+                   else "")
         return (f"wheels: {self.joint_topic} JointState {self.wheel_field}s, joints {joints}; pose: "
-                f"{self.pose_topic}{frames}")
+                f"{self.pose_topic}{frames}{command}")
 
 
 def parse_joints(spec: str, n_wheels: int, option: str = "--joints") -> tuple[tuple[str, float], ...]:
@@ -132,9 +141,11 @@ def _connections(reader, bag: Path, topic: str, types: tuple[str, ...]):
     return conns
 
 
-def read_bag(bag: str | Path, bmap: BagMap, units: Units) -> tuple[WheelLog, PoseLog, dict[str, str]]:
-    """The wheel and pose streams of one bag (SI, seconds from the first wheel stamp) and what was found
-    (``frame``: the pose's header frame). InputError naming bag, topic, joint or message."""
+def read_bag(bag: str | Path, bmap: BagMap, units: Units
+             ) -> tuple[WheelLog, PoseLog, dict[str, str], WheelLog | None]:
+    """The wheel and pose streams of one bag (SI, seconds from the first wheel stamp), what was found
+    (``frame``: the pose's header frame) and the wheel-command stream (``--command-topic``, else None).
+    InputError naming bag, topic, joint or message."""
     bag = Path(bag)
     folder = bag.parent if bag.is_file() else bag
     if folder.is_dir() and not (folder / "metadata.yaml").is_file():
@@ -143,6 +154,8 @@ def read_bag(bag: str | Path, bmap: BagMap, units: Units) -> tuple[WheelLog, Pos
         with _reader(bag) as reader:
             wheel = _read_joints(reader, bag, bmap)
             pose, info = _read_pose(reader, bag, bmap)
+            command = (None if bmap.command_topic is None
+                       else _read_joints(reader, bag, bmap, bmap.command_topic, "velocity"))
     except InputError:
         raise
     except Exception as exc:  # the reader's own errors (a damaged bag, an unknown storage): one line
@@ -163,42 +176,63 @@ def read_bag(bag: str | Path, bmap: BagMap, units: Units) -> tuple[WheelLog, Pos
     wheels = WheelLog(t_w, values * signs * units.wheel, bmap.wheel_field, where_w, names)
     check_moving(wheels)
     p = p * np.array([units.length, units.length, 1.0])  # the yaw of a quaternion is in radians
-    return wheels, PoseLog(t_p, p, where_p), info
+    commands = None
+    if command is not None:
+        where_c = f"{bag}: {bmap.command_topic}"
+        t_c = (command[0] - ref) * 1e-9
+        check_increasing(t_c, where_c)
+        # wheel units per second (rpm: per minute, already in units.wheel)
+        commands = WheelLog(t_c, command[1] * signs * units.wheel, "command", where_c, names)
+    return wheels, PoseLog(t_p, p, where_p), info, commands
 
 
-def _read_joints(reader, bag: Path, bmap: BagMap) -> tuple[np.ndarray, np.ndarray]:
-    conns = _connections(reader, bag, bmap.joint_topic, (JOINT_STATE,))
+def _read_joints(reader, bag: Path, bmap: BagMap, topic: str | None = None, field_name: str | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(stamps [ns], values (K, n) in --joints order) of a JointState topic (default the wheels': --joint-topic
+    and --wheel-field), or of a ``std_msgs/msg/Float64MultiArray`` command topic (values in --joints order;
+    it has no header: the bag's arrival times stand in for stamps)."""
+    topic = topic or bmap.joint_topic
+    field_name = field_name or bmap.wheel_field
+    conns = _connections(reader, bag, topic, (JOINT_STATE, MULTI_ARRAY) if topic == bmap.command_topic
+                         else (JOINT_STATE,))
     wanted = [j for j, _ in bmap.joints]
     stamps: list[int] = []
     rows: list[list[float]] = []
     seen_names: set[str] = set()
-    for count, (conn, _arrival, raw) in enumerate(reader.messages(connections=conns), start=1):
+    for count, (conn, arrival, raw) in enumerate(reader.messages(connections=conns), start=1):
         if count > MAX_MESSAGES:
-            raise InputError(f"{bag}: {bmap.joint_topic}: more than {MAX_MESSAGES} messages; import windows of a "
-                             "shorter bag")
+            raise InputError(f"{bag}: {topic}: more than {MAX_MESSAGES} messages; import windows of a shorter bag")
         msg = reader.deserialize(raw, conn.msgtype)
+        if conn.msgtype == MULTI_ARRAY:
+            data = np.asarray(msg.data, dtype=float)
+            if data.size != len(wanted):
+                raise InputError(f"{bag}: {topic}: message {count}: {data.size} values; --joints names "
+                                 f"{len(wanted)} wheels (the command array is read in --joints order)")
+            stamps.append(int(arrival))
+            rows.append(data.tolist())
+            continue
         names = list(msg.name)
         seen_names.update(names)
         if not all(j in names for j in wanted):
             continue
-        field = np.asarray(getattr(msg, bmap.wheel_field), dtype=float)
+        field = np.asarray(getattr(msg, field_name), dtype=float)
         if field.size != len(names):
-            raise InputError(f"{bag}: {bmap.joint_topic}: message {count}: {len(names)} joint names but "
-                             f"{field.size} {bmap.wheel_field} values (use --wheel-field position or velocity)")
+            raise InputError(f"{bag}: {topic}: message {count}: {len(names)} joint names but "
+                             f"{field.size} {field_name} values")
         stamp = _stamp_ns(msg.header)
         if stamp == 0:
-            raise InputError(f"{bag}: {bmap.joint_topic}: message {count}: header stamp is zero (not set); "
+            raise InputError(f"{bag}: {topic}: message {count}: header stamp is zero (not set); "
                              "the import needs the measurement times")
         stamps.append(stamp)
         rows.append([float(field[names.index(j)]) for j in wanted])
     if not rows:
         missing = next((j for j in wanted if j not in seen_names), wanted[0])
         have = ", ".join(sorted(seen_names)) or "none"
-        raise InputError(f"{bag}: {bmap.joint_topic}: no message has joint {missing!r} (joints in the bag: {have})")
+        raise InputError(f"{bag}: {topic}: no message has joint {missing!r} (joints in the bag: {have})")
     values = np.asarray(rows)
     bad = np.nonzero(~np.all(np.isfinite(values), axis=1))[0]
     if bad.size:
-        raise InputError(f"{bag}: {bmap.joint_topic}: a {bmap.wheel_field} value is NaN or infinite "
+        raise InputError(f"{bag}: {topic}: a {field_name} value is NaN or infinite "
                          f"(message with stamp {stamps[int(bad[0])] * 1e-9:.9f} s)")
     return np.asarray(stamps, dtype=np.int64), values
 
@@ -273,12 +307,12 @@ def import_rosbag2(bags: list[str | Path], out: str | Path, model: SimModel, bma
         runs = []
         frames = set()
         for p in paths:
-            wheels, pose, info = read_bag(p, bmap, units)
+            wheels, pose, info, commands = read_bag(p, bmap, units)
             frames.add(info["frame"])
             for w in windows or [None]:
                 stem = p.stem if p.is_dir() else p.parent.stem
                 name = stem if w is None else (w.name if len(paths) == 1 else f"{stem}-{w.name}")
-                runs.append(make_run(name, wheels, pose, model.robot.wheel_radius, w, max_gap))
+                runs.append(make_run(name, wheels, pose, model.robot.wheel_radius, w, max_gap, commands=commands))
         desc = describe(paths, bmap, units, ", ".join(sorted(frames)), model_name or model.robot.name, max_gap)
         result["desc"] = desc
         result["names"] = [r.name for r in runs]
