@@ -145,16 +145,18 @@ def build_parser() -> argparse.ArgumentParser:
                          "assumes; csv, rosbag2: overrides the --model's)")
     lg = im.add_argument_group("csv and rosbag2 (docs/formats.md, 'Importing ROS 2 bags and CSV logs')")
     lg.add_argument("--model", help="nominal model: preset name or model JSON file (required)")
+    lg.add_argument("--mapping", help="JSON file with any of these options (keys as the option names, with _), "
+                                      "e.g. {\"joints\": \"fl,-fr,rear\", \"pose_topic\": \"/mocap/pose\"}")
     lg.add_argument("--units", default=None, help="log units, e.g. mm,deg,ms,wheel=rev (default m, rad, s)")
     lg.add_argument("--window", action="append", metavar="[NAME=]START:END",
                     help="one run per window [s from the first wheel sample] of each input (repeatable)")
-    lg.add_argument("--max-gap", type=float, default=0.25,
+    lg.add_argument("--max-gap", type=float, default=None,
                     help="pose samples further apart [s] leave the rows between unobserved (default 0.25)")
     lg.add_argument("--columns", help="csv: NAME=COLUMN pairs t,x,y,theta and enc1…encn (or w1…wn); -COLUMN flips a "
                                       "wheel")
     lg.add_argument("--joints", help="rosbag2: one joint per model wheel in model order; -NAME flips a wheel")
-    lg.add_argument("--joint-topic", default="/joint_states", help="rosbag2: JointState topic (default /joint_states)")
-    lg.add_argument("--wheel-field", choices=("position", "velocity"), default="position",
+    lg.add_argument("--joint-topic", default=None, help="rosbag2: JointState topic (default /joint_states)")
+    lg.add_argument("--wheel-field", choices=("position", "velocity"), default=None,
                     help="rosbag2: JointState field of the wheels (default position)")
     lg.add_argument("--pose-topic", help="rosbag2: PoseStamped, PoseWithCovarianceStamped, Odometry or tf topic")
     lg.add_argument("--frames", help="rosbag2: PARENT:CHILD of the tracked transform (tf topics; checks the parent "

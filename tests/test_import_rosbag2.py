@@ -4,6 +4,7 @@ frames, units and time windows; bad input gets one line naming the bag and the t
 
 from __future__ import annotations
 
+import json
 import sys
 
 import numpy as np
@@ -178,3 +179,21 @@ def test_wheel_command_topic(sim, tmp_path, command_type):
     else:  # arrival times: 1-9 ms after the stamps (bag_writer), so only the command values are exact
         np.testing.assert_array_equal(got.cmd[:-1], run.cmd[: len(got.cmd) - 1])
         assert np.all(np.abs(np.diff(got.t) - np.diff(run.t[: len(got.t)])) < 0.01)
+
+
+def test_mapping_file(sim, tmp_path, capsys):
+    """The options in a JSON file (a robot imported often); an option on the command line wins."""
+    _, runs = sim
+    bag = tmp_path / "b"
+    write_bag(bag, [(runs[0].t, runs[0].enc, runs[0].pose)], JOINTS, SIGNS)
+    mapping = tmp_path / "robot.json"
+    mapping.write_text(json.dumps({"model": MODEL, "joints": JOINT_FLAG, "pose_topic": "/nowhere",
+                                   "frames": "world:base_link"}))
+    out = tmp_path / "ds"
+    assert main(["import", "rosbag2", str(bag), "--mapping", str(mapping), "--pose-topic", "/tracker/pose",
+                 "--out", str(out)]) == 0
+    np.testing.assert_allclose(load_dataset(out).runs[0].enc, runs[0].enc, atol=1e-9)
+    mapping.write_text(json.dumps({"model": MODEL, "joint": JOINT_FLAG}))
+    assert main(["import", "rosbag2", str(bag), "--mapping", str(mapping), "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "robot.json" in err and "'joint'" in err
