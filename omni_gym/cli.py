@@ -336,11 +336,6 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     check_evaluate_args(args)
     options = ModelOptions(args.algo, args.wrapper, args.residual_scale, args.vecnormalize)
     kwargs = parse_env_kwargs(args.env_kwargs) or {}
-    if "model" in kwargs and "kinematics" not in kwargs and args.env.rpartition(":")[2] != "OmniPathFollow-Custom-v0":
-        print(f"note: {args.env} with model= keeps the robot preset's nominal kinematics; add "
-              "\"kinematics\": \"model\" to --env-kwargs for the model's calibrated wheel matrix "
-              "(OmniPathFollow-Custom-v0's default)",
-              file=sys.stderr)
     try:
         if args.against is not None:  # a typo in the second policy fails before the first runs
             try:
@@ -352,6 +347,10 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         anchors = _score_anchors(args, kwargs, result, other) if args.score else None
     except ImportError as exc:  # a missing extra: one line naming it (agents.require_agents_extra)
         raise ValueError(str(exc)) from None
+    if "model" in kwargs and "kinematics" not in kwargs and args.env.rpartition(":")[2] != "OmniPathFollow-Custom-v0":
+        print(f"note: {args.env} with model= keeps the robot preset's nominal kinematics; add "
+              "\"kinematics\": \"model\" to --env-kwargs for the model's calibrated wheel matrix "
+              "(OmniPathFollow-Custom-v0's default)", file=sys.stderr)
     out, blocks = dict(result), [format_table(result)]
     if other is not None:
         cmp = compare(result, other)
