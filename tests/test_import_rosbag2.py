@@ -12,10 +12,9 @@ import pytest
 
 pytest.importorskip("rosbags")
 
-from bag_writer import write_bag  # noqa: E402
-
 from omni_gym.cli import main  # noqa: E402
 from omni_gym.discrepancy.data.dataset import load_dataset  # noqa: E402
+from omni_gym.discrepancy.synthetic.bags import write_bag  # noqa: E402
 from omni_gym.discrepancy.synthetic.synth import synthesize  # noqa: E402
 from omni_gym.physics.model import load_model  # noqa: E402
 

@@ -24,9 +24,8 @@ pytest.importorskip("rosbags")
 pytest.importorskip("onnxruntime")
 pytest.importorskip("stable_baselines3")
 
-from bag_writer import write_bag  # noqa: E402
-
 from omni_gym.cli import main  # noqa: E402
+from omni_gym.discrepancy.synthetic.bags import write_bag  # noqa: E402
 from omni_gym.discrepancy.synthetic.recovery import TOLERANCES, param_error  # noqa: E402
 from omni_gym.discrepancy.synthetic.reference_data import reference_runs  # noqa: E402
 from omni_gym.physics.model import load_model  # noqa: E402

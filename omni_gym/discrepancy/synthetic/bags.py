@@ -1,4 +1,5 @@
-"""Write small rosbag2 recordings from simulated runs with ``rosbags``' writer (for the import tests).
+"""Write rosbag2 recordings of simulated runs with ``rosbags``' writer (the optional extra ``ros``): the
+known-truth bags of the import tests, the walkthrough test and ``benchmarks/import_speed.py``.
 
 A run's wheel angles [rad] become ``sensor_msgs/JointState`` messages (joint names of our choosing, with a
 sign per joint), its tracked pose ``geometry_msgs/PoseStamped`` (or ``nav_msgs/Odometry`` or ``/tf``)
