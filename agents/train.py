@@ -129,6 +129,25 @@ def files_holding(env_id: str) -> list[str]:
     return found
 
 
+# Without --hyperparams, an id that ``<algo>.yml`` has no entry for trains with ``<algo>_<DEFAULT_KIND>.yml``
+# when that file has one: the residual agent on ekf-pid starts at the scripted baseline, so it is the safe
+# first agent on any robot (OmniPathFollow-Williams-v1, and OmniPathFollow-Custom-v0 built from a model file).
+DEFAULT_KIND = "residual"
+
+
+def default_hyperparams(algo: str, env_id: str, name: str | Path | None = None) -> str | Path | None:
+    """The hyperparameter file ``train`` reads for ``env_id``: ``name`` when given; else None (``<algo>.yml``)
+    when that file has an entry for the id; else the stem ``<algo>_residual`` when that shipped file has one;
+    else None (:func:`load_hyperparams` then names the files that do)."""
+    if name is not None:
+        return name
+    bare = env_id.rpartition(":")[2]
+    holding = files_holding(bare)
+    if algo in holding or f"{algo}_{DEFAULT_KIND}" not in holding:
+        return None
+    return f"{algo}_{DEFAULT_KIND}"
+
+
 def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict:
     """The YAML entry for ``env_id`` in ``path`` (a file, or the stem of a shipped file; default
     ``agents/hyperparams/<algo>.yml``). ValueError naming the file (and key) on any problem; a missing
@@ -142,8 +161,8 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
     bare = env_id.rpartition(":")[2]
     if bare not in data:
         holding = files_holding(bare)
-        hint = (f"; shipped files with an entry for it: {', '.join(holding)} (--hyperparams NAME)" if holding
-                else "; no shipped hyperparameter file has one")
+        hint = (f"; choose one with --hyperparams NAME, e.g. --hyperparams {holding[0]} (shipped files with an "
+                f"entry for it: {', '.join(holding)})" if holding else "; no shipped hyperparameter file has one")
         raise ValueError(f"{path}: no entry for {bare!r} (entries: {', '.join(map(str, data))}){hint}")
     hp = data[bare]
     if not isinstance(hp, dict):
@@ -349,6 +368,7 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     if env_kwargs is not None and not isinstance(env_kwargs, dict):
         raise ValueError(f"env_kwargs must be a dict (a JSON object), got {env_kwargs!r}")
+    hyperparams = default_hyperparams(algo, env_id, hyperparams)
     where = str(hyperparams_path(algo, hyperparams))
     raw_hp = load_hyperparams(algo, env_id, hyperparams)
     hp = check_hyperparams(raw_hp, where, algo)  # numbers in their bounds before the library sees them

@@ -123,20 +123,30 @@ class EKFFeatures(gym.Wrapper):
         _check_wrapper_args(residual_scale, reward)
         self.reward_mode = reward
         self.lost_distance = float(env.unwrapped.cfg.lost_distance)
-        from agents.policies import make_policy
-
-        self.residual_scale = float(residual_scale)
-        self.base = make_policy("ekf-pid", env)
-        cfg = env.unwrapped.cfg
+        self.filter = EKFFeatureFilter.for_env(env, float(residual_scale))  # what the agent sees and does
+        self.residual_scale = self.filter.residual_scale
         self.n = self.base.robot.n_wheels
-        self.twist_scale = np.array([cfg.max_speed, cfg.max_speed, cfg.max_yaw_rate])
-        self.wheel_scale = float(env.unwrapped.wheel_scale)
+        self.twist_scale = self.filter.twist_scale
+        self.wheel_scale = self.filter.wheel_scale
         self.dim = 30 + 3 * self.n
         self.observation_space = spaces.Box(-CLIP, CLIP, shape=(self.dim,), dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
-        self.base_action = np.zeros(3)
-        self.prev_action = np.zeros(3)
         self._rates = np.zeros(self.n)
+
+    @property
+    def base(self):
+        """The ekf-pid baseline inside the features (:class:`agents.policies.EKFPIDPolicy`)."""
+        return self.filter.base
+
+    @property
+    def base_action(self) -> np.ndarray:
+        """ekf-pid's action on the latest observation, in [-1, 1]³."""
+        return self.filter.base_action
+
+    @property
+    def prev_action(self) -> np.ndarray:
+        """The agent's latest (clipped) action."""
+        return self.filter.prev_action
 
     @property
     def estimate(self) -> np.ndarray:
@@ -145,59 +155,118 @@ class EKFFeatures(gym.Wrapper):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         obs, info = self.env.reset(seed=seed, options=options)
-        self.prev_action = np.zeros(3)
-        self.base.reset(obs)
-        return self._observe(obs), info
+        return self.filter.reset(obs), info
 
     def step(self, action):
+        total = self.filter.command(action)
+        a = self.filter.prev_action
+        obs, reward, terminated, truncated, info = self.env.step(total)
+        reward = float(tracking_reward(self.reward_mode, [reward], [info["tracking_error"]], a[None], [terminated],
+                                       self.lost_distance, [info["heading_error"]])[0])
+        return self.filter.observe(obs), reward, terminated, truncated, info
+
+
+def ekf_feature_vector(base, obs: np.ndarray, prev_action: np.ndarray, twist_scale: np.ndarray,
+                       wheel_scale: float) -> np.ndarray:
+    """The EKF feature vector (the module doc's table, float32, clipped to ±10) of an ``ekf-pid`` policy
+    ``base`` that has just acted on the sensor observation ``obs``; ``prev_action``: the agent's previous
+    action; ``twist_scale`` (max_speed, max_speed, max_yaw_rate); ``wheel_scale`` [rad/s]."""
+    s = base.decode(obs)
+    ekf, pid = base.ekf, base.pid
+    x, y, th = ekf.pose
+    c, si = math.cos(th), math.sin(th)
+
+    def body(dx: float, dy: float) -> tuple[float, float]:
+        return c * dx + si * dy, -si * dx + c * dy
+
+    ex, ey = body(s.ref_pose[0] - x, s.ref_pose[1] - y)
+    eth = wrap_angle(s.ref_pose[2] - th)
+    rvx, rvy = body(s.ref_velocity[0], s.ref_velocity[1])
+    look = []
+    for lx, ly, lth in s.lookahead:
+        bx, by = body(lx - x, ly - y)
+        look += [bx / LOOK_SCALE, by / LOOK_SCALE, wrap_angle(lth - th) / math.pi]
+    std = np.sqrt(np.maximum(np.diag(ekf.P)[0:3], 0.0))
+    innov = (np.asarray(s.encoder_rates) - base.W @ ekf.body_twist) / wheel_scale
+    ix, iy = body(pid.integral[0], pid.integral[1])
+    ilim = pid._ilim
+    f = np.concatenate([
+        [ex / POS_SCALE, ey / POS_SCALE, eth / HEAD_SCALE],
+        ekf.body_twist / twist_scale,
+        [rvx / twist_scale[0], rvy / twist_scale[1], s.ref_velocity[2] / twist_scale[2]],
+        look,
+        [std[0] / STD_POS_SCALE, std[1] / STD_POS_SCALE, std[2] / STD_HEAD_SCALE],
+        ekf.wheel_belief, ekf.wheels_used.astype(float), innov,
+        base.twist / twist_scale,
+        [ix / ilim[0], iy / ilim[1], pid.integral[2] / ilim[2]],
+        prev_action,
+    ])
+    return np.clip(f, -CLIP, CLIP).astype(np.float32)
+
+class EKFFeatureFilter:
+    """The EKF features of a residual or EKF-feature agent, outside any environment: what a robot program runs.
+
+    It holds the ``ekf-pid`` baseline (EKF, slip/lift-off detector, PID; numpy and scipy only) and turns each
+    sensor observation into the agent's input, then the agent's action into the twist action the robot is
+    given, exactly as :class:`EKFFeatures` does inside training and evaluation::
+
+        feat = filt.reset(obs)                  # at the start (the robot at rest on its reference)
+        while running:
+            a = policy(feat)                    # e.g. the exported ONNX network
+            twist = filt.command(a)             # action in [-1, 1]^3: x max_speed, max_speed, max_yaw_rate
+            obs = robot.step(twist)             # the sensor observation one control period later
+            feat = filt.observe(obs)
+
+    Args:
+        base: an ``ekf-pid`` policy (:func:`agents.policies.make_policy`) for the robot.
+        twist_scale: (max_speed [m/s], max_speed [m/s], max_yaw_rate [rad/s]): action units.
+        wheel_scale: the encoder observation scale [rad/s].
+        residual_scale: s in [0, 1]: the agent's action moves ekf-pid's by at most s (0: the whole twist).
+    """
+
+    def __init__(self, base, twist_scale: np.ndarray, wheel_scale: float, residual_scale: float) -> None:
+        self.base = base
+        self.twist_scale = np.asarray(twist_scale, dtype=float)
+        self.wheel_scale = float(wheel_scale)
+        self.residual_scale = float(residual_scale)
+        self.base_action = np.zeros(3)
+        self.prev_action = np.zeros(3)
+
+    @classmethod
+    def for_env(cls, env, residual_scale: float) -> EKFFeatureFilter:
+        """The filter of an omni-gym environment's robot, control period, scales and kinematics (sensors, twist)."""
+        from agents.policies import make_policy
+
+        _check_env(env, "EKFFeatureFilter")
+        cfg = env.unwrapped.cfg
+        return cls(make_policy("ekf-pid", env), np.array([cfg.max_speed, cfg.max_speed, cfg.max_yaw_rate]),
+                   float(env.unwrapped.wheel_scale), residual_scale)
+
+    def reset(self, obs: np.ndarray) -> np.ndarray:
+        """Start from the first sensor observation; returns the first feature vector (float32)."""
+        self.prev_action = np.zeros(3)
+        self.base.reset(obs)
+        return self.observe(obs)
+
+    def observe(self, obs: np.ndarray) -> np.ndarray:
+        """Advance the filter and the PID with a sensor observation; returns the feature vector (float32)."""
+        self.base_action = np.asarray(self.base.act(obs), dtype=float).reshape(3)
+        return ekf_feature_vector(self.base, obs, self.prev_action, self.twist_scale, self.wheel_scale)
+
+    def command(self, action: np.ndarray) -> np.ndarray:
+        """The twist action (float32, [-1, 1]^3) for the agent's ``action``: clip(ekf-pid + s·a, -1, 1) for a
+        residual agent, the action itself otherwise."""
         a = np.clip(np.asarray(action, dtype=float).reshape(3), -1.0, 1.0)
         if not np.all(np.isfinite(a)):
             raise ValueError(f"action contains NaN or infinity: {a.tolist()}")
         self.prev_action = a
-        if self.residual_scale > 0:
-            total = np.clip(self.base_action + self.residual_scale * a, -1.0, 1.0)
-        else:
-            total = a
-        obs, reward, terminated, truncated, info = self.env.step(total.astype(np.float32))
-        reward = float(tracking_reward(self.reward_mode, [reward], [info["tracking_error"]], a[None], [terminated],
-                                       self.lost_distance, [info["heading_error"]])[0])
-        return self._observe(obs), reward, terminated, truncated, info
+        total = np.clip(self.base_action + self.residual_scale * a, -1.0, 1.0) if self.residual_scale > 0 else a
+        return total.astype(np.float32)
 
-    def _observe(self, obs: np.ndarray) -> np.ndarray:
-        """Advance the baseline (EKF + PID) with ``obs`` and build the feature vector."""
-        base = self.base
-        self.base_action = np.asarray(base.act(obs), dtype=float).reshape(3)  # the ekf-pid action, in [-1, 1]
-        s = base.decode(obs)
-        ekf, pid = base.ekf, base.pid
-        x, y, th = ekf.pose
-        c, si = math.cos(th), math.sin(th)
-
-        def body(dx: float, dy: float) -> tuple[float, float]:
-            return c * dx + si * dy, -si * dx + c * dy
-
-        ex, ey = body(s.ref_pose[0] - x, s.ref_pose[1] - y)
-        eth = wrap_angle(s.ref_pose[2] - th)
-        rvx, rvy = body(s.ref_velocity[0], s.ref_velocity[1])
-        look = []
-        for lx, ly, lth in s.lookahead:
-            bx, by = body(lx - x, ly - y)
-            look += [bx / LOOK_SCALE, by / LOOK_SCALE, wrap_angle(lth - th) / math.pi]
-        std = np.sqrt(np.maximum(np.diag(ekf.P)[0:3], 0.0))
-        innov = (np.asarray(s.encoder_rates) - base.W @ ekf.body_twist) / self.wheel_scale
-        ix, iy = body(pid.integral[0], pid.integral[1])
-        ilim = pid._ilim
-        f = np.concatenate([
-            [ex / POS_SCALE, ey / POS_SCALE, eth / HEAD_SCALE],
-            ekf.body_twist / self.twist_scale,
-            [rvx / self.twist_scale[0], rvy / self.twist_scale[1], s.ref_velocity[2] / self.twist_scale[2]],
-            look,
-            [std[0] / STD_POS_SCALE, std[1] / STD_POS_SCALE, std[2] / STD_HEAD_SCALE],
-            ekf.wheel_belief, ekf.wheels_used.astype(float), innov,
-            base.twist / self.twist_scale,
-            [ix / ilim[0], iy / ilim[1], pid.integral[2] / ilim[2]],
-            self.prev_action,
-        ])
-        return np.clip(f, -CLIP, CLIP).astype(np.float32)
+    @property
+    def estimate(self) -> np.ndarray:
+        """The EKF's pose estimate (x, y, θ) [m, m, rad], world frame."""
+        return self.base.estimate
 
 
 class VectorEKFFeatures(VectorWrapper):

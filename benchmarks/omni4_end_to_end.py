@@ -64,7 +64,7 @@ from omni_gym.outputs import write_bytes_atomic, write_text_atomic  # noqa: E402
 
 MODEL = ROOT / "benchmarks" / "inputs" / "omni4_calibrated_model.json"
 NOMINAL, CALIBRATED = "nominal", "calibrated"
-ENV_KINEMATICS = "env"  # the policy as omni-gym evaluate builds it: twist actions, the env default kinematics="nominal"
+ENV_KINEMATICS = "env"  # the policy the environment builds with kinematics="nominal" (twist actions)
 ENV_MODEL_KINEMATICS = "env-model"  # the same with the env keyword kinematics="model" (the model's wheel matrix)
 ENV_BUILT = (ENV_KINEMATICS, ENV_MODEL_KINEMATICS)  # policies the environment builds (twist actions)
 DESIGN_IDS = {NOMINAL: "OmniPathFollow-Mecanum-v0", CALIBRATED: "OmniPathFollow-Custom-v0"}
@@ -138,7 +138,9 @@ def run_scripted(args: tuple) -> list[dict]:
 
     design, spec, seeds, seconds, model_path = args
     mode = "twist" if spec.kinematics in ENV_BUILT else "wheels"
-    extra = {"kinematics": "model"} if spec.kinematics == ENV_MODEL_KINEMATICS else None
+    # Explicit both ways: OmniPathFollow-Custom-v0 defaults to "model", the other ids to "nominal".
+    extra = ({"kinematics": "model" if spec.kinematics == ENV_MODEL_KINEMATICS else "nominal"}
+             if spec.kinematics in ENV_BUILT else None)
     venv = make_env(design, len(seeds), seconds, action_mode=mode, model_path=model_path, extra=extra)
     try:
         return [e.metrics() for e in run_episodes_vector(venv, build_scripted(venv, spec, model_path), seeds)]

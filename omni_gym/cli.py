@@ -131,17 +131,40 @@ def build_parser() -> argparse.ArgumentParser:
     sy.add_argument("--out", required=True, help="dataset folder to write")
     _add_force_option(sy, "an existing dataset folder and its DATASET.truth.json")
     sy.set_defaults(handler=_cmd_synth)
-    im = sub.add_parser("import", help="write a dataset from another log format (OptiOdom omni3 or omni4 sessions)")
-    im.add_argument("format", choices=sorted(IMPORT_FORMATS), help="log format: optiodom")
-    im.add_argument("sessions", nargs="+", metavar="SESSION_DIR",
-                    help="session folder(s) of one robot with <id>_metadata.csv and <id>_run-NN.csv[.gz]")
+    im = sub.add_parser("import", help="write a dataset from another log format (ROS 2 bags, CSV logs, OptiOdom "
+                                       "sessions; docs/formats.md)")
+    im.add_argument("format", choices=sorted(IMPORT_FORMATS), help="log format: rosbag2, csv or optiodom")
+    im.add_argument("sessions", nargs="+", metavar="INPUT",
+                    help="rosbag2: bag folder(s), one run each; csv: CSV file(s), one run each; optiodom: session "
+                         "folder(s) of one robot with <id>_metadata.csv and <id>_run-NN.csv[.gz]")
     im.add_argument("--out", required=True, help="dataset folder to write")
-    im.add_argument("--mass", type=float, default=None, help="assumed robot mass [kg] (not published; default and "
-                    "why in docs/formats.md, 'Importing OptiOdom logs')")
+    im.add_argument("--mass", type=float, default=None, help="optiodom: assumed robot mass [kg] (not published; "
+                    "default and why in docs/formats.md, 'Importing OptiOdom logs')")
     im.add_argument("--inertia", type=float, default=None,
-                    help="assumed yaw inertia [kg·m²] (default 0.5·mass·ρ², ρ the wheel centres' distance)")
+                    help="optiodom: assumed yaw inertia [kg·m²] (default 0.5·mass·ρ², ρ the wheel centres' distance)")
     im.add_argument("--surface", choices=sorted(SURFACES), default=None,
-                    help="floor preset of the nominal model (default grip: no slip, as kinematic odometry assumes)")
+                    help="floor preset of the nominal model (optiodom default grip: no slip, as kinematic odometry "
+                         "assumes; csv, rosbag2: overrides the --model's)")
+    lg = im.add_argument_group("csv and rosbag2 (docs/formats.md, 'Importing ROS 2 bags and CSV logs')")
+    lg.add_argument("--model", help="nominal model: preset name or model JSON file (required)")
+    lg.add_argument("--mapping", help="JSON file with any of these options (keys as the option names, with _), "
+                                      "e.g. {\"joints\": \"fl,-fr,rear\", \"pose_topic\": \"/mocap/pose\"}")
+    lg.add_argument("--units", default=None, help="log units, e.g. mm,deg,ms,wheel=rev (default m, rad, s)")
+    lg.add_argument("--window", action="append", metavar="[NAME=]START:END",
+                    help="one run per window [s from the first wheel sample] of each input (repeatable)")
+    lg.add_argument("--max-gap", type=float, default=None,
+                    help="pose samples further apart [s] leave the rows between unobserved (default 0.25)")
+    lg.add_argument("--columns", help="csv: NAME=COLUMN pairs t,x,y,theta and enc1…encn (or w1…wn); -COLUMN flips a "
+                                      "wheel")
+    lg.add_argument("--joints", help="rosbag2: one joint per model wheel in model order; -NAME flips a wheel")
+    lg.add_argument("--joint-topic", default=None, help="rosbag2: JointState topic (default /joint_states)")
+    lg.add_argument("--wheel-field", choices=("position", "velocity"), default=None,
+                    help="rosbag2: JointState field of the wheels (default position)")
+    lg.add_argument("--pose-topic", help="rosbag2: PoseStamped, PoseWithCovarianceStamped, Odometry or tf topic")
+    lg.add_argument("--frames", help="rosbag2: PARENT:CHILD of the tracked transform (tf topics; checks the parent "
+                                     "frame of the others)")
+    lg.add_argument("--command-topic", help="rosbag2: wheel commands (JointState velocities, or Float64MultiArray in "
+                                            "--joints order); rows are then the commands")
     _add_force_option(im, "an existing dataset folder")
     im.set_defaults(handler=_cmd_import)
     ca = sub.add_parser("calibrate", help="kinematic odometry calibration of a dataset with wheel odometry (wheel "
@@ -150,6 +173,15 @@ def build_parser() -> argparse.ArgumentParser:
     ca.add_argument("--out", required=True, help="model JSON to write (the nominal model with the fitted values)")
     _add_force_option(ca, "an existing --out file")
     ca.set_defaults(handler=_cmd_calibrate)
+    xp = sub.add_parser("export", help="a trained agent -> ONNX (and TorchScript) with its observation "
+                                       "normalisation and a JSON sidecar, for the robot's computer")
+    xp.add_argument("policy", help="model directory, RL Zoo folder, SB3 .zip or RLlib model (as evaluate --policy)")
+    xp.add_argument("--out", required=True, help="folder to write: policy.onnx, policy.json[, policy.pt]")
+    xp.add_argument("--env", default=None, help="environment id (default: the one the model records)")
+    xp.add_argument("--env-kwargs", default=None, help="JSON keywords of the environment (e.g. its model=)")
+    xp.add_argument("--torchscript", action="store_true", help="also write policy.pt (TorchScript)")
+    _add_force_option(xp, "an existing export folder")
+    xp.set_defaults(handler=_cmd_export)
     # Further subcommands register here with their own set_defaults(handler=...).
     return parser
 
@@ -317,6 +349,10 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         anchors = _score_anchors(args, kwargs, result, other) if args.score else None
     except ImportError as exc:  # a missing extra: one line naming it (agents.require_agents_extra)
         raise ValueError(str(exc)) from None
+    if "model" in kwargs and "kinematics" not in kwargs and args.env.rpartition(":")[2] != "OmniPathFollow-Custom-v0":
+        print(f"note: {args.env} with model= keeps the robot preset's nominal kinematics; add "
+              "\"kinematics\": \"model\" to --env-kwargs for the model's calibrated wheel matrix "
+              "(OmniPathFollow-Custom-v0's default)", file=sys.stderr)
     out, blocks = dict(result), [format_table(result)]
     if other is not None:
         cmp = compare(result, other)
@@ -445,8 +481,13 @@ def _cmd_synth(args: argparse.Namespace) -> int:
 def _cmd_import(args: argparse.Namespace) -> int:
     from omni_gym.outputs import Output
 
-    # Refuse a bad --out before reading the logs; import_optiodom checks again under the lock.
+    # Refuse a bad --out before reading the logs; the importers check again under the lock.
     Output(args.out, "dir", force=args.force, inputs=args.sessions, marker="dataset.json", what="dataset").preflight()
+    if args.format != "optiodom":
+        from omni_gym.discrepancy.data.importers.options import import_logs
+
+        print("\n".join(import_logs(args)))
+        return 0
     from omni_gym.discrepancy.data.importers import optiodom
 
     surface = optiodom.SURFACE if args.surface is None else args.surface
@@ -455,6 +496,21 @@ def _cmd_import(args: argparse.Namespace) -> int:
                                  surface=surface)
     print(f"imported {s.runs} runs from {len(s.sessions)} session(s), {s.duration:.1f} s of robot time "
           f"(assumed: mass {s.mass:g} kg, inertia {s.inertia:.4g} kg·m², surface {s.surface}) -> {s.out}")
+    return 0
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    _require_our_agents()
+    from agents.export import export
+    from agents.options import parse_env_kwargs
+
+    side = export(args.policy, args.out, args.env, parse_env_kwargs(args.env_kwargs), torchscript=args.torchscript,
+                  force=args.force)
+    files = "policy.onnx, policy.json" + (", policy.pt" if args.torchscript else "")
+    print(f"exported {args.policy} -> {args.out} ({files}): observation {side['observation']['mode']} "
+          f"({side['input']['shape'][1]} values), action {side['action']['mode']}, control period "
+          f"{side['control_period_s']:g} s; onnxruntime matches the policy within "
+          f"{side['parity']['max_abs_difference']:.1e} on {side['parity']['observations']} observations")
     return 0
 
 

@@ -385,6 +385,17 @@ class RenderModes(list):
         return super().__contains__(mode)
 
 
+# The keyword defaults of CUSTOM_ID that differ from the other ids': the robot is the model (a calibrated one,
+# typically), so twist actions and the scripted controllers use its effective kinematics (docs/environments.md).
+CUSTOM_DEFAULTS = {"kinematics": "model"}
+
+
+def custom_kwargs(kwargs: dict) -> dict:
+    """The keywords of :data:`CUSTOM_ID` checked (:func:`check_custom`), with :data:`CUSTOM_DEFAULTS` filled in."""
+    check_custom(kwargs)
+    return {**CUSTOM_DEFAULTS, **kwargs}
+
+
 def check_custom(kwargs: dict) -> None:
     """The keywords of :data:`CUSTOM_ID`: ``model=`` required, ``robot``/``surface``/``friction`` refused
     (the model defines them; the other ids ignore them, which here would hide a mistake)."""

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from omni_gym.envs.config import RenderModes, check_custom, check_reset_options, check_seed, make_config
+from omni_gym.envs.config import RenderModes, check_reset_options, check_seed, custom_kwargs, make_config
 from omni_gym.envs.core import OBS_CLIP, RobotEnvAttributes, TaskCore, as_actions
 
 
@@ -236,5 +236,4 @@ class OmniCustomEnv(OmniPathEnv):
     """
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
-        check_custom(kwargs)
-        super().__init__(render_mode=render_mode, **kwargs)
+        super().__init__(render_mode=render_mode, **custom_kwargs(kwargs))

@@ -31,7 +31,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from omni_gym.envs.config import check_custom, check_reset_options, check_seed, is_number, make_config
+from omni_gym.envs.config import check_reset_options, check_seed, custom_kwargs, is_number, make_config
 from omni_gym.envs.core import OBS_CLIP, RobotEnvAttributes, TaskCore, as_actions
 from omni_gym.physics.world import ARENA_ROOM
 
@@ -280,5 +280,4 @@ class OmniCustomVectorEnv(OmniPathVectorEnv):
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, render_mode: str | None = None,
                  autoreset_mode: str | AutoresetMode = "next_step", **kwargs: Any) -> None:
-        check_custom(kwargs)
-        super().__init__(num_envs, max_episode_steps, render_mode, autoreset_mode, **kwargs)
+        super().__init__(num_envs, max_episode_steps, render_mode, autoreset_mode, **custom_kwargs(kwargs))

@@ -53,9 +53,9 @@ import numpy as np
 
 from omni_gym.bounds import FILES
 from omni_gym.bounds import MODEL as MODEL_BOUNDS
-from omni_gym.discrepancy.data.dataset import Run, write_dataset
+from omni_gym.discrepancy.data.dataset import Run
+from omni_gym.discrepancy.data.importers.logs import write_imported
 from omni_gym.io import InputError, read_text
-from omni_gym.outputs import Output
 from omni_gym.physics.friction import surface_preset
 from omni_gym.physics.model import SimModel
 from omni_gym.physics.robot import PRESETS, RobotSpec
@@ -547,11 +547,16 @@ def import_optiodom(folders: list[str | Path], out: str | Path, force: bool = Fa
         MODEL_BOUNDS["inertia"].check(inertia, "--inertia")
     folders = [Path(f) for f in folders]
     out = Path(out)
-    with Output(out, "dir", force=force, inputs=folders, marker="dataset.json", what="dataset") as tx:
+    read: dict = {}
+
+    def build():
         metas, runs = read_sessions(folders)
         model = nominal_model(metas[0], mass, inertia, surface)
-        desc = describe(metas, len(runs), model.robot.mass, model.robot.inertia, surface)
-        write_dataset(tx.path, model.to_json(), desc, runs)
+        read.update(metas=metas, runs=runs, model=model)
+        return model.to_json(), describe(metas, len(runs), model.robot.mass, model.robot.inertia, surface), runs
+
+    write_imported(out, folders, force, build)
+    metas, runs, model = read["metas"], read["runs"], read["model"]
     return ImportSummary(sessions=tuple(m.session for m in metas), runs=len(runs),
                          duration=float(sum(r.t[-1] for r in runs)), out=out, mass=model.robot.mass,
                          inertia=model.robot.inertia, surface=surface, kind=metas[0].kind)
