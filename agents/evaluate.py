@@ -255,4 +255,6 @@ def format_comparison(a: dict, b: dict, cmp: dict) -> str:
         f"  ratio of mean {cmp['metric']}: {cmp['ratio']:.3f}   95% CI {ci} (paired bootstrap over seeds; "
         f"below 1: {a['policy']} tracks better)",
         f"  episodes where {a['policy']} is better: {cmp['a_better']:.0%}, equal: {cmp['ties']:.0%}, worse: "
-        f"{cmp['b_better']:.0%}"])
+        f"{cmp['b_better']:.0%}"
+        + ("  (the ratio of means weighs each episode by its error: a few large wins can outweigh more small "
+           "losses, and the other way round)" if (cmp["ratio"] < 1) != (cmp["a_better"] > cmp["b_better"]) else "")])

@@ -210,7 +210,9 @@ def _summary(where: dict) -> list[str]:
         lines.append(f"worst window: {w['run']} {w['t0']:.2f}-{w['t1']:.2f} s, shooting RMS {1e3 * w['rms']:.1f} mm")
     for name, c in where.get("conditions", {}).items():
         if c["ratio"] is not None and c["ratio"] > 1.5:
-            lines.append(f"the local error grows {c['ratio']:.1f}x faster in {name.replace('_', ' ')} rows")
+            times = f"{c['ratio']:.1f}x" if c["ratio"] < 100 else "more than 100x"
+            lines.append(f"the local error grows {times} faster in {name.replace('_', ' ')} rows (beyond the "
+                         "tracker-noise share)")
     for wheel, ph in where.get("wheel_phase", {}).items():
         # Noise alone modulates the 8 noise-corrected bins by up to ~2x on small datasets.
         if ph["modulation"] is not None and ph["modulation"] > 3.0:

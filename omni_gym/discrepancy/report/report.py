@@ -342,19 +342,23 @@ def _next_steps(result: dict) -> list[str]:
                     "`none` means \"no effect could be told from noise\", not \"the model is right\". Track every "
                     "row (≥ 20 consecutive rows per run) and run again."]
         else:
-            out += [f"* The nominal model predicts the held-out runs to within the tracker noise ({_mm(g['noise'])} "
-                    "mm): nothing to add; `model.json` is the nominal model.",
+            start = (result.get("start") or {}).get("kind", "nominal")
+            out += [f"* The {start} model predicts the held-out runs to within the noise floor "
+                    f"({_mm(g['noise_floor'])} mm: tracker noise {_mm(g['noise'])} mm, integration error and the "
+                    f"simulator's validated accuracy): nothing to add; `model.json` is the {start} model.",
                     "* If you expected an effect, check the runs excite it: slow wheel turns through the roller pitch "
                     "(roller_gap), command steps (motor_lag), fast slip (kinetic_friction), long straight drives "
                     "(wheel_radius, com_offset), long runs (wheel_liftoff); more and longer runs, or a less noisy "
                     "tracker, make a small effect visible."]
         return out + [""]
+    kinematic = (result.get("start") or {}).get("kind") == "kinematic" or any(
+        r["effect"] == "kinematic_calibration" for r in result.get("ranking", []))
     out += [f"* **Kinematic calibration**: `omni-gym calibrate {result['dataset']['path']} --out model.json` fits the "
             "wheel geometry and radii of a slip-free model to the logs, in seconds. When the runs barely slip (a "
             "grip floor, odometry logs) it can predict new runs much better than the nominal model; compare the two "
             f"with `omni-gym score {result['dataset']['path']} --model model.json` (better: on runs neither has "
             "seen)."] \
-        if result["effect"] == "unexplained" else []
+        if result["effect"] == "unexplained" and not kinematic else []
     runs = sorted((r for r in w["runs"] if r["open_loop_rms"] is not None), key=lambda r: -r["open_loop_rms"])
     if runs:
         ol = float(np.median([r["open_loop_rms"] for r in runs]))
@@ -376,8 +380,9 @@ def _next_steps(result: dict) -> list[str]:
                           "the wheels on this floor (pull test)"}
     for k, c in w.get("conditions", {}).items():
         if c.get("ratio") is not None and c["ratio"] >= 2.0 and k in hints:
-            out.append(f"* The local error grows {c['ratio']:.1f}× faster in {k.replace('_', ' ')} rows: check "
-                       f"{hints[k]}.")
+            times = f"{c['ratio']:.1f}×" if c["ratio"] < 100 else "more than 100×"
+            out.append(f"* The local error grows {times} faster in {k.replace('_', ' ')} rows than in the others "
+                       f"(after removing the tracker-noise share, 2σ̂² per row): check {hints[k]}.")
     mod = {k: v["modulation"] for k, v in w.get("wheel_phase", {}).items() if v.get("modulation") is not None}
     if mod and max(mod.values()) >= 2.0:
         k = max(mod, key=mod.get)
@@ -399,9 +404,9 @@ def _next_steps(result: dict) -> list[str]:
                    "part of the error may be that effect, the rest another one (the library fits one effect at a "
                    "time).")
     out += ["* **Effects not in the library** that leave such a gap: speed-proportional drag (rolling resistance, "
-            "a cable), a floor slope or unevenness (a drift in one world direction), a time offset between commands "
-            "and tracked poses, tracker calibration (scale, a rotated or shifted frame, latency), wheel-speed "
-            "saturation, two effects at once.",
+            "a cable), a floor slope or unevenness (a drift in one world direction), a tracker clock that runs at "
+            "another rate than the odometry's, tracker calibration (scale, skew), wheel-speed saturation, two "
+            "effects at once.",
             "* **To measure**: the tracker at rest (noise, drift), straight drives at several constant speeds "
             "(drag, slope, radius), the time offset between command and tracker logs; add encoders if the runs "
             "have none.", ""]
