@@ -33,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="omni-gym", description="Omnidirectional robots that slip: tools.")
     parser.add_argument("--version", action="version", version=f"omni-gym {__version__}")
     parser.add_argument("--max-input-mb", type=float, default=None, metavar="MB",
-                        help="largest input file read [MB] (default 64; docs/bounds.md): raise it for a "
+                        help="largest input file read [MB] (default 32; docs/bounds.md): raise it for a "
                              "legitimately large dataset or run file")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -484,11 +484,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
-        if args.max_input_mb is not None:
-            from omni_gym.io import set_max_input_mb
+        from omni_gym.io import input_limit_mb
 
-            set_max_input_mb(args.max_input_mb)
-        return args.handler(args)
+        with input_limit_mb(args.max_input_mb):  # for this command only (main() may be called again)
+            return args.handler(args)
     except INPUT_ERRORS as exc:
         message = " ".join(str(exc).split())  # one line, whatever the source
         print(f"omni-gym: error: {message}", file=sys.stderr)

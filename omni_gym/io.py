@@ -16,6 +16,8 @@ import json
 import os
 import re
 import stat
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -27,10 +29,10 @@ class InputError(ValueError):
     """Bad user input: the message is one line naming the file and, where it applies, the row."""
 
 
-# The limits of every file read (docs/bounds.md, "Files"); one home. A text input (CSV, JSON, YAML) is
-# parsed into Python objects about ten times its size, so 64 MB keeps a run well under 1 GB of memory;
-# the largest shipped dataset file is under 1 MB.
-DEFAULT_MAX_INPUT_MB = 64.0
+# The limits of every file read (docs/bounds.md, "Files"); one home. A CSV is parsed into Python objects
+# about fifteen times its size (a 63 MB commands file peaks at 1.0 GB), so 32 MB keeps a command near
+# 0.5 GB; an hour of 100 Hz logs with ten columns is about 30 MB, the largest shipped data file under 1 MB.
+DEFAULT_MAX_INPUT_MB = 32.0
 MAX_INPUT_MB_RANGE = (0.001, 4096.0)  # what --max-input-mb accepts
 MAX_JSON_DEPTH = 64  # the deepest shipped JSON (meta.json, dataset.json) nests 5 levels
 MAX_YAML_BYTES = 1 * 2**20  # hyperparameter and RL Zoo files are a few kB
@@ -50,6 +52,18 @@ def set_max_input_mb(mb: float) -> None:
     if not (isinstance(mb, (int, float)) and lo <= mb <= hi):
         raise ValueError(f"--max-input-mb must be in [{lo:g}, {hi:g}], got {excerpt(mb)}")
     _limits["input_bytes"] = int(mb * 2**20)
+
+
+@contextmanager
+def input_limit_mb(mb: float | None) -> Iterator[None]:
+    """The text-input limit set to ``mb`` (None: unchanged) for the ``with`` block, then restored exactly."""
+    before = _limits["input_bytes"]
+    if mb is not None:
+        set_max_input_mb(mb)
+    try:
+        yield
+    finally:
+        _limits["input_bytes"] = before
 
 
 def excerpt(value, limit: int = EXCERPT) -> str:
@@ -222,8 +236,9 @@ def read_yaml(path: str | Path, loader=None):
 
     path = Path(path)
     raw = read_bytes(path, MAX_YAML_BYTES, "a YAML file")
-    reader = (loader or yaml.SafeLoader)(raw)
+    reader = None
     try:
+        reader = (loader or yaml.SafeLoader)(raw)  # reads the encoding: may fail already
         node = reader.get_single_node()
         if node is not None and _expanded_size(node, {}) > MAX_YAML_NODES:
             raise InputError(f"{path}: more than {MAX_YAML_NODES} values once its aliases (*name) are expanded "
@@ -234,10 +249,14 @@ def read_yaml(path: str | Path, loader=None):
         line = f"line {mark.line + 1}: " if mark is not None else ""
         problem = getattr(exc, "problem", None) or exc
         raise InputError(f"{path}: not valid YAML ({line}{excerpt(problem)})") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not valid YAML (not UTF-8/16/32 text: {excerpt(exc.reason)} at byte "
+                         f"{exc.start})") from None
     except RecursionError:
         raise InputError(f"{path}: not valid YAML (nested too deeply)") from None
     finally:
-        reader.dispose()
+        if reader is not None:
+            reader.dispose()
 
 
 # Separators other than ',' that spreadsheets and loggers write: named when a header has only one cell.

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.bounds import PLAUSIBLE_SPEED, PLAUSIBLE_YAW_RATE
+from omni_gym.bounds import LOGS, PLAUSIBLE_SPEED, PLAUSIBLE_YAW_RATE
 from omni_gym.io import InputError
 
 BASELINE = 1.0  # s: shortest time between the two poses of one rate (the whole run if shorter)
@@ -63,3 +63,51 @@ def check_run_units(path: Path, t: np.ndarray, cmd: np.ndarray, pose: np.ndarray
         raise InputError(f"{path}: commanded wheel speeds reach {rim:.3g} m/s at the rim (r = {wheel_radius:g} m), "
                          f"faster than any wheeled robot (> {PLAUSIBLE_SPEED:g} m/s): w1 … wn look like rpm or "
                          "degrees per second; the format wants rad/s")
+
+
+def travel(t: np.ndarray, pose: np.ndarray, enc: np.ndarray, wheel_radius: np.ndarray, lever: float
+           ) -> tuple[float, float]:
+    """(tracked motion [m], wheels' rim travel [m]) of one run over baselines of at least :data:`BASELINE` s.
+
+    Tracked motion per baseline: |Δ(x, y)| + ``lever``·|Δθ| (``lever`` [m]: the wheel-centre radius, so a
+    turn on the spot counts as the rim travel it needs); wheel travel: the mean over wheels of
+    |Δφ_i|·r_i (``enc`` (K, n) [rad], ``wheel_radius`` (n,) [m]). Only baselines between observed poses
+    count. Without slip the two agree within a factor of about 2 (the wheels' drive directions share the
+    motion); long baselines make tracker noise negligible.
+    """
+    seen = np.nonzero(np.all(np.isfinite(pose), axis=1))[0]
+    if seen.size < 2:
+        return 0.0, 0.0
+    picks = [int(seen[0])]
+    for k in seen[1:]:
+        if t[k] - t[picks[-1]] >= BASELINE:
+            picks.append(int(k))
+    if len(picks) < 2:
+        picks.append(int(seen[-1]))
+    idx = np.asarray(picks)
+    d = np.diff(pose[idx], axis=0)
+    tracked = float(np.sum(np.hypot(d[:, 0], d[:, 1]) + lever * np.abs(d[:, 2])))
+    wheels = float(np.sum(np.mean(np.abs(np.diff(enc[idx], axis=0)) * np.asarray(wheel_radius), axis=1)))
+    return tracked, wheels
+
+
+MIN_TRACKED = 0.05  # m: below this much tracked motion a dataset says nothing about scale
+
+
+def check_travel_scale(where: str, tracked: float, wheels: float, settings: str) -> None:
+    """Refuse a dataset whose tracked motion does not match its wheels' travel (``omni_gym.bounds.LOGS``,
+    travel ratio): poses in other units, or encoder settings (``settings``, e.g. ``ngear 12, encRes 1024``)
+    that make the wheels turn too little or too much. ``where`` names the file(s)."""
+    bound = LOGS["travel ratio (tracked / wheels)"]
+    if tracked < MIN_TRACKED:
+        return
+    if wheels <= 0.0:
+        raise InputError(f"{where}: the tracker shows {tracked:.3g} m of motion but the wheels never turn "
+                         f"({settings}): expected wheel travel comparable to the tracked motion; check ngear and "
+                         "encRes")
+    ratio = tracked / wheels
+    if not bound.contains(ratio):
+        cause = ("poses look like millimetres (the format wants metres), or ngear/encRes are too large"
+                 if ratio > bound.hi else "ngear/encRes look too small, or the poses are not in metres")
+        raise InputError(f"{where}: the tracked motion ({tracked:.3g} m) is {ratio:.3g} times the wheels' rim "
+                         f"travel ({wheels:.3g} m; {settings}); expected a ratio {bound.within()}: {cause}")
