@@ -277,10 +277,11 @@ BAD = {
                           "line 2: ngear (a motor-to-wheel gear ratio) must be a number in [0.1, 1000], got 1e+308"),
     "absurd encoder resolution": (dict(meta=META.replace("encRes,1024", "encRes,1e308")), META_FILE,
                                   "line 3: encRes (encoder units per motor turn) must be a number in [1, 1e7]"),
-    # In range, but the wheels then turn 75 times less than the tracked robot moves.
+    # In range, but the wheel odometry then gives 75 times less motion than the tracker.
     "gear ratio that does not match the poses": (dict(meta=META.replace("ngear,12", "ngear,900"), run=_long_run()),
-                                                 META_FILE, "times the wheels' rim travel"),
+                                                 META_FILE, "times the wheel odometry's"),
     "poses in millimetres": (dict(run=_long_run(scale=1000.0)), RUN_FILE, "positions look like millimetres"),
+    "poses in kilometres": (dict(run=_long_run(scale=0.001)), META_FILE, "times the wheel odometry's"),
 }
 
 

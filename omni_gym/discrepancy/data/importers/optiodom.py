@@ -571,16 +571,15 @@ def check_scale(metas: list[Metadata], runs: list[Run]) -> None:
     for meta in metas:
         mine = [r for r in runs if r.session == meta.session]
         radii = np.asarray(meta.D) / 2.0
-        lever = float(np.mean(meta.Li)) / len(meta.Li)  # omni3: L; omni4: a wheel sits at l/2
-        tracked = wheels = 0.0
+        W = nominal_model(meta).robot.wheel_matrix()  # the mean wheel radius: enough to tell a unit error
+        motion = np.zeros(4)
         for run in mine:
             files = sorted(meta.path.parent.glob(f"{glob.escape(run.name)}.csv*"))
             source = files[0] if files else meta.path.parent / run.name
             check_run_units(source, run.t, run.cmd, run.pose, float(np.mean(radii)))
-            a, b = travel(run.t, run.pose, run.enc, radii, lever)
-            tracked, wheels = tracked + a, wheels + b
+            motion += travel(run.t, run.pose, run.enc, W)
         settings = f"ngear {meta.ngear:g}, encRes {meta.enc_res:g}, Di {', '.join(f'{d:g}' for d in meta.D)} m"
-        check_travel_scale(f"{meta.path} ({len(mine)} runs)", tracked, wheels, settings)
+        check_travel_scale(f"{meta.path} ({len(mine)} runs)", motion, settings)
 
 
 def import_optiodom(folders: list[str | Path], out: str | Path, force: bool = False, mass: float | None = None,
