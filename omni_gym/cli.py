@@ -79,7 +79,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="plain SB3 .zip: the wrapper it was trained with (none, residual-ekf-pid, ekf-features)")
     ev.add_argument("--residual-scale", type=float, default=None,
                     help="plain SB3 .zip with residual-ekf-pid: the residual bound, 0 to 1 (default 0.3)")
-    ev.add_argument("--vecnormalize", default=None, help="plain SB3 .zip: its VecNormalize statistics (.pkl)")
+    ev.add_argument("--vecnormalize", default=None,
+                    help="plain SB3 .zip: its observation statistics (a VecNormalize .pkl, or normalisation.npz)")
     ev.add_argument("--trust-pickle", action="store_true",
                     help="open a model that is a Python pickle (an SB3 .zip, a VecNormalize .pkl, an RLlib "
                          "checkpoint, a model folder of the older layout): loading it runs any code it holds, so "

@@ -114,6 +114,8 @@ def test_hidden_effect_with_an_empty_parameter_list_is_refused(tmp_path, capsys)
     err = _cli(capsys, "synth", "--model", "williams2002", "--hidden", "motor_lag:" + "[" * 100_000,
                "--out", str(tmp_path / "ds"))
     assert "--hidden motor_lag: parameters" in err
+    assert "--hidden none takes no parameters" in _cli(capsys, "synth", "--model", "williams2002", "--hidden",
+                                                         "none:{}", "--out", str(tmp_path / "ds"))
     assert not (tmp_path / "ds").exists()
 
 

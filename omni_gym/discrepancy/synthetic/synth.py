@@ -56,6 +56,8 @@ def parse_hidden(spec: str, model: SimModel, rng: np.random.Generator) -> tuple[
     if name != "none" and name not in EFFECT_PARAMS and name not in EXTRA_EFFECTS:
         raise ValueError(f"--hidden: unknown effect {name!r}; choose none, one of {sorted(EFFECT_PARAMS)} "
                          f"or {sorted(EXTRA_EFFECTS)}")
+    if name == "none" and colon:
+        raise ValueError("--hidden none takes no parameters (give none alone)")
     if colon and not raw.strip():
         raise ValueError(f"--hidden {name}: nothing after ':' (give {name} alone for its default parameters, or "
                          f"{name}:{{JSON object}})")
