@@ -508,6 +508,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=2, help="cases run at once")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "reliability_probe.md"))
     ap.add_argument("--only", default=None, help="run only the categories whose name contains this")
+    ap.add_argument("--dump", default=None, help="also write every case's result as JSON lines to this file")
     args = ap.parse_args(argv)
     _install_rss_reaper()
     with tempfile.TemporaryDirectory(prefix="omni-gym-probe-") as tmp:
@@ -522,6 +523,11 @@ def main(argv: list[str] | None = None) -> int:
                 if kind != "clean":
                     print(f"[{i + 1}/{len(cases)}] {c.category} / {c.name}: {kind}: {c.result['stderr']}", flush=True)
         text = report(cases, time.monotonic() - t0)
+        if args.dump:
+            with open(args.dump, "w") as fh:
+                for c in cases:
+                    fh.write(json.dumps({"category": c.category, "name": c.name, "argv": c.argv[:12],
+                                         "kind": classify(c), **c.result}) + "\n")
     Path(args.out).write_text(text)
     print(text)
     return 0

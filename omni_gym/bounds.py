@@ -54,7 +54,10 @@ class Bound:
 
     def contains(self, value: float) -> bool:
         """True if ``value`` is a finite number inside the interval (and whole if ``integer``)."""
-        if not math.isfinite(value):
+        try:
+            if not math.isfinite(value):
+                return False
+        except OverflowError:  # an integer beyond any float (a 400-digit value)
             return False
         if self.integer and value != math.floor(value):
             return False
@@ -77,7 +80,9 @@ class Bound:
     def check(self, value: float, name: str | None = None) -> float:
         """``value`` if inside the bound; else ValueError ``NAME must be … in [lo, hi] unit, got V``."""
         if not self.contains(value):
-            raise ValueError(f"{name or self.name} {self.describe()}, got {value!r}")
+            got = repr(value)
+            got = got if len(got) <= 60 else got[:57] + "..."  # a message quotes a short excerpt
+            raise ValueError(f"{name or self.name} {self.describe()}, got {got}")
         return value
 
 
@@ -168,6 +173,9 @@ PLAUSIBLE_YAW_RATE = 30.0  # rad/s: tracked heading rate
 # turns every wheel reading into 0 or into noise (ngear 1e308 used to import a robot whose wheels never
 # turn), so it is refused with the range expected.
 LOGS: dict[str, Bound] = {b.name: b for b in (
+    Bound("Li", 0.01, 10.0, "m", "the wheel-centre distance (omni3 L; omni4 l1, l2, the wheel spacing): a "
+          "centre-to-wheel distance under 1 cm is smaller than any wheel, beyond 10 m outside the model's wheel "
+          "positions"),
     Bound("ngear", 0.1, 1000.0, "", "gear ratio n:1 between motor and wheel: 1 is direct drive, planetary "
           "gearheads stop near 1:1000 (a 5 cm wheel then moves at about 3 cm/s at 10,000 motor rpm); below 1:10 the "
           "wheel would turn ten times faster than its motor"),

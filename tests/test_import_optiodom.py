@@ -273,6 +273,8 @@ BAD = {
     "untracked start": (dict(run=_lines_with({1: "0,NaN,NaN,NaN,0,0,0"})), RUN_FILE, "line 1: the first pose is NaN"),
     # Plausible ranges of the encoder chain (docs/bounds.md, "Logged robot metadata"): 1e308 used to import
     # a robot whose wheel speeds and encoders were all 0.0.
+    "tiny wheel-centre distance": (dict(meta=META.replace("Li,0.195", "Li,1e-308")), META_FILE,
+                                   "line 4: Li (the wheel-centre distance) must be a number in [0.01, 10] m"),
     "absurd gear ratio": (dict(meta=META.replace("ngear,12", "ngear,1e308")), META_FILE,
                           "line 2: ngear (a motor-to-wheel gear ratio) must be a number in [0.1, 1000], got 1e+308"),
     "absurd encoder resolution": (dict(meta=META.replace("encRes,1024", "encRes,1e308")), META_FILE,

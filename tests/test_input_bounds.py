@@ -167,3 +167,11 @@ def test_read_text_names_the_file_for_bad_bytes(tmp_path):
     with pytest.raises(InputError, match=r"runs.csv: not a UTF-8 text file"):
         read_text(f)
     assert Path(f).exists()
+
+
+def test_a_huge_integer_hyperparameter_names_the_file_and_key(tmp_path, capsys):
+    f = tmp_path / "hp.yml"
+    f.write_text("OmniPathFollow-Phunopas-v0: {batch_size: " + "9" * 400 + "}\n")
+    err = _cli(capsys, "train", "--algo", "ppo", "--env", "OmniPathFollow-Phunopas-v0", "--hyperparams", str(f),
+               "--out", str(tmp_path / "m"), "--no-progress")
+    assert "hp.yml: batch_size must be an integer" in err and "..." in err

@@ -282,6 +282,9 @@ def read_metadata(path: str | Path) -> Metadata:
         if not position.contains(v / rt.li_count):  # omni3: L; omni4: the wheel sits at l/2
             raise InputError(f"{path}: line {line}: Li {v:g} m puts a wheel outside the model bound "
                              f"(wheel positions {position.within()})")
+        if not LOGS["Li"].contains(v):  # docs/bounds.md, "Logged robot metadata"
+            raise InputError(f"{path}: line {line}: Li (the wheel-centre distance) {LOGS['Li'].describe()}, "
+                             f"got {v:g}")
     line, cells = get("Di")
     if len(cells) != rt.n_wheels:
         raise InputError(f"{path}: line {line}: Di has {len(cells)} value(s); type {kind} has {rt.n_wheels} wheels")
