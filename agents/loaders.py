@@ -89,7 +89,7 @@ class RLlibLoader:
             raise ValueError(f"{_given(options)[0]} applies to an SB3 model, not to the RLlib model {spec}")
 
     def load(self, spec: str, env_id: str, env_kwargs: dict | None, options: ModelOptions | None):
-        return build_rllib(spec, env_id, env_kwargs)
+        return build_rllib(spec, env_id, env_kwargs, trust_pickle=options is not None and options.trust_pickle)
 
 
 @dataclass(frozen=True)

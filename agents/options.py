@@ -9,7 +9,6 @@ before any work starts, so a bad value never reaches training or an output direc
 from __future__ import annotations
 
 import argparse
-import json
 
 from agents.registry import Registry
 from omni_gym.bounds import Bound
@@ -146,12 +145,11 @@ def parse_env_kwargs(text: str | None) -> dict | None:
     """``--env-kwargs`` of train and evaluate: a JSON object of environment keywords (None if not given)."""
     if text is None:
         return None
-    try:
-        kwargs = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"--env-kwargs is not valid JSON: {exc}") from None
+    from omni_gym.io import excerpt, parse_json
+
+    kwargs = parse_json(text, "--env-kwargs")
     if not isinstance(kwargs, dict):
-        raise ValueError(f"--env-kwargs must be a JSON object, got {text!r}")
+        raise ValueError(f"--env-kwargs must be a JSON object, got {excerpt(text)!r}")
     return kwargs
 
 

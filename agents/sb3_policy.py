@@ -3,15 +3,21 @@
 Three kinds of model are accepted (:func:`resolve`):
 
 * our model directory (``agents/models/<name>/``, written by :mod:`agents.train`): ``meta.json``
-  (algorithm, observation mode, wrapper, residual bound; docs/formats.md), the model zip named by
-  ``meta["model"]`` and, if the model was trained with observation normalisation, the ``VecNormalize``
-  statistics named by ``meta["vecnormalize"]``;
+  (algorithm, observation mode, wrapper, residual bound; docs/formats.md), the weights named by
+  ``meta["model"]`` and, if the model was trained with observation normalisation, the statistics named by
+  ``meta["vecnormalize"]`` (:mod:`agents.weights`: no pickle, so opening it runs no code). Both names must
+  stay inside the directory. A directory of the older layout (an SB3 zip and a ``VecNormalize`` pickle) is
+  read only with ``trust_pickle``;
 * an RL Zoo output folder (``logs/ppo/ENV_1/``: ``ENV.zip`` and ``ENV/`` with ``args.yml``,
   ``config.yml`` and, when normalising, ``vecnormalize.pkl``): the algorithm comes from ``args.yml``,
   the wrapper and observation mode from ``config.yml`` (``env_wrapper``, ``env_kwargs``);
 * a plain SB3 ``model.zip``: nothing can be read but the weights, so the algorithm (``--algo``), the
   wrapper (``--wrapper``, default none), the observation mode (``obs_mode`` in ``--env-kwargs``, default
   sensors) and the normalisation statistics (``--vecnormalize``) come from :class:`ModelOptions`.
+
+SB3 zips and ``VecNormalize`` pickles are unpickled when read, which runs any code they hold: the last two
+kinds (and the older layout) are refused unless :class:`ModelOptions` ``trust_pickle`` is set
+(``--trust-pickle``; docs/security.md). ``python -m agents.export_model`` converts a trusted one.
 
     env, policy = build("agents/models/ppo-residual", "OmniPathFollow-Phunopas-v0", {"lift_rate": 0.5})
     episode = agents.rollout.run_episode(env, policy, seed=10_000)
@@ -23,7 +29,6 @@ policy acts deterministically (the mean action), so an episode is a function of 
 
 from __future__ import annotations
 
-import json
 import pickle
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,8 +38,10 @@ import numpy as np
 from agents import require_agents_extra
 from agents.algorithms import ALGORITHMS, algorithm_class
 from agents.rollout import TrainedPolicy, make_env
+from agents.weights import FORMAT, ObsNormaliser, inside, load_policy, refuse_pickle
 from agents.wrappers import WRAPPERS, wrap_env
 from agents.zoo_config import wrapper_spec
+from omni_gym.io import check_readable, excerpt, read_json, read_yaml
 
 META = "meta.json"
 ZOO_ALGO_FILE = "args.yml"
@@ -48,13 +55,15 @@ class ModelOptions:
     contradicts them is refused.
 
     ``wrapper``: one of :data:`agents.wrappers.WRAPPERS`; ``residual_scale``: its residual bound
-    (fraction of the action range); ``vecnormalize``: a ``VecNormalize`` pickle.
+    (fraction of the action range); ``vecnormalize``: a ``VecNormalize`` pickle; ``trust_pickle``: unpickle
+    SB3 zips and ``VecNormalize`` pickles (which runs any code they hold; refused without it).
     """
 
     algo: str | None = None
     wrapper: str | None = None
     residual_scale: float | None = None
     vecnormalize: str | None = None
+    trust_pickle: bool = False
 
     def given(self) -> list[str]:
         """The options that were given, as command-line names."""
@@ -77,6 +86,11 @@ class ModelSource:
     zip_path: Path
     vecnormalize: Path | None
     where: str  # the file the meta keys came from, for error messages
+
+    @property
+    def pickled(self) -> bool:
+        """True if loading it unpickles (an SB3 zip, a VecNormalize pickle): not our weights format."""
+        return not (self.kind == "meta" and self.meta.get("format") == FORMAT)
 
 
 class SB3Policy(TrainedPolicy):
@@ -110,12 +124,11 @@ def read_meta(path: str | Path) -> dict:
     if not d.is_dir():
         raise ValueError(f"{path}: not a model directory (expected a directory with {META})")
     f = d / META
-    try:
-        meta = json.loads(f.read_text())
-    except FileNotFoundError:
-        raise ValueError(f"{f}: missing (a model directory needs {META}; see agents/train.py)") from None
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{f}: not valid JSON ({exc})") from None
+    if not f.exists():
+        raise ValueError(f"{f}: missing (a model directory needs {META}; see agents/train.py)")
+    meta = read_json(f)
+    if not isinstance(meta, dict):
+        raise ValueError(f"{f}: expected a JSON object")
     for key in ("algo", "model", "wrapper"):
         if key not in meta:
             raise ValueError(f"{f}: missing key {key!r}")
@@ -152,12 +165,9 @@ def _zoo_yaml(path: Path) -> dict:
         return dict(loader.construct_sequence(node.value[0], deep=True)) if node.value else {}
 
     Loader.add_constructor("tag:yaml.org,2002:python/object/apply:collections.OrderedDict", ordered)
-    try:
-        data = yaml.load(path.read_text(), Loader=Loader)  # noqa: S506  (SafeLoader + one constructor)
-    except FileNotFoundError:
-        raise ValueError(f"{path}: missing (an RL Zoo folder has ENV.zip and ENV/{path.name})") from None
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: not an RL Zoo YAML file ({' '.join(str(exc).split())})") from None
+    if not path.exists():
+        raise ValueError(f"{path}: missing (an RL Zoo folder has ENV.zip and ENV/{path.name})")
+    data = read_yaml(path, Loader)  # bounded, no aliases
     if not isinstance(data, dict):
         raise ValueError(f"{path}: not an RL Zoo YAML file (expected a mapping)")
     return data
@@ -198,8 +208,9 @@ def resolve(path: str | Path, options: ModelOptions | None = None) -> ModelSourc
         _check_options(options, {**meta, "residual_scale": meta.get("residual_scale", 0.3)}, str(p / META))
         if options.vecnormalize is not None:
             raise ValueError(f"--vecnormalize: the model directory {p} names its own statistics in {META}")
-        vn = p / meta["vecnormalize"] if meta.get("vecnormalize") else None
-        return ModelSource("meta", meta, p / meta["model"], vn, str(p / META))
+        where = str(p / META)
+        vn = inside(p, meta["vecnormalize"], where, "vecnormalize") if meta.get("vecnormalize") else None
+        return ModelSource("meta", meta, inside(p, meta["model"], where, "model"), vn, where)
     if p.is_dir():
         return _resolve_zoo(p, options)
     if p.suffix != ".zip":
@@ -222,24 +233,39 @@ def load(path: str | Path, options: ModelOptions | None = None):
     require_agents_extra("loading an SB3 model")
     import torch
 
+    options = options or ModelOptions()
     src = resolve(path, options)
     meta = src.meta
     cls = algorithm_class(meta["algo"])
     if not src.zip_path.is_file():
         raise ValueError(f"{src.where}: key 'model': file {src.zip_path} not found")
     torch.set_num_threads(1)  # small MLPs: one thread is fastest and leaves the cores to the simulation
+    if not src.pickled:  # our weights format: nothing is unpickled
+        policy = load_policy(src.zip_path, meta["algo"], meta.get("policy"), src.where)
+        vn = None
+        if src.vecnormalize is not None:
+            vn = ObsNormaliser.load(src.vecnormalize, int(policy.observation_space.shape[0]))
+        return meta, policy, vn
+    if not options.trust_pickle:
+        raise refuse_pickle(src.zip_path, "an SB3 model zip")
+    if src.vecnormalize is not None and src.vecnormalize.suffix != ".npz":
+        check_readable(src.vecnormalize, None, "VecNormalize statistics")
+    check_readable(src.zip_path, 256 * 2**20, "an SB3 model zip")
     try:
         model = cls.load(src.zip_path, device="cpu")
     except Exception as exc:  # SB3 raises many kinds for a damaged zip or another algorithm  # noqa: BLE001
         message = " ".join(f"{type(exc).__name__}: {exc}".split())[:200]
         raise ValueError(f"{src.zip_path}: cannot load it as a {meta['algo']} model ({message})") from None
     vn = None
-    if src.vecnormalize is not None:
+    if src.vecnormalize is not None and src.vecnormalize.suffix == ".npz":
+        vn = ObsNormaliser.load(src.vecnormalize, int(model.observation_space.shape[0]))
+    elif src.vecnormalize is not None:
         vn = _load_vecnormalize(src.vecnormalize, src.where)
     return meta, model, vn
 
 
 def _load_vecnormalize(path: Path, where: str):
+    """A trusted ``VecNormalize`` pickle (only with ``--trust-pickle``: unpickling runs its code)."""
     from stable_baselines3.common.vec_env import VecNormalize
 
     try:
@@ -248,7 +274,7 @@ def _load_vecnormalize(path: Path, where: str):
     except FileNotFoundError:
         raise ValueError(f"{where}: key 'vecnormalize': file {path} not found") from None
     except (pickle.UnpicklingError, EOFError, AttributeError, ValueError, ImportError) as exc:
-        raise ValueError(f"{path}: not a VecNormalize pickle ({exc})") from None
+        raise ValueError(f"{path}: not a VecNormalize pickle ({excerpt(exc)})") from None
     if not isinstance(vn, VecNormalize):
         raise ValueError(f"{path}: not a VecNormalize pickle (holds a {type(vn).__name__})")
     vn.training = False

@@ -8,8 +8,9 @@
 Hyperparameters come from ``agents/hyperparams/<algo>.yml`` in the RL Zoo's format, which
 ``python -m rl_zoo3.train --gym-packages omni_gym -conf FILE`` accepts as is: a top-level key per
 environment id, with ``n_timesteps``, ``policy``, ``n_envs``, ``normalize`` (bool, or a string such as
-``"{'norm_obs': True, 'norm_reward': False}"``), ``policy_kwargs`` (a Python expression string that may
-use ``nn``), ``learning_rate`` (a number or ``lin_<x>`` for a linear schedule), ``noise_type`` /
+``"{'norm_obs': True, 'norm_reward': False}"``), ``policy_kwargs`` (a mapping, or the RL Zoo's string
+``"dict(net_arch=[64, 64], activation_fn=nn.Tanh)"``: read as data by :mod:`agents.policy_spec`, never
+run), ``learning_rate`` (a number or ``lin_<x>`` for a linear schedule), ``noise_type`` /
 ``noise_std`` (TD3, SAC) and any other constructor argument of the algorithm, and:
 
 * ``env_kwargs`` (dict): ``gym.make`` keywords for training (domain randomisation lives here);
@@ -28,11 +29,13 @@ Files in the earlier layout (``env_wrapper`` a name of :data:`agents.wrappers.WR
 ``residual_scale``, ``reward``, ``sensor_noise_range``, ``residual_init``, ``init_log_std``) are still
 read, and train the same agent; the RL Zoo refuses them.
 
-The output directory receives ``model.zip`` (the checkpoint after step 0 with the lowest validation
-tracking RMSE; the final one if there is no evaluation), ``final_model.zip``, ``vecnormalize.pkl`` (for ``model.zip``,
-when normalising), ``meta.json`` (how to rebuild the environment and wrapper, the exact command, seed,
-git commit, timesteps, wall time), ``curve.csv`` / ``curve.png`` (training curve: validation tracking
-RMSE and reward against timesteps) and ``checkpoints/``.
+The output directory receives ``policy.pt`` and ``normalisation.npz`` (the weights and observation
+statistics of the checkpoint after step 0 with the lowest validation tracking RMSE, the final one if there is
+no evaluation: :mod:`agents.weights`, what evaluation opens), the same checkpoint as SB3's ``model.zip`` and
+``vecnormalize.pkl`` (pickles, to train further), ``final_model.zip``, ``final_vecnormalize.pkl``,
+``meta.json`` (how to rebuild the environment and wrapper, the exact command, seed, git commit, timesteps,
+wall time), ``curve.csv`` / ``curve.png`` (training curve: validation tracking RMSE and reward against
+timesteps) and ``checkpoints/``.
 
 Training environments (``--vec-env``, :func:`make_training_vec_env`): ``native`` (default) steps the
 ``n_envs`` robots in one native vector environment through :class:`agents.sb3_vec_env.NativeVecEnv`;
@@ -72,6 +75,7 @@ from agents.registry import Registry
 from agents.rollout import make_env, run_episode
 from agents.sb3_policy import VectorSB3Policy, wrap_vector_for
 from agents.vector_rollout import make_vector_env
+from agents.weights import export as export_weights
 from agents.wrappers import wrap_env
 from agents.zoo_config import WrapperSpec, bc_init_spec, residual_init, wrapper_spec
 from omni_gym.envs.config import parse_model
@@ -105,14 +109,12 @@ def hyperparams_path(algo: str, name: str | Path | None = None) -> Path:
 
 
 def _read_yaml(path: Path):
-    """A YAML file's content; ValueError naming the file. Bytes go to PyYAML, which reads UTF-8 and, with a
-    byte order mark, UTF-16 and UTF-32 (as the YAML specification allows)."""
-    import yaml
+    """A YAML file's content; ValueError naming the file (:func:`omni_gym.io.read_yaml`: bounded, no
+    aliases). Bytes go to PyYAML, which reads UTF-8 and, with a byte order mark, UTF-16 and UTF-32 (as the YAML
+    specification allows)."""
+    from omni_gym.io import read_yaml
 
-    try:
-        return yaml.safe_load(path.read_bytes())
-    except yaml.YAMLError as exc:
-        raise ValueError(f"{path}: not valid YAML ({' '.join(str(exc).split())})") from None
+    return read_yaml(path)
 
 
 def files_holding(env_id: str) -> list[str]:
@@ -171,30 +173,11 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
 
 
 def _policy_kwargs(text, where: str) -> dict:
-    """Evaluate an RL-Zoo ``policy_kwargs`` string with only ``dict``, ``nn``, the actor networks of
-    :mod:`agents.networks` (``AffineSkip``) and literals in scope."""
-    if text is None:
-        return {}
-    if isinstance(text, dict):
-        return dict(text)
-    import torch.nn as nn
+    """SB3 ``policy_kwargs`` from a hyperparameter file's value: a mapping or an RL-Zoo string, read as data
+    (:mod:`agents.policy_spec`: layer sizes, numbers and known class names such as ``nn.Tanh``; nothing runs)."""
+    from agents.policy_spec import declarative, to_sb3
 
-    from agents.networks import AffineSkip
-
-    scope = {"dict": dict, "nn": nn, "AffineSkip": AffineSkip}
-    try:
-        tree = ast.parse(str(text), mode="eval")
-        for node in ast.walk(tree):  # names allowed: the scope's, True/False/None; attributes only on nn
-            if isinstance(node, ast.Name) and node.id not in scope:
-                raise ValueError(f"name {node.id!r} not allowed")
-            if isinstance(node, ast.Call) and not (isinstance(node.func, ast.Name) and node.func.id == "dict"):
-                raise ValueError("only dict(...) calls are allowed")
-        value = eval(compile(tree, where, "eval"), {"__builtins__": {}}, scope)  # noqa: S307
-    except (SyntaxError, ValueError, AttributeError) as exc:
-        raise ValueError(f"{where}: policy_kwargs {text!r}: {exc}") from None
-    if not isinstance(value, dict):
-        raise ValueError(f"{where}: policy_kwargs must evaluate to a dict, got {type(value).__name__}")
-    return value
+    return to_sb3(declarative(text, where))
 
 
 def _learning_rate(value, where: str):
@@ -441,6 +424,7 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
         else str(hyperparams), "hyperparams": raw_hp, "requested_timesteps": n_timesteps,
         "validation_seeds": [VALIDATION_SEED, VALIDATION_SEED + eval_episodes - 1] if eval_freq > 0 else None,
         "vecnormalize": "vecnormalize.pkl" if norm is not None else None, "model": "model.zip",
+        "sb3_model": "model.zip",  # SB3's checkpoint (a pickle) to train further; "model" becomes the weights
         "command": command, "git_commit": git_commit(), "torch_threads": torch.get_num_threads(),
     }
     if bc_summary is not None:
@@ -472,6 +456,9 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
         venv.save(str(out / "final_vecnormalize.pkl"))
     if not callback.best_saved:
         model.save(out / "model.zip")
+        meta.update(export_weights(model, venv if norm is not None else None, out))
+    else:
+        meta.update(callback.exported)
     meta.update(timesteps=int(model.num_timesteps), wall_time_s=round(wall, 1), stopped_early=callback.stopped,
                 best=callback.best, curve=callback.rows)
     _write_json(out / "meta.json", {k: v for k, v in meta.items() if k != "curve"})
@@ -506,6 +493,7 @@ class _TrainingMixin:
         self.rows: list[dict] = []
         self.best: dict | None = None
         self.best_saved = False
+        self.exported: dict = {}
         self.stopped = False
         self._base_env = base_env
         self._eval_env = None
@@ -556,6 +544,7 @@ class _TrainingMixin:
             self.model.save(self.out / "model.zip")
             if vn is not None:
                 vn.save(str(self.out / "vecnormalize.pkl"))
+            self.exported = export_weights(self.model, vn, self.out)  # what evaluation opens: no pickle
             self.best_saved = True
         self.write_curve()
         if self._bar is not None and self.show:

@@ -54,7 +54,10 @@ class Bound:
 
     def contains(self, value: float) -> bool:
         """True if ``value`` is a finite number inside the interval (and whole if ``integer``)."""
-        if not math.isfinite(value):
+        try:
+            if not math.isfinite(value):
+                return False
+        except OverflowError:  # an integer beyond any float (a 400-digit value)
             return False
         if self.integer and value != math.floor(value):
             return False
@@ -77,7 +80,9 @@ class Bound:
     def check(self, value: float, name: str | None = None) -> float:
         """``value`` if inside the bound; else ValueError ``NAME must be … in [lo, hi] unit, got V``."""
         if not self.contains(value):
-            raise ValueError(f"{name or self.name} {self.describe()}, got {value!r}")
+            got = repr(value)
+            got = got if len(got) <= 60 else got[:57] + "..."  # a message quotes a short excerpt
+            raise ValueError(f"{name or self.name} {self.describe()}, got {got}")
         return value
 
 
@@ -106,7 +111,8 @@ RATE_REASON = ("as the environments' `lift_rate`: any tiny rate is safe (a switc
 # drive only through the share cos γ of its rim speed (no-slip wheel speed ∝ 1/cos γ, infinite at
 # 90°, where the wheel no longer drives at all); beyond 60° (cos γ < 1/2) no wheel is built, and the
 # wheel matrix and the force law's wheel coupling grow steeply.
-ROLLER_ANGLE_MAX = math.pi / 3
+# π/3 rounded up at the fourth decimal: the bound as docs/bounds.md prints it (1.0472) is accepted.
+ROLLER_ANGLE_MAX = 1.0472
 ROLLER_ANGLE_REASON = ("0 is an omni wheel (rollers in the wheel plane), ±π/4 (±0.785) a mecanum wheel; beyond ±60° "
                        "(cos γ < 1/2) no wheel is built and the no-slip wheel speed, ∝ 1/cos γ, grows without bound "
                        "towards 90°, where the wheel no longer drives")
@@ -162,6 +168,26 @@ FILES: dict[str, Bound] = {b.name: b for b in (
 PLAUSIBLE_SPEED = 20.0  # m/s: tracked speed of the geometric centre, and a wheel's commanded rim speed r·|w|
 PLAUSIBLE_YAW_RATE = 30.0  # rad/s: tracked heading rate
 
+# --- Logged robot metadata (omni-gym import optiodom) -------------------------------------------
+# Wheel sizes and positions are the model's (MODEL above); these are the encoder chain's. A value outside
+# turns every wheel reading into 0 or into noise (ngear 1e308 used to import a robot whose wheels never
+# turn), so it is refused with the range expected.
+LOGS: dict[str, Bound] = {b.name: b for b in (
+    Bound("Li", 0.01, 10.0, "m", "the wheel-centre distance (omni3 L; omni4 l1, l2, the wheel spacing): a "
+          "centre-to-wheel distance under 1 cm is smaller than any wheel, beyond 10 m outside the model's wheel "
+          "positions"),
+    Bound("ngear", 0.1, 1000.0, "", "gear ratio n:1 between motor and wheel: 1 is direct drive, planetary "
+          "gearheads stop near 1:1000 (a 5 cm wheel then moves at about 3 cm/s at 10,000 motor rpm); below 1:10 the "
+          "wheel would turn ten times faster than its motor"),
+    Bound("encRes", 1.0, 1e7, "units per motor turn", "1: the log counts revolutions (omni4); "
+          "incremental encoders give 12 to about 10⁵ counts per turn, the finest absolute encoders 2²³ (8.4·10⁶)"),
+    Bound("travel ratio (tracked / wheels)", 0.02, 3.0, "", "a session's tracked translation (and rotation) "
+          "over 1 s baselines against what its wheels' turns give through the nominal wheel matrix: without slip "
+          "the two agree (0.95 to 1.13 on the shipped sessions) and slip only shortens the tracked motion, so "
+          "three times further is no robot (poses in millimetres give about 1000, a heading in degrees 57, a gear "
+          "ratio four times too large 4); 50 times less is no floor (poses in kilometres, encoder units too fine)"),
+)}
+
 # --- Command-line options (simulate, synth, gap) --------------------------------------------------
 
 MAX_SUBSTEPS = 2e7
@@ -191,7 +217,7 @@ CLI: dict[str, Bound] = {b.name: b for b in (
 )}
 
 # The model table of docs/bounds.md is omni_gym.physics.model.MODEL_BOUNDS (this MODEL and the effects' rows).
-SECTIONS: dict[str, dict[str, Bound]] = {"files": FILES, "cli": CLI}
+SECTIONS: dict[str, dict[str, Bound]] = {"files": FILES, "logs": LOGS, "cli": CLI}
 
 
 def markdown_table(table: dict[str, Bound]) -> str:

@@ -33,6 +33,9 @@ def _add_model_options(p: argparse.ArgumentParser) -> None:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="omni-gym", description="Omnidirectional robots that slip: tools.")
     parser.add_argument("--version", action="version", version=f"omni-gym {__version__}")
+    parser.add_argument("--max-input-mb", type=float, default=None, metavar="MB",
+                        help="largest input file read [MB] (default 32; docs/bounds.md): raise it for a "
+                             "legitimately large dataset or run file")
     sub = parser.add_subparsers(dest="command", required=True)
 
     model = sub.add_parser("model", help="inspect robot models")
@@ -77,7 +80,13 @@ def build_parser() -> argparse.ArgumentParser:
                     help="plain SB3 .zip: the wrapper it was trained with (none, residual-ekf-pid, ekf-features)")
     ev.add_argument("--residual-scale", type=float, default=None,
                     help="plain SB3 .zip with residual-ekf-pid: the residual bound, 0 to 1 (default 0.3)")
-    ev.add_argument("--vecnormalize", default=None, help="plain SB3 .zip: its VecNormalize statistics (.pkl)")
+    ev.add_argument("--vecnormalize", default=None,
+                    help="plain SB3 .zip: its observation statistics (a VecNormalize .pkl, or normalisation.npz)")
+    ev.add_argument("--trust-pickle", action="store_true",
+                    help="open a model that is a Python pickle (an SB3 .zip, a VecNormalize .pkl, an RLlib "
+                         "checkpoint, a model folder of the older layout): loading it runs any code it holds, so "
+                         "only for a file from someone you trust (docs/security.md); omni-gym's own models need "
+                         "no flag")
 
     show.set_defaults(handler=_cmd_model_show)
     sim.set_defaults(handler=_cmd_simulate)
@@ -336,7 +345,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     if args.seed is None:
         args.seed = DEFAULT_SEED
     check_evaluate_args(args)
-    options = ModelOptions(args.algo, args.wrapper, args.residual_scale, args.vecnormalize)
+    options = ModelOptions(args.algo, args.wrapper, args.residual_scale, args.vecnormalize, args.trust_pickle)
     kwargs = parse_env_kwargs(args.env_kwargs) or {}
     try:
         if args.against is not None:  # a typo in the second policy fails before the first runs
@@ -345,7 +354,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
             except ValueError as exc:
                 raise ValueError(f"--against: {exc}") from None
         result = evaluate(args.policy, args.env, args.episodes, args.seed, kwargs, model_options=options)
-        other = None if args.against is None else evaluate(args.against, args.env, args.episodes, args.seed, kwargs)
+        other = None if args.against is None else evaluate(args.against, args.env, args.episodes, args.seed, kwargs,
+                                                           model_options=ModelOptions(trust_pickle=args.trust_pickle))
         anchors = _score_anchors(args, kwargs, result, other) if args.score else None
     except ImportError as exc:  # a missing extra: one line naming it (agents.require_agents_extra)
         raise ValueError(str(exc)) from None
@@ -533,7 +543,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
-        return args.handler(args)
+        from omni_gym.io import input_limit_mb
+
+        with input_limit_mb(args.max_input_mb):  # for this command only (main() may be called again)
+            return args.handler(args)
     except INPUT_ERRORS as exc:
         message = " ".join(str(exc).split())  # one line, whatever the source
         print(f"omni-gym: error: {message}", file=sys.stderr)

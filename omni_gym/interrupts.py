@@ -53,8 +53,8 @@ def main_handler() -> Callable[[], None]:
     """Install the work phase's handler (first interrupt raises ``KeyboardInterrupt``, later ones are
     ignored); returns the function that restores the previous handler when ``main()`` returns, so that
     ``main()`` called from Python (the tests) leaves the caller's handling as it found it. In the command
-    line after an interrupt, SIGINT stays ignored: Python's finalisation resets a Python-level handler to
-    the default, and a further Ctrl-C would then kill the exiting process (status -2, not 130).
+    line SIGINT stays ignored once ``main()`` returns: Python's finalisation resets a Python-level handler
+    to the default, and a late Ctrl-C would then kill the exiting process (status -2, no message).
     A no-op off the main thread or under an inherited ``SIG_IGN``."""
     if threading.current_thread() is not threading.main_thread():
         return lambda: None
@@ -69,8 +69,12 @@ def main_handler() -> Callable[[], None]:
         raise KeyboardInterrupt
 
     def restore() -> None:
-        if not (interrupted and is_command_line()):
+        # In the command line the work is over (committed or rolled back) once main() returns: an interrupt
+        # while the interpreter exits would only turn its status into -2 without a message, so it is ignored.
+        if not is_command_line():
             signal.signal(signal.SIGINT, previous)
+        else:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     signal.signal(signal.SIGINT, first)
     return restore

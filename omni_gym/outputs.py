@@ -368,10 +368,14 @@ class Output:
         parent = self.target.parent
         names = [self.target.name, *(c.name for c in self.companions)]
         for name in names:
-            pattern = re.compile(rf"^\.{re.escape(name)}\.(tmp|old)-\d+(-\d+)?$")
+            sibling = re.compile(rf"^\.{re.escape(name)}\.(tmp|old)-\d+(-\d+)?$")
+            # a temporary of a temporary (a staged companion's own atomic write): "..NAME.tmp-P-0.tmp-P-0"
+            nested = re.compile(rf"^\.\.+{re.escape(name)}(\.(tmp|old)-\d+(-\d+)?){{2,}}$")
             for entry in sorted(parent.iterdir()):
-                m = pattern.match(entry.name)
+                m = sibling.match(entry.name)
                 if not m:
+                    if nested.match(entry.name):
+                        _remove(entry)
                     continue
                 if m.group(1) == "old" and name == self.target.name and not os.path.lexists(self.target):
                     os.rename(entry, self.target)

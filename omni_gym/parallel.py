@@ -258,6 +258,7 @@ class Executor:
             return
         with _sigint_ignored():
             procs = list((getattr(pool, "_processes", None) or {}).values())  # no public handle before 3.14
+            manager = _manager_handles(pool)  # shutdown() drops them
             for p in procs:
                 try:
                     p.kill()
@@ -269,6 +270,7 @@ class Executor:
                     p.join(timeout=10)
                 except (OSError, ValueError, AssertionError):
                     pass
+            _unblock_manager(*manager)
 
     # --- Ray -------------------------------------------------------------------------------------
 
@@ -451,6 +453,29 @@ def _die_with_parent(parent: int) -> None:
                 os._exit(1)
 
     threading.Thread(target=watch, name="omni-gym-parent-watch", daemon=True).start()
+
+
+def _manager_handles(pool: ProcessPoolExecutor) -> tuple[Any, Any]:
+    """(this process's write end of the pool's result pipe, the pool's manager thread); no public handles."""
+    return (getattr(getattr(pool, "_result_queue", None), "_writer", None),
+            getattr(pool, "_executor_manager_thread", None))
+
+
+def _unblock_manager(writer: Any, thread: Any) -> None:
+    """End a pool's manager thread after its workers were killed (call after they are joined).
+
+    A worker killed while writing its result leaves a partial message in the result pipe, and the
+    manager thread blocks reading the rest of it; the interpreter's exit joins that thread, so the
+    process would never end. The workers' ends of the pipe closed with them; closing this process's own
+    (unused) write end too makes the read see end-of-file, and the thread ends, marking the pool broken.
+    """
+    try:
+        if writer is not None:
+            writer.close()
+    except OSError:
+        pass
+    if thread is not None and thread is not threading.current_thread():
+        thread.join(timeout=10)
 
 
 @contextmanager

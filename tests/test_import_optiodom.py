@@ -222,6 +222,16 @@ def _lines_with(change: dict[int, str], n: int = 30) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _long_run(scale: float = 1.0, n: int = 150) -> str:
+    """The first ``n`` rows (6 s) of the real run, positions multiplied by ``scale``."""
+    out = []
+    for line in _run_lines(n):
+        cells = line.split(",")
+        cells[1:3] = [f"{float(c) * scale:.6g}" for c in cells[1:3]]
+        out.append(",".join(cells))
+    return "\n".join(out) + "\n"
+
+
 RUN_FILE = "100000000001_run-01.csv"
 META_FILE = "100000000001_metadata.csv"
 BAD = {
@@ -261,6 +271,19 @@ BAD = {
     "fractional ticks": (dict(run=_lines_with({4: "0.12,0.0015,-0.0001,-0.0100,-4,4.5,15"})), RUN_FILE,
                          "line 4: ticks_2 must be a whole number"),
     "untracked start": (dict(run=_lines_with({1: "0,NaN,NaN,NaN,0,0,0"})), RUN_FILE, "line 1: the first pose is NaN"),
+    # Plausible ranges of the encoder chain (docs/bounds.md, "Logged robot metadata"): 1e308 used to import
+    # a robot whose wheel speeds and encoders were all 0.0.
+    "tiny wheel-centre distance": (dict(meta=META.replace("Li,0.195", "Li,1e-308")), META_FILE,
+                                   "line 4: Li (the wheel-centre distance) must be a number in [0.01, 10] m"),
+    "absurd gear ratio": (dict(meta=META.replace("ngear,12", "ngear,1e308")), META_FILE,
+                          "line 2: ngear (a motor-to-wheel gear ratio) must be a number in [0.1, 1000], got 1e+308"),
+    "absurd encoder resolution": (dict(meta=META.replace("encRes,1024", "encRes,1e308")), META_FILE,
+                                  "line 3: encRes (encoder units per motor turn) must be a number in [1, 1e7]"),
+    # In range, but the wheel odometry then gives 75 times less motion than the tracker.
+    "gear ratio that does not match the poses": (dict(meta=META.replace("ngear,12", "ngear,900"), run=_long_run()),
+                                                 META_FILE, "times the wheel odometry's"),
+    "poses in millimetres": (dict(run=_long_run(scale=1000.0)), RUN_FILE, "positions look like millimetres"),
+    "poses in kilometres": (dict(run=_long_run(scale=0.001)), META_FILE, "times the wheel odometry's"),
 }
 
 

@@ -160,3 +160,59 @@ def test_ctrl_c_while_the_command_starts_is_one_line(marker):
         pytest.skip(f"the command finished before the interrupt after {marker}")
     assert proc.returncode == 130, "\n".join(err)
     assert err == ["omni-gym: interrupted"], "\n".join(err)
+
+
+# A driver that maps tasks with large results, so that the workers spend most of their time writing them
+# into the result pipe: an interrupt then often kills a worker in the middle of a message.
+_LARGE_RESULTS = '''
+import sys
+
+from omni_gym.interrupts import EXIT_INTERRUPTED, MESSAGE, main_handler
+from omni_gym.parallel import Backend, executor
+
+
+def large(i):
+    return bytes(20_000_000 + i)
+
+
+if __name__ == "__main__":
+    restore = main_handler()
+    try:
+        with executor(Backend(jobs=2)) as ex:
+            ex.start()
+            print("started", flush=True)
+            while True:
+                ex.map(large, range(4))
+    except KeyboardInterrupt:
+        print(MESSAGE, file=sys.stderr)
+        sys.exit(EXIT_INTERRUPTED)
+    finally:
+        restore()
+'''
+
+
+def test_interrupt_ends_the_driver_whatever_the_workers_were_doing(tmp_path):
+    """SIGINT at many points of a run whose workers write large results: every trial ends (status 130, one
+    line, no worker left). A worker killed mid-write used to leave the pool's manager thread reading the
+    rest of its message forever, and the interpreter's exit waiting for that thread."""
+    script = tmp_path / "driver.py"
+    script.write_text(_LARGE_RESULTS)
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    for k in range(10):
+        proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True, env=env)
+        assert proc.stdout.readline().strip() == "started"
+        workers = list(_children(proc.pid))
+        time.sleep(0.05 + 0.11 * k)  # spread over the write and read phases of the 4-task maps
+        proc.send_signal(signal.SIGINT)
+        try:
+            _, err = proc.communicate(timeout=60)  # a hang, not a slow machine, would exceed this
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.communicate()
+            _cleanup(workers)
+            pytest.fail(f"trial {k}: the driver did not end after SIGINT")
+        left = _wait_gone(workers, GONE_WITHIN_S)
+        _cleanup(left)
+        assert proc.returncode == 130 and err.strip().splitlines()[-1] == "omni-gym: interrupted", (k, err)
+        assert not left, k

@@ -300,7 +300,7 @@ BAD_CLI = {
     "missing_model": (["--policy", "no/such/model.zip", "--env", ENV, "--episodes", "1", "--seed", "0"],
                       "no/such/model.zip"),
     "bad_json": (["--policy", "open-loop", "--env", ENV, "--episodes", "1", "--seed", "0", "--env-kwargs", "{x"],
-                 "--env-kwargs is not valid JSON"),
+                 "--env-kwargs: not valid JSON"),
     "json_not_object": (["--policy", "open-loop", "--env", ENV, "--episodes", "1", "--seed", "0", "--env-kwargs",
                          "[1]"], "must be a JSON object"),
     "unknown_env": (["--policy", "open-loop", "--env", "NoSuchEnv-v0", "--episodes", "1", "--seed", "0"],

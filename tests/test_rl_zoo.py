@@ -66,9 +66,9 @@ def test_evaluate_reads_the_rl_zoo_folder(zoo_run, capsys):
     gives the same episodes as the bare zip with all of them spelled out."""
     env_id, zoo_run = zoo_run
     assert main(["evaluate", "--policy", str(zoo_run), "--env", env_id, "--episodes", "2", "--seed", "60",
-                 "--env-kwargs", json.dumps(SHORT), "--json"]) == 0
+                 "--env-kwargs", json.dumps(SHORT), "--json", "--trust-pickle"]) == 0
     folder = json.loads(capsys.readouterr().out)
-    opts = ModelOptions("ppo", "residual-ekf-pid", 0.3, str(zoo_run / env_id / "vecnormalize.pkl"))
+    opts = ModelOptions("ppo", "residual-ekf-pid", 0.3, str(zoo_run / env_id / "vecnormalize.pkl"), trust_pickle=True)
     bare = evaluate(str(zoo_run / f"{env_id}.zip"), env_id, 2, 60, {**SHORT, "obs_mode": "sensors"}, progress=False,
                     model_options=opts)
     assert folder["per_episode"] == bare["per_episode"]

@@ -69,7 +69,7 @@ def trained(request, ray_cluster, tmp_path_factory):
 def _evaluate(policy: Path, env_id: str, capsys, seed: int = 5000) -> dict:
     capsys.readouterr()
     assert main(["evaluate", "--policy", str(policy), "--env", env_id, "--episodes", "1", "--seed", str(seed),
-                 "--env-kwargs", SHORT, "--json"]) == 0
+                 "--env-kwargs", SHORT, "--json", "--trust-pickle"]) == 0
     return json.loads(capsys.readouterr().out)
 
 
@@ -216,7 +216,8 @@ def test_missing_or_corrupt_checkpoint_is_a_one_line_error(layout, tmp_path, cap
         module = d.joinpath("learner_group", "learner", "rl_module", "default_policy")
         module.mkdir(parents=True)
         (module / "module_state.pkl").write_bytes(b"not a pickle")
-    assert main(["evaluate", "--policy", str(d), "--env", PATH_IDS[0], "--episodes", "1", "--seed", "0"]) == 2
+    assert main(["evaluate", "--policy", str(d), "--env", PATH_IDS[0], "--episodes", "1", "--seed", "0",
+                 "--trust-pickle"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("omni-gym: error: ") and len(err.strip().splitlines()) == 1
 

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 import torch
 import yaml
-from stable_baselines3 import PPO
 
 from agents.evaluate import evaluate
 from agents.sb3_policy import ModelOptions, build, read_meta
@@ -96,12 +95,12 @@ def tiny_model(tmp_path_factory):
 def test_plain_sb3_zip_evaluates_as_its_model_directory(tiny_model):
     """The zip alone, with what meta.json would say given as options, gives the same episodes."""
     ref = evaluate(str(tiny_model), ENV, 2, 40, SHORT, progress=False)
-    opts = ModelOptions("ppo", "residual-ekf-pid", 0.3, str(tiny_model / "vecnormalize.pkl"))
+    opts = ModelOptions("ppo", "residual-ekf-pid", 0.3, str(tiny_model / "vecnormalize.pkl"), trust_pickle=True)
     plain = evaluate(str(tiny_model / "model.zip"), ENV, 2, 40, SHORT, progress=False, model_options=opts)
     assert plain["per_episode"] == ref["per_episode"]
     # Without its normalisation statistics the same weights act differently: the equality is not vacuous.
     bare = evaluate(str(tiny_model / "model.zip"), ENV, 2, 40, SHORT, progress=False,
-                    model_options=ModelOptions("ppo", "residual-ekf-pid"))
+                    model_options=ModelOptions("ppo", "residual-ekf-pid", trust_pickle=True))
     assert bare["per_episode"]["tracking_rmse"] != ref["per_episode"]["tracking_rmse"]
 
 
@@ -116,12 +115,14 @@ def _cli_error(capsys, *args: str) -> str:
 def test_plain_zip_errors_name_what_is_missing(tiny_model, capsys):
     z = str(tiny_model / "model.zip")
     assert "give --algo" in _cli_error(capsys, "--policy", z)
-    assert "--wrapper" in _cli_error(capsys, "--policy", z, "--algo", "ppo")  # wrong observation shape
-    assert "cannot load it as a td3 model" in _cli_error(capsys, "--policy", z, "--algo", "td3",
+    assert "refused (pass --trust-pickle" in _cli_error(capsys, "--policy", z, "--algo", "ppo")
+    z = [z, "--trust-pickle"]
+    assert "--wrapper" in _cli_error(capsys, "--policy", *z, "--algo", "ppo")  # wrong observation shape
+    assert "cannot load it as a td3 model" in _cli_error(capsys, "--policy", *z, "--algo", "td3",
                                                          "--wrapper", "residual-ekf-pid")
-    assert "--wrapper 'residual'" in _cli_error(capsys, "--policy", z, "--algo", "ppo", "--wrapper", "residual")
-    assert "nope.pkl not found" in _cli_error(capsys, "--policy", z, "--algo", "ppo", "--wrapper",
-                                              "residual-ekf-pid", "--vecnormalize", str(tiny_model / "nope.pkl"))
+    assert "--wrapper 'residual'" in _cli_error(capsys, "--policy", *z, "--algo", "ppo", "--wrapper", "residual")
+    assert "nope.pkl: file not found" in _cli_error(capsys, "--policy", *z, "--algo", "ppo", "--wrapper",
+                                                    "residual-ekf-pid", "--vecnormalize", str(tiny_model / "nope.pkl"))
     assert "--residual-scale must be a number in [0, 1]" in _cli_error(capsys, "--policy", z, "--algo", "ppo",
                                                                         "--residual-scale", "2")
     assert "--algo 'sac' contradicts" in _cli_error(capsys, "--policy", str(tiny_model), "--algo", "sac")
@@ -139,22 +140,30 @@ def test_committed_model_evaluates_through_the_cli(capsys):
     assert out["per_episode"] == api["per_episode"]
 
 
-def test_export_drops_the_optimizer_state_and_keeps_the_actions(tmp_path):
-    """agents.export_model (how the SAC models were made commit-sized) on a copy of a committed PPO model."""
+def test_export_converts_to_weights_and_keeps_the_actions(tiny_model, tmp_path):
+    """agents.export_model (how the committed models were converted) on a model of the older layout: the
+    directory then holds no pickle, loads without trust and acts bit for bit as the SB3 zip did."""
     import shutil
 
     from agents.export_model import main as export_main
+    from agents.sb3_policy import load
 
-    src = Path(__file__).resolve().parents[1] / "agents" / "models" / "ppo-residual-phunopas"
     model = tmp_path / "m"
-    shutil.copytree(src, model)
-    before = (model / "model.zip").stat().st_size
-    assert export_main([str(model)]) == 0
-    # PPO's Adam keeps two moments per weight: the zip loses about two thirds of the weights' bytes.
-    assert (model / "model.zip").stat().st_size < 0.8 * before
-    assert json.loads((model / "meta.json").read_text())["optimizer_state"] == "dropped"
-    obs = np.random.default_rng(1).normal(size=(8, *PPO.load(src / "model.zip").observation_space.shape))
-    a1, _ = PPO.load(src / "model.zip", device="cpu").predict(obs.astype(np.float32), deterministic=True)
-    a2, _ = PPO.load(model / "model.zip", device="cpu").predict(obs.astype(np.float32), deterministic=True)
+    shutil.copytree(tiny_model, model)
+    meta = json.loads((model / "meta.json").read_text())
+    legacy = {k: v for k, v in meta.items() if k not in ("format", "policy")}
+    legacy.update(model="model.zip", vecnormalize="vecnormalize.pkl")
+    (model / "meta.json").write_text(json.dumps(legacy))
+    (model / "policy.pt").unlink()
+    (model / "normalisation.npz").unlink()
+    with pytest.raises(ValueError, match="--trust-pickle"):
+        load(model)
+    _, sb3, vn = load(model, ModelOptions(trust_pickle=True))
+    assert export_main([str(model), "--remove-pickles"]) == 0
+    assert not list(model.glob("*.zip")) and not list(model.glob("*.pkl"))
+    _, policy, norm = load(model)  # no trust needed
+    obs = np.random.default_rng(1).normal(scale=3.0, size=(32, *sb3.observation_space.shape)).astype(np.float32)
+    a1, _ = sb3.predict(vn.normalize_obs(obs).astype(np.float32), deterministic=True)
+    a2, _ = policy.predict(norm.normalize_obs(obs).astype(np.float32), deterministic=True)
     np.testing.assert_array_equal(a1, a2)
     assert export_main([str(tmp_path / "missing")]) == 2  # no meta.json: one line on stderr, exit 2

@@ -346,7 +346,7 @@ def test_train_smoke_and_evaluate_end_to_end(algo, tmp_path, capsys):
 
 def test_train_rejects_bad_input_in_one_line(tmp_path, capsys):
     for args, expected in (
-        (["--env-kwargs", "{x"], "--env-kwargs is not valid JSON"),
+        (["--env-kwargs", "{x"], "--env-kwargs: not valid JSON"),
         (["--env-kwargs", '{"surface": "ice"}'], "surface"),
         (["--timesteps", "0"], "--timesteps must be an integer in [1, 1000000000]"),
     ):

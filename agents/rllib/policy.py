@@ -9,19 +9,22 @@ Two kinds of path are accepted (:func:`resolve`):
   RLlib backend trains) and the observation shape is checked against the module's.
 
 Only the RL module is loaded (``learner_group/learner/rl_module/default_policy``), in this process: no Ray
-cluster starts. The action is deterministic: the mean of the module's diagonal Gaussian, clipped to the
+cluster starts. An RLlib checkpoint stores its module's class and constructor arguments as a Python pickle,
+so loading one runs any code it holds: it is refused unless ``trust_pickle`` is set (``--trust-pickle``;
+docs/security.md). The action is deterministic: the mean of the module's diagonal Gaussian, clipped to the
 action space ([−1, 1]) as SB3's ``predict`` clips, so an episode is a function of its seed.
 """
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from agents.rollout import TrainedPolicy
+from agents.weights import inside, refuse_pickle
+from omni_gym.io import InputError, excerpt, read_json
 
 CHECKPOINT_MARKER = "rllib_checkpoint.json"
 MODULE_PATH = ("learner_group", "learner", "rl_module", "default_policy")
@@ -43,8 +46,8 @@ class RLlibSource:
 
 def _meta(d: Path) -> dict | None:
     try:
-        meta = json.loads((d / META).read_text())
-    except (OSError, json.JSONDecodeError):
+        meta = read_json(d / META)
+    except (OSError, InputError):
         return None
     return meta if isinstance(meta, dict) else None
 
@@ -71,7 +74,7 @@ def resolve(path: str | Path) -> RLlibSource:
                          f"checkpoint with {CHECKPOINT_MARKER})")
     if not isinstance(meta.get("model"), str):
         raise ValueError(f"{p / META}: missing key 'model' (the checkpoint folder)")
-    ckpt = p / meta["model"]
+    ckpt = inside(p, meta["model"], str(p / META), "model")
     if not (ckpt / CHECKPOINT_MARKER).is_file():
         raise ValueError(f"{p / META}: key 'model': {ckpt} is not an RLlib checkpoint (no {CHECKPOINT_MARKER})")
     return RLlibSource(ckpt, meta.get("obs_mode", "state"), meta.get("wrapper", "none"), meta.get("env_id"),
@@ -92,10 +95,16 @@ def load_module(checkpoint: str | Path):
     torch.set_num_threads(1)  # small MLPs: one thread is fastest and leaves the cores to the simulation
     try:
         module = RLModule.from_checkpoint(d)
+        module.eval()
     except Exception as exc:  # RLlib raises many kinds for a damaged checkpoint  # noqa: BLE001
-        message = " ".join(f"{type(exc).__name__}: {exc}".split())[:200]
+        message = excerpt(f"{type(exc).__name__}: {exc}", 200)
         raise ValueError(f"{checkpoint}: cannot load the RLlib checkpoint ({message})") from None
-    module.eval()
+    from gymnasium.spaces import Box
+
+    for name in ("observation_space", "action_space"):  # a crafted checkpoint may build a module without them
+        if not isinstance(getattr(module, name, None), Box):
+            raise ValueError(f"{checkpoint}: the RLlib checkpoint's module has no box {name} (not a module "
+                             "omni-gym can run)")
     return module
 
 
@@ -132,12 +141,15 @@ class RLlibPolicy(TrainedPolicy):
         return action if o.ndim > 1 else action[0]
 
 
-def build(path: str | Path, env_id: str | None = None, env_kwargs: dict | None = None):
-    """(wrapped env, :class:`RLlibPolicy`) for evaluating the RLlib model at ``path`` on ``env_id``."""
+def build(path: str | Path, env_id: str | None = None, env_kwargs: dict | None = None, trust_pickle: bool = False):
+    """(wrapped env, :class:`RLlibPolicy`) for evaluating the RLlib model at ``path`` on ``env_id``; refused
+    (one line) unless ``trust_pickle``: loading the checkpoint unpickles it."""
     from agents.rollout import make_env
     from agents.wrappers import wrap_env
 
     src = resolve(path)
+    if not trust_pickle:
+        raise refuse_pickle(src.checkpoint, "an RLlib checkpoint")
     env_id = env_id or src.env_id
     if env_id is None:
         raise ValueError(f"{path}: the checkpoint does not record its environment: give the environment id")

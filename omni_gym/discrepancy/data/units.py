@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.bounds import PLAUSIBLE_SPEED, PLAUSIBLE_YAW_RATE
+from omni_gym.bounds import LOGS, PLAUSIBLE_SPEED, PLAUSIBLE_YAW_RATE
 from omni_gym.io import InputError
 
 BASELINE = 1.0  # s: shortest time between the two poses of one rate (the whole run if shorter)
@@ -63,3 +63,56 @@ def check_run_units(path: Path, t: np.ndarray, cmd: np.ndarray, pose: np.ndarray
         raise InputError(f"{path}: commanded wheel speeds reach {rim:.3g} m/s at the rim (r = {wheel_radius:g} m), "
                          f"faster than any wheeled robot (> {PLAUSIBLE_SPEED:g} m/s): w1 … wn look like rpm or "
                          "degrees per second; the format wants rad/s")
+
+
+def travel(t: np.ndarray, pose: np.ndarray, enc: np.ndarray, wheel_matrix: np.ndarray) -> np.ndarray:
+    """Motion of one run over baselines of at least :data:`BASELINE` s, by the tracker and by the wheels:
+    [tracked translation [m], wheel-odometry translation [m], tracked rotation [rad], odometry rotation [rad]].
+
+    ``enc`` (K, n) wheel angles [rad]; ``wheel_matrix`` (n, 3): body twist → no-slip wheel speeds
+    (:meth:`omni_gym.physics.robot.RobotSpec.wheel_matrix`). Per baseline the body motion is the
+    least-squares inverse of the wheels' turn; only baselines between observed poses count. Without slip
+    the two agree (slip shortens the tracked motion); long baselines make tracker noise negligible.
+    """
+    seen = np.nonzero(np.all(np.isfinite(pose), axis=1))[0]
+    if seen.size < 2:
+        return np.zeros(4)
+    picks = [int(seen[0])]
+    for k in seen[1:]:
+        if t[k] - t[picks[-1]] >= BASELINE:
+            picks.append(int(k))
+    if len(picks) < 2:
+        picks.append(int(seen[-1]))
+    idx = np.asarray(picks)
+    d = np.diff(pose[idx], axis=0)
+    turn = np.angle(np.exp(1j * d[:, 2]))  # a wrapped heading's 2π jumps are no rotation
+    turns = np.diff(enc[idx], axis=0)  # (B, n) [rad]
+    body = np.linalg.lstsq(np.asarray(wheel_matrix), turns.T, rcond=None)[0].T  # (B, 3): dx, dy [m], dθ [rad]
+    return np.array([np.sum(np.hypot(d[:, 0], d[:, 1])), np.sum(np.hypot(body[:, 0], body[:, 1])),
+                     np.sum(np.abs(turn)), np.sum(np.abs(body[:, 2]))])
+
+
+MIN_MOTION = (0.05, 0.5)  # m, rad: below this much motion (tracked and wheels alike) nothing tells a scale
+
+
+def check_travel_scale(where: str, motion: np.ndarray, settings: str) -> None:
+    """Refuse a dataset whose tracked motion does not match its wheels' (``motion``: :func:`travel`, summed
+    over runs; ``omni_gym.bounds.LOGS``, travel ratio): poses in other units, or encoder settings
+    (``settings``, e.g. ``ngear 12, encRes 1024``) that make the wheels turn too little or too much. ``where``
+    names the file(s)."""
+    bound = LOGS["travel ratio (tracked / wheels)"]
+    for (tracked, wheels), what, unit, least in ((motion[:2], "translation", "m", MIN_MOTION[0]),
+                                                 (motion[2:], "rotation", "rad", MIN_MOTION[1])):
+        if max(tracked, wheels) < least:  # neither moved enough to tell a scale
+            continue
+        if wheels <= 0.0:
+            raise InputError(f"{where}: the tracker shows {tracked:.3g} {unit} of {what} but the wheels never turn "
+                             f"({settings}): expected wheel odometry comparable to the tracked motion; check ngear "
+                             "and encRes")
+        ratio = tracked / wheels
+        if not bound.contains(ratio):
+            cause = ("poses in smaller units than the format's (millimetres, degrees), or ngear/encRes too large"
+                     if ratio > bound.hi else "poses in larger units than the format's, or ngear/encRes too small")
+            raise InputError(f"{where}: the tracked {what} ({tracked:.3g} {unit}) is {ratio:.3g} times the wheel "
+                             f"odometry's ({wheels:.3g} {unit}; {settings}); expected a ratio {bound.within()}: "
+                             f"{cause}")

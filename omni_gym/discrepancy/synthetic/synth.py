@@ -23,6 +23,7 @@ from omni_gym.bounds import CLI
 from omni_gym.checks import unknown_key
 from omni_gym.discrepancy.data.dataset import Run, write_dataset
 from omni_gym.discrepancy.replay.simulate import Job, simulate_jobs
+from omni_gym.io import parse_json, read_bytes, read_json
 from omni_gym.outputs import Output
 from omni_gym.physics.effects import REGISTRY
 from omni_gym.physics.model import EFFECT_PARAMS, SimModel
@@ -50,17 +51,19 @@ def default_params(name: str, model: SimModel, rng: np.random.Generator) -> dict
 
 def parse_hidden(spec: str, model: SimModel, rng: np.random.Generator) -> tuple[str, dict]:
     """``EFFECT`` or ``EFFECT:{json params}`` (missing keys take defaults) or ``none``."""
-    name, _, raw = spec.partition(":")
+    name, colon, raw = spec.partition(":")
     name = name.strip()
     if name != "none" and name not in EFFECT_PARAMS and name not in EXTRA_EFFECTS:
         raise ValueError(f"--hidden: unknown effect {name!r}; choose none, one of {sorted(EFFECT_PARAMS)} "
                          f"or {sorted(EXTRA_EFFECTS)}")
+    if name == "none" and colon:
+        raise ValueError("--hidden none takes no parameters (give none alone)")
+    if colon and not raw.strip():
+        raise ValueError(f"--hidden {name}: nothing after ':' (give {name} alone for its default parameters, or "
+                         f"{name}:{{JSON object}})")
     params = default_params(name, model, rng)
     if raw.strip():
-        try:
-            given = json.loads(raw)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"--hidden {name}: parameters are not valid JSON ({exc.msg})") from None
+        given = parse_json(raw, f"--hidden {name}: parameters")
         if not isinstance(given, dict):
             raise ValueError(f"--hidden {name}: parameters must be a JSON object")
         allowed = EFFECT_PARAMS.get(name) or EXTRA_EFFECTS.get(name, ())
@@ -203,19 +206,18 @@ def dataset_digest(folder: str | Path) -> str:
     files = [folder / "dataset.json", *sorted(f for f in (folder / "runs").glob("*.csv") if not f.name.startswith("."))]
     for f in files:
         h.update(f.relative_to(folder).as_posix().encode() + b"\0")
-        h.update(f.read_bytes())
+        h.update(read_bytes(f))
     return h.hexdigest()
 
 
 def read_truth(dataset: str | Path) -> dict:
     """The truth of a synthetic dataset; ValueError if it is missing or was written for other content."""
     path = truth_path(dataset)
-    try:
-        truth = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise ValueError(f"{path}: file not found (no truth for {dataset})") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path}: cannot read ({exc})") from None
+    if not path.exists():
+        raise ValueError(f"{path}: file not found (no truth for {dataset})")
+    truth = read_json(path)
+    if not isinstance(truth, dict):
+        raise ValueError(f"{path}: expected a JSON object")
     if truth.get("dataset_digest") != dataset_digest(dataset):
         raise ValueError(f"{path}: does not belong to {dataset} (dataset_digest differs): the folder was "
                          "changed or replaced after the truth was written")

@@ -51,10 +51,11 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_gym.bounds import FILES
+from omni_gym.bounds import FILES, LOGS
 from omni_gym.bounds import MODEL as MODEL_BOUNDS
 from omni_gym.discrepancy.data.dataset import Run
 from omni_gym.discrepancy.data.importers.logs import write_imported
+from omni_gym.discrepancy.data.units import check_run_units, check_travel_scale, travel
 from omni_gym.io import InputError, read_text
 from omni_gym.physics.friction import surface_preset
 from omni_gym.physics.model import SimModel
@@ -253,6 +254,10 @@ def read_metadata(path: str | Path) -> Metadata:
         if len(cells) != 1:
             raise InputError(f"{path}: line {line}: {key} must be one value, got {len(cells)}")
         scalars[key] = positive(key, cells, line)[0]
+        if not LOGS[key].contains(scalars[key]):  # docs/bounds.md, "Logged robot metadata"
+            what = "a motor-to-wheel gear ratio" if key == "ngear" else "encoder units per motor turn"
+            raise InputError(f"{path}: line {line}: {key} ({what}) {LOGS[key].describe()}, got {scalars[key]:g}; "
+                             "outside, the wheel readings would be 0 or noise")
     line, cells = get("Li")
     if len(cells) != rt.li_count:
         want = "one value (L)" if rt.li_count == 1 else "two values (l1, l2)"
@@ -263,6 +268,9 @@ def read_metadata(path: str | Path) -> Metadata:
         if not position.contains(v / rt.li_count):  # omni3: L; omni4: the wheel sits at l/2
             raise InputError(f"{path}: line {line}: Li {v:g} m puts a wheel outside the model bound "
                              f"(wheel positions {position.within()})")
+        if not LOGS["Li"].contains(v):  # docs/bounds.md, "Logged robot metadata"
+            raise InputError(f"{path}: line {line}: Li (the wheel-centre distance) {LOGS['Li'].describe()}, "
+                             f"got {v:g}")
     line, cells = get("Di")
     if len(cells) != rt.n_wheels:
         raise InputError(f"{path}: line {line}: Di has {len(cells)} value(s); type {kind} has {rt.n_wheels} wheels")
@@ -532,6 +540,26 @@ def describe(metas: list[Metadata], n_runs: int, mass: float, inertia: float, su
             f"(docs/formats.md, 'Importing OptiOdom logs').")
 
 
+def check_scale(metas: list[Metadata], runs: list[Run]) -> None:
+    """Refuse, before anything is written, runs whose rates are out of reach (positions in millimetres,
+    a heading in degrees: :func:`~omni_gym.discrepancy.data.units.check_run_units`, as reading the
+    dataset would) and sessions whose tracked motion does not match the wheel travel the encoder settings
+    give (:func:`~omni_gym.discrepancy.data.units.check_travel_scale`; ``docs/bounds.md``, "Logged robot
+    metadata")."""
+    for meta in metas:
+        mine = [r for r in runs if r.session == meta.session]
+        radii = np.asarray(meta.D) / 2.0
+        W = nominal_model(meta).robot.wheel_matrix()  # the mean wheel radius: enough to tell a unit error
+        motion = np.zeros(4)
+        for run in mine:
+            files = sorted(meta.path.parent.glob(f"{glob.escape(run.name)}.csv*"))
+            source = files[0] if files else meta.path.parent / run.name
+            check_run_units(source, run.t, run.cmd, run.pose, float(np.mean(radii)))
+            motion += travel(run.t, run.pose, run.enc, W)
+        settings = f"ngear {meta.ngear:g}, encRes {meta.enc_res:g}, Di {', '.join(f'{d:g}' for d in meta.D)} m"
+        check_travel_scale(f"{meta.path} ({len(mine)} runs)", motion, settings)
+
+
 def import_optiodom(folders: list[str | Path], out: str | Path, force: bool = False, mass: float | None = None,
                     inertia: float | None = None, surface: str = SURFACE) -> ImportSummary:
     """Import OptiOdom session folders into the dataset folder ``out``; returns what was written.
@@ -551,6 +579,7 @@ def import_optiodom(folders: list[str | Path], out: str | Path, force: bool = Fa
 
     def build():
         metas, runs = read_sessions(folders)
+        check_scale(metas, runs)
         model = nominal_model(metas[0], mass, inertia, surface)
         read.update(metas=metas, runs=runs, model=model)
         return model.to_json(), describe(metas, len(runs), model.robot.mass, model.robot.inertia, surface), runs
