@@ -99,10 +99,11 @@ def run_case(case: RobotCase, out: Path, quick: bool) -> CaseResult:
 
 
 def _plot(case: RobotCase, ds: Dataset, nominal, calibrated, out: Path) -> None:
+    from omni_gym.discrepancy.replay.measurement import START_WINDOW
     from omni_gym.discrepancy.replay.simulate import Job, simulate_poses
 
     run = ds.runs[0]
-    sim = simulate_poses([Job(nominal, run), Job(calibrated, run)])
+    sim = simulate_poses([Job(nominal, run), Job(calibrated, run)], start_window=START_WINDOW)
     fig, (ax_path, ax_err) = plt.subplots(1, 2, figsize=(11, 4.6))
     ax_path.plot(run.pose[:, 0], run.pose[:, 1], color="black", lw=2, label="measured (motion capture)")
     for poses, label, colour in ((sim[0], "nominal model", "tab:red"), (sim[1], "calibrated model", "tab:blue")):

@@ -30,6 +30,7 @@ from real_optiodom import plot_growth  # noqa: E402  (benchmarks/ is on sys.path
 from omni_gym.discrepancy.data.dataset import Run  # noqa: E402
 from omni_gym.discrepancy.data.importers.optiodom import nominal_model, read_sessions  # noqa: E402
 from omni_gym.discrepancy.fit.kinematic_calibration import calibrate, position_rms  # noqa: E402
+from omni_gym.discrepancy.replay.measurement import START_WINDOW
 from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, simulate_poses  # noqa: E402
 from omni_gym.io import read_json  # noqa: E402
 from omni_gym.physics.model import SimModel  # noqa: E402
@@ -70,7 +71,7 @@ def study(robot: str, gap_dir: Path) -> dict:
     models = {"nominal": nominal, "kinematic": cal.model, "extended": extended}
     table, growth = [], {}
     for name, runs in sessions.items():
-        poses = simulate_poses([Job(models[m], r) for r in runs for m in MODELS], dt=FIT_DT)
+        poses = simulate_poses([Job(models[m], r) for r in runs for m in MODELS], dt=FIT_DT, start_window=START_WINDOW)
         rms = {m: [] for m in MODELS}
         curves: dict[str, dict[int, list[float]]] = {m: {} for m in MODELS}
         for i, run in enumerate(runs):

@@ -65,6 +65,7 @@ from omni_gym.discrepancy.fit.kinematic_calibration import (  # noqa: E402
     dead_reckon,
     position_rms,
 )
+from omni_gym.discrepancy.replay.measurement import START_WINDOW  # noqa: E402
 from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, simulate_poses  # noqa: E402
 from omni_gym.io import read_json  # noqa: E402
 from omni_gym.physics.model import SimModel  # noqa: E402
@@ -200,7 +201,7 @@ def score(sessions: list[Session], models: dict[str, SimModel], cal: KinematicCa
     runs = [(s.name, r) for s in sessions for r in s.runs]
     names = list(models)
     jobs = [Job(models[m], r) for _, r in runs for m in names]
-    poses = simulate_poses(jobs, dt=dt)
+    poses = simulate_poses(jobs, dt=dt, start_window=START_WINDOW)
     rms: dict[str, dict[str, list[float]]] = {s.name: {m: [] for m in MODELS} for s in sessions}
     pred: dict[tuple[str, str], dict[str, np.ndarray]] = {}
     g = cal.geometry

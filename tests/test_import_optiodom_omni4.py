@@ -111,7 +111,7 @@ def test_dead_reckoning_from_the_import_is_the_readme_formula_and_tracks_motion_
     meta, runs = square_runs
     geometry = optiodom_geometry(meta)
     for run in runs:
-        ours = dead_reckon(run, geometry)
+        ours = dead_reckon(run, geometry, start=run.pose[0])  # the README's recursion starts at the first row
         readme = readme_dead_reckoning(SQUARE / f"{run.name}.csv.gz")
         assert np.max(np.abs(ours - readme)) < 1e-6
         rms = math.sqrt(np.mean(np.sum((readme[:, :2] - run.pose[:, :2]) ** 2, axis=1)))
@@ -230,7 +230,10 @@ def test_replay_reproduces_the_readme_dead_reckoning_within_1mm_on_a_stiff_floor
 
     folder, _, ds = omni4_dataset
     stiff = replace(ds.model, surface=Surface("kinematic", mu_drive=10.0, mu_transverse=0.0, mu_gap=10.0))
-    sims = simulate_jobs([Job(stiff, run) for run in ds.runs], dt=1e-4)
+    n = stiff.n_wheels
+    # From the first row, as the README's recursion starts (a run's start_pose is the mean of its rest rows).
+    sims = simulate_jobs([Job(stiff, run, state0=(run.pose[0], np.zeros(3), np.zeros(n), np.zeros(n)))
+                          for run in ds.runs], dt=1e-4)
     for run, (pose, _) in zip(ds.runs, sims, strict=True):
         readme = readme_dead_reckoning(folder / f"{run.name}.csv.gz")
         assert np.max(np.hypot(*(pose[:, :2] - readme[:, :2]).T)) < 0.25e-3  # within the goal's 1 mm

@@ -41,7 +41,7 @@ def score_models(ds: Dataset, models: dict[str, SimModel], dt: float = FIT_DT) -
         if m.n_wheels != ds.n_wheels:
             raise ValueError(f"model {name}: {m.n_wheels} wheels, the dataset {ds.path} has {ds.n_wheels}")
     names = list(models)
-    poses = simulate_poses([Job(models[n], r) for r in ds.runs for n in names], dt=dt)
+    poses = simulate_poses([Job(models[n], r) for r in ds.runs for n in names], dt=dt, start_window=START_WINDOW)
     out = []
     for i, run in enumerate(ds.runs):
         last = int(np.flatnonzero(run.observed)[-1])

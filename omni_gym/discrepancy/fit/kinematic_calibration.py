@@ -199,9 +199,10 @@ def _wheel_travel(run: Run) -> np.ndarray:
     return np.diff(run.enc, axis=0)
 
 
-def dead_reckon(run: Run, geometry: Geometry) -> np.ndarray:
-    """Poses (K, 3) [m, m, rad], world frame, of ``run`` dead-reckoned from its start pose with ``geometry``."""
-    return _integrate(_wheel_travel(run), run.start_pose, geometry)
+def dead_reckon(run: Run, geometry: Geometry, start: np.ndarray | None = None) -> np.ndarray:
+    """Poses (K, 3) [m, m, rad], world frame, of ``run`` dead-reckoned with ``geometry`` from ``start`` (None:
+    the run's start pose, :attr:`Run.start_pose`)."""
+    return _integrate(_wheel_travel(run), run.start_pose if start is None else start, geometry)
 
 
 def _integrate(dphi: np.ndarray, start: np.ndarray, geometry: Geometry) -> np.ndarray:

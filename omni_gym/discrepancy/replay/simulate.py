@@ -14,7 +14,6 @@ import numpy as np
 from omni_gym.angles import wrap_angle
 from omni_gym.discrepancy.data.dataset import Run
 from omni_gym.discrepancy.replay.measurement import (
-    START_WINDOW,
     align_start,
     align_to_start_window,
     centre_start,
@@ -57,13 +56,14 @@ class Job:
             self.state0 = self.run.state0
 
 
-def simulate_jobs(jobs: list[Job], dt: float = FIT_DT, start_window: float | None = START_WINDOW
+def simulate_jobs(jobs: list[Job], dt: float = FIT_DT, start_window: float | None = None
                   ) -> list[tuple[np.ndarray, np.ndarray]]:
     """Simulate all jobs in one world; per job (pose (K, 3), wheel angles (K, n)) at rows k0..k1.
 
     ``start_window`` [s]: a job that replays a whole run from rest is aligned to the run's tracked rows over
-    its first ``start_window`` seconds (:func:`~omni_gym.discrepancy.replay.measurement.align_to_start_window`);
-    None: not aligned (a replay that makes data rather than compares with it)."""
+    its first ``start_window`` seconds (:func:`~omni_gym.discrepancy.replay.measurement.align_to_start_window`;
+    :data:`~omni_gym.discrepancy.replay.measurement.START_WINDOW` for a replay compared with the tracker); None
+    (the default): from the start pose as it is (a replay that makes data, or compares two replays)."""
     world = World([j.model for j in jobs], dt=dt)
     B, n = len(jobs), world.n_wheels
     for b, job in enumerate(jobs):
@@ -137,7 +137,7 @@ def simulate_jobs(jobs: list[Job], dt: float = FIT_DT, start_window: float | Non
 
 
 def simulate_poses(jobs: list[Job], dt: float = FIT_DT, max_batch: int = 1500,
-                   start_window: float | None = START_WINDOW) -> list[np.ndarray]:
+                   start_window: float | None = None) -> list[np.ndarray]:
     """Poses (K, 3) of every job, simulated in worlds of at most ``max_batch`` robots (memory bound);
     ``start_window``: as :func:`simulate_jobs`."""
     out: list[np.ndarray] = []

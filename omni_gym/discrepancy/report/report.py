@@ -12,6 +12,7 @@ from omni_gym.angles import wrap_angle
 from omni_gym.discrepancy.data.dataset import Dataset
 from omni_gym.discrepancy.fit.plausible import UNITS
 from omni_gym.discrepancy.replay.localise import WINDOW
+from omni_gym.discrepancy.replay.measurement import START_WINDOW
 from omni_gym.discrepancy.replay.simulate import Job, simulate_jobs
 from omni_gym.discrepancy.report.finite import dumps_strict
 from omni_gym.physics.effects import REGISTRY
@@ -504,7 +505,7 @@ def _plots(out: Path, result: dict, ds: Dataset, nominal: SimModel, model: SimMo
     named = result.get("effects") or []
     # The extended model's curve only when it differs from the nominal one (no effect added: one curve).
     models = (nominal, model) if named else (nominal,)
-    sims = simulate_jobs([Job(m, r) for m in models for r in runs], dt=dt)
+    sims = simulate_jobs([Job(m, r) for m in models for r in runs], dt=dt, start_window=START_WINDOW)
     curves = [("nominal", "-", "tab:red", sims[:len(runs)])]
     if named:
         curves.append((f"with {' + '.join(named)}", "--", "tab:blue", sims[len(runs):]))
