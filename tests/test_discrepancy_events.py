@@ -169,18 +169,11 @@ def test_a_stochastic_candidate_must_remove_most_of_the_gap_even_at_noise_level(
     any residual to the noise), so it must remove 70 % of the gap beyond noise like every other effect, and
     is not kept as a partial explanation. Eight runs at 1.6 σ² nominal, 1.25 σ² with the candidate (at
     noise level: within 1.3 σ²; 35 % of the gap beyond noise removed)."""
-    from dataclasses import dataclass
+    from fit_stub import FitStub as _Fit
 
     from omni_gym.discrepancy.decide.decision import decide
     from omni_gym.discrepancy.fit.candidates import Candidate
     from omni_gym.physics.effects import Dim
-
-    @dataclass
-    class _Fit:
-        candidate: Candidate
-        params_all: dict
-        heldout: np.ndarray
-        n_params_eff: int | None = None
 
     sigma, n = 1e-3, np.full(8, 750)
     nominal = 1.6 * sigma**2 * n

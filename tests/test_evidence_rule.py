@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import pytest
+from fit_stub import FitStub
 
 from omni_gym.analysis.second_generator import write_second_dataset
 from omni_gym.cli import main
@@ -29,16 +29,8 @@ from omni_gym.discrepancy.settings import DecisionRules, accuracy_floor
 from omni_gym.physics.effects import Dim
 
 
-@dataclass
-class _Fit:
-    candidate: Candidate
-    params_all: dict
-    heldout: np.ndarray
-    n_params_eff: int | None = None
-
-
-def _fit(name: str, heldout: np.ndarray) -> _Fit:
-    return _Fit(Candidate(name, (Dim("p", 0.1, 1.0),), lambda v: {}), {}, heldout)
+def _fit(name: str, heldout: np.ndarray) -> FitStub:
+    return FitStub(Candidate(name, (Dim("p", 0.1, 1.0),), lambda v: {}), {}, heldout)
 
 
 SIGMA = 1e-3  # m, the floor per residual component
