@@ -853,3 +853,19 @@ def test_render_mode_that_is_not_a_string_is_a_one_line_value_error(mode):
     # gym.make looks the mode up in metadata["render_modes"] before our constructor runs.
     with pytest.raises(ValueError, match=r"^invalid render_mode=.*; allowed values: None, 'rgb_array', 'human'$"):
         gym.make(PHUNOPAS, render_mode=mode)
+
+
+@pytest.mark.parametrize(("env_id", "kwargs", "names"), [
+    (PHUNOPAS, {"lost_distance": 0.01, "success_distance": 0.05}, ["lost_distance=0.01", "success_distance=0.05"]),
+    (PHUNOPAS, {"kinematics": "model"}, ["kinematics='model'", "model="]),
+    (PHUNOPAS, {"trajectory": "circle", "ref_turn": "before"}, ["ref_turn='before'", "trajectory='circle'"]),
+    (GOTO, {"ref_turn": "during"}, ["ref_turn='during'", "task='goto'"]),
+    (GOTO, {"ref_heading": "tangent"}, ["ref_heading='tangent'", "task='goto'"]),
+])
+def test_contradicting_keywords_are_refused_naming_both(env_id, kwargs, names):
+    """Keywords that contradict each other are refused in one line that names them, instead of one silently
+    winning (an episode that ends lost before it can succeed; a reference option the task ignores)."""
+    with pytest.raises(ValueError) as err:
+        gym.make(env_id, **kwargs)
+    msg = str(err.value)
+    assert "\n" not in msg and all(n in msg for n in names), msg

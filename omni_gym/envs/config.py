@@ -593,7 +593,26 @@ def make_config(**kwargs) -> EnvConfig:
         values.update(robot=model.robot.name, surface=model.surface.name, friction=model.friction)
     cfg = EnvConfig(**values)
     _check_combination(cfg)
+    _check_given(cfg, kwargs)
     return cfg
+
+
+def _check_given(cfg: EnvConfig, given: dict) -> None:
+    """Keywords given that contradict the rest: a reference option the task does not use, the model's kinematics
+    without a model, a loss threshold below the success threshold (one-line ValueError naming them)."""
+    if cfg.lost_distance <= cfg.success_distance:
+        raise ValueError(f"invalid lost_distance={cfg.lost_distance!r}: it must exceed success_distance="
+                         f"{cfg.success_distance!r} (m), or an episode would end lost before it could succeed")
+    if cfg.kinematics == "model" and cfg.model is None:
+        raise ValueError("invalid kinematics='model' without model=: the model's effective wheel matrix needs a model "
+                         "file (kinematics='nominal' uses the robot preset's)")
+    for name in ("ref_turn", "ref_heading"):
+        if name in given and cfg.task == "goto":
+            raise ValueError(f"invalid {name}={getattr(cfg, name)!r} for task='goto': the goal pose and its quintic "
+                             "set the heading; ref_turn and ref_heading shape a path-following reference")
+    if "ref_turn" in given and cfg.trajectory != "waypoints":
+        raise ValueError(f"invalid ref_turn={cfg.ref_turn!r} for trajectory={cfg.trajectory!r}: turns in place "
+                         "before each translation apply to trajectory='waypoints' only")
 
 
 def _check(opt: Option, value, checked: dict):
