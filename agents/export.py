@@ -44,6 +44,16 @@ def _require() -> None:
         raise ValueError(MISSING) from None
 
 
+def _normaliser(vecnormalize):
+    """The observation statistics of ``vecnormalize`` (an :class:`agents.weights.ObsNormaliser`, an SB3
+    ``VecNormalize`` or None) as an ObsNormaliser, or None when observations are not normalised."""
+    from agents.weights import ObsNormaliser
+
+    if vecnormalize is None or isinstance(vecnormalize, ObsNormaliser):
+        return vecnormalize
+    return ObsNormaliser.from_vecnormalize(vecnormalize)
+
+
 def _torch_module(policy):
     """A torch module: raw observations (B, D) float32 → deterministic actions (B, A) float32 of ``policy``
     (an :class:`agents.sb3_policy.SB3Policy` or :class:`agents.rllib.policy.RLlibPolicy`)."""
@@ -52,17 +62,18 @@ def _torch_module(policy):
     class SB3Actor(torch.nn.Module):
         def __init__(self, model, vecnormalize) -> None:
             super().__init__()
-            self.policy = model.policy
+            # The project's weights format loads the policy network itself (agents.weights); an SB3 zip opened
+            # with --trust-pickle loads the algorithm, which holds it.
+            self.policy = getattr(model, "policy", model)
             space = model.action_space
             self.register_buffer("low", torch.as_tensor(space.low, dtype=torch.float32))
             self.register_buffer("high", torch.as_tensor(space.high, dtype=torch.float32))
-            self.normalise = vecnormalize is not None and bool(vecnormalize.norm_obs)
+            stats = _normaliser(vecnormalize)
+            self.normalise = stats is not None
             if self.normalise:
-                rms = vecnormalize.obs_rms
-                self.register_buffer("mean", torch.as_tensor(np.asarray(rms.mean, dtype=np.float64)))
-                self.register_buffer("std", torch.as_tensor(np.sqrt(np.asarray(rms.var, dtype=np.float64)
-                                                                    + vecnormalize.epsilon)))
-                self.clip = float(vecnormalize.clip_obs)
+                self.register_buffer("mean", torch.as_tensor(stats.mean))
+                self.register_buffer("std", torch.as_tensor(np.sqrt(stats.var + stats.epsilon)))
+                self.clip = float(stats.clip)
 
         def forward(self, obs):
             x = obs
@@ -180,9 +191,9 @@ def parity_observations(env, policy, n: int = PARITY_OBSERVATIONS, seed: int = 0
     rng = np.random.default_rng(seed)
     space = env.observation_space
     D = int(space.shape[0])
-    vn = getattr(policy, "vecnormalize", None)
-    if vn is not None and vn.norm_obs:  # (a VecNormalize without norm_obs has no obs_rms)
-        obs = vn.obs_rms.mean + np.sqrt(vn.obs_rms.var) * rng.normal(size=(n, D)) * 1.5
+    stats = _normaliser(getattr(policy, "vecnormalize", None))
+    if stats is not None:
+        obs = stats.mean + np.sqrt(stats.var) * rng.normal(size=(n, D)) * 1.5
     else:
         obs = rng.uniform(-1.0, 1.0, size=(n, D))
     return np.clip(obs, space.low, space.high).astype(np.float32)

@@ -189,6 +189,9 @@ def build_parser() -> argparse.ArgumentParser:
     xp.add_argument("--env", default=None, help="environment id (default: the one the model records)")
     xp.add_argument("--env-kwargs", default=None, help="JSON keywords of the environment (e.g. its model=)")
     xp.add_argument("--torchscript", action="store_true", help="also write policy.pt (TorchScript)")
+    xp.add_argument("--trust-pickle", action="store_true",
+                    help="open a model that is a Python pickle (an SB3 .zip, an RLlib checkpoint, ...): as evaluate "
+                         "--trust-pickle, only for a file from someone you trust (docs/security.md)")
     _add_force_option(xp, "an existing export folder")
     xp.set_defaults(handler=_cmd_export)
     # Further subcommands register here with their own set_defaults(handler=...).
@@ -513,9 +516,11 @@ def _cmd_export(args: argparse.Namespace) -> int:
     _require_our_agents()
     from agents.export import export
     from agents.options import parse_env_kwargs
+    from agents.sb3_policy import ModelOptions
 
-    side = export(args.policy, args.out, args.env, parse_env_kwargs(args.env_kwargs), torchscript=args.torchscript,
-                  force=args.force)
+    side = export(args.policy, args.out, args.env, parse_env_kwargs(args.env_kwargs),
+                  options=ModelOptions(trust_pickle=True) if args.trust_pickle else None,
+                  torchscript=args.torchscript, force=args.force)
     files = "policy.onnx, policy.json" + (", policy.pt" if args.torchscript else "")
     print(f"exported {args.policy} -> {args.out} ({files}): observation {side['observation']['mode']} "
           f"({side['input']['shape'][1]} values), action {side['action']['mode']}, control period "

@@ -15,8 +15,9 @@ pytest.importorskip("stable_baselines3")
 
 import onnxruntime as ort  # noqa: E402
 
-from agents.export import PARITY_OBSERVATIONS, parity_observations  # noqa: E402
+from agents.export import PARITY_OBSERVATIONS, _normaliser, parity_observations  # noqa: E402
 from agents.loaders import find_loader  # noqa: E402
+from agents.sb3_policy import ModelOptions  # noqa: E402
 from omni_gym.cli import main  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -57,7 +58,7 @@ def test_onnx_and_torchscript_parity(kind, tmp_path, capsys):
         obs = parity_observations(env, policy, seed=123)  # other observations than the export checked
         assert obs.shape == (PARITY_OBSERVATIONS, side["input"]["shape"][1])
         want = np.asarray(policy.act(obs), dtype=np.float32).reshape(len(obs), -1)
-        normalises = policy.vecnormalize is not None and bool(policy.vecnormalize.norm_obs)
+        normalises = _normaliser(policy.vecnormalize) is not None  # weights format or an SB3 VecNormalize
     finally:
         env.close()
     got = ort.InferenceSession(str(out / "policy.onnx")).run(["action"], {"obs": obs})[0]
@@ -111,11 +112,13 @@ def test_rllib_model_parity(ray_cluster, tmp_path, capsys):
                  "--timesteps", "128", "--seed", "3", "--out", str(model), "--eval-freq", "0", "--env-kwargs", short,
                  "--address", ray_cluster, "--num-env-runners", "1", "--no-progress"]) == 0
     out = tmp_path / "export"
-    assert main(["export", str(model), "--out", str(out), "--env-kwargs", short]) == 0
+    # An RLlib checkpoint is a pickle: refused in one line without --trust-pickle, exported with it.
+    assert main(["export", str(model), "--out", str(out), "--env-kwargs", short]) == 2
+    assert main(["export", str(model), "--out", str(out), "--env-kwargs", short, "--trust-pickle"]) == 0
     side = json.loads((out / "policy.json").read_text())
     assert side["backend"] == "rllib" and side["observation"]["mode"] == "state"
     env, policy = find_loader(str(model)).load(str(model), "OmniPathFollow-Phunopas-v0", {"episode_seconds": 2.0},
-                                               None)
+                                               ModelOptions(trust_pickle=True))
     try:
         obs = parity_observations(env, policy, seed=123)
         want = np.asarray(policy.act(obs), dtype=np.float32)
