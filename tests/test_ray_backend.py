@@ -133,8 +133,8 @@ def test_gap_cli_with_ray_address_equals_the_local_run(dataset, local_report, ra
             f"workflow.candidates = lambda m: [c for c in candidates.candidates(m) if c.name in {FAST!r}]; "
             "from omni_gym.cli import main; sys.exit(main(sys.argv[1:]))")
     proc = subprocess.run([sys.executable, "-c", code, "gap", str(dataset), "--out", str(out), "--no-plots",
-                           "--max-effects", "2", "--start", "nominal", "--ray", ray_cluster],
-                          capture_output=True, text=True, timeout=300)  # --start nominal: the library default
+                           "--max-effects", "2", "--ray", ray_cluster],
+                          capture_output=True, text=True, timeout=300)  # the defaults, as the local run's
     assert proc.returncode == 0, proc.stderr[-2000:]
     _same_report(local_report, out)
 
