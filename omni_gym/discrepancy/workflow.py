@@ -496,8 +496,9 @@ def _search_stage(opts: GapOptions, data: DataStage, start: StartStage, say: Cal
             if sigma is not None and geo_mse(base_sse, n_comp) <= sigma**2 * (1 + rules.noise_margin):
                 # The evidence rule (decide): a residual within the floor leaves nothing to explain, so no
                 # candidate is fitted (the answer would be none whatever they gave).
+                what = f"the {first.kind} model" + "".join(f" + {s.effect}" for s in steps)
                 step = Step(fits=[], decision=Decision(effect="none", why=(
-                    f"the {first.kind} model's residual ({1e3 * math.sqrt(geo_mse(base_sse, n_comp)):.2f} mm RMS) "
+                    f"{what}: its residual ({1e3 * math.sqrt(geo_mse(base_sse, n_comp)):.2f} mm RMS) "
                     f"is within the noise floor ({1e3 * sigma:.2f} mm: tracker noise, integration error and the "
                     f"simulator's validated accuracy) by the margin ({100 * rules.noise_margin:.0f} % in MSE): "
                     "nothing beyond it to explain"), ranking=[]))
