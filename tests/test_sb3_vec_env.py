@@ -28,7 +28,7 @@ PHUNOPAS = "OmniPathFollow-Phunopas-v0"
 WILLIAMS = "OmniPathFollow-WilliamsPaper-v0"
 # Short episodes and a small lost distance (about 1 cm of tracking error builds up in 20 steps of full
 # forward action): the robots whose actions are biased forward terminate, the others are truncated.
-SHORT = {"episode_seconds": 0.3, "lost_distance": 0.006}
+SHORT = {"episode_seconds": 0.3, "lost_distance": 0.006, "success_distance": 0.001}  # success below lost
 CASES = {
     "state": {},
     "sensors+randomized": {"obs_mode": "sensors", "randomize_friction": (0.7, 1.3), "randomize_lift_rate": (0.0, 2.0)},

@@ -396,7 +396,8 @@ def test_evaluate_rejects_a_missing_model_or_meta(tmp_path):
 @pytest.mark.parametrize("lost", [0.5, 0.001])
 def test_squared_reward_is_the_squared_tracking_error_with_a_lost_penalty(lost):
     """reward="squared": −(e/0.1 m)² − 0.01·mean(a²) per step, minus 50 steps at the lost distance when lost."""
-    env = wrap_env(make_env(ENV, {**SHORT, "lost_distance": lost}), "residual-ekf-pid", reward="squared")
+    kw = {**SHORT, "lost_distance": lost, "success_distance": lost / 2}  # success below lost
+    env = wrap_env(make_env(ENV, kw), "residual-ekf-pid", reward="squared")
     env.reset(seed=6)
     a = np.array([1.0, -1.0, 0.0], dtype=np.float32)  # the full residual pushes the robot off the path
     for _ in range(env.unwrapped.cfg.episode_steps):

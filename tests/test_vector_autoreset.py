@@ -20,7 +20,7 @@ PHUNOPAS = "OmniPathFollow-Phunopas-v0"
 # Short episodes (20 steps) and a small lost distance (the robot accelerates slowly: about 1 cm of tracking
 # error after 20 steps of full forward action): within 80 steps every robot ends three episodes or more,
 # the robots that drift (events() biases robot i's actions by 0.5·i) by termination, robot 0 by truncation.
-SHORT = {"episode_seconds": 0.2, "lost_distance": 0.006}
+SHORT = {"episode_seconds": 0.2, "lost_distance": 0.006, "success_distance": 0.001}  # success below lost
 
 
 def make(mode, n: int = 3, **kwargs) -> gym.vector.VectorEnv:

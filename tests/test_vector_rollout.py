@@ -64,7 +64,7 @@ def test_ekf_policies_vector_match_run_episode(env_id, name):
 
 def test_lost_episodes_end_at_their_own_step():
     """A small lost distance ends open-loop episodes early, at different steps: each robot's first episode counts."""
-    kw = {**SHORT, "lost_distance": 0.02}
+    kw = {**SHORT, "lost_distance": 0.02, "success_distance": 0.01}  # success below lost
     vector, single = _pair(PHUNOPAS, "open-loop", kw, seeds=[10_000, 10_001, 10_002, 10_003])
     assert [e.metrics() for e in vector] == [e.metrics() for e in single]
     assert any(e.terminated for e in vector) and len({e.steps for e in vector}) >= 2
