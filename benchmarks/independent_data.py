@@ -159,19 +159,27 @@ def interleaved(todo: list[dict]) -> list[dict]:
 
 
 def previous(log: Path, todo: list[dict], generator: str) -> list[dict]:
-    """The results in ``log`` (JSON lines printed by an earlier run) of cases that are in ``todo`` exactly
-    (same robot, category, seed and generator settings); other lines are ignored."""
+    """The results in ``log`` (the JSON lines an earlier run printed, or the ``.json`` list it wrote beside its
+    table) of cases that are in ``todo`` exactly (same robot, category, seed and generator settings); anything
+    else in the file is ignored."""
     want = {(c["robot"], c["kind"], c["seed"]): c for c in todo}
-    out = []
-    with open(log, encoding="utf-8") as fh:
-        for line in fh:
+    text = Path(log).read_text(encoding="utf-8")
+    try:
+        rows = json.loads(text)
+    except json.JSONDecodeError:
+        rows = None
+    if not isinstance(rows, list):
+        rows = []
+        for line in text.splitlines():
             try:
-                r = json.loads(line)
+                rows.append(json.loads(line))
             except json.JSONDecodeError:
                 continue
-            c = want.get((r.get("robot"), r.get("kind"), r.get("seed"))) if isinstance(r, dict) else None
-            if c is not None and all(r.get(k) == v for k, v in c.items()) and r.get("generator", "second") == generator:
-                out.append(r)
+    out = []
+    for r in rows:
+        c = want.get((r.get("robot"), r.get("kind"), r.get("seed"))) if isinstance(r, dict) else None
+        if c is not None and all(r.get(k) == v for k, v in c.items()) and r.get("generator", "second") == generator:
+            out.append(r)
     return out
 
 
@@ -338,8 +346,8 @@ def main() -> None:
                     help="the independent integrator that writes the data (default: the second one)")
     ap.add_argument("--out", type=Path, default=None, help="markdown table (and .json beside it)")
     ap.add_argument("--resume", type=Path, default=None, metavar="LOG",
-                    help="the JSON lines an earlier run of the same cases printed: cases found there are not run "
-                         "again (a long study survives an interruption)")
+                    help="the JSON lines an earlier run of the same cases printed, or the .json it wrote: cases "
+                         "found there are not run again (a long study survives an interruption)")
     args = ap.parse_args()
     todo = interleaved(list(cases(tuple(args.kinds), tuple(args.robots), args.per_kind, args.seed0)))
     done = previous(args.resume, todo, args.generator) if args.resume is not None else []

@@ -82,3 +82,22 @@ def test_new_kinds_are_named_right(tmp_path, kind, hidden):
     assert result["effect"] == kind, result["why"]
     err = param_error(kind, hidden[kind], result["params"], nominal_model())
     assert all(err[k] <= TOLERANCES[kind][k] for k in err), (err, result["params"])
+
+
+def test_a_stopped_study_resumes_from_its_lines_or_its_json(tmp_path):
+    """--resume: results of the same cases are reused, from the printed JSON lines or the written .json list; a
+    result whose case settings differ (another generator setting, say) is not."""
+    import json
+
+    bench = _load()
+    todo = list(bench.cases(("none",), ("williams2002",), 2))
+    done = [{**todo[0], "generator": "second", "effect": "none", "correct": True},
+            {**todo[1], "runs": todo[1]["runs"] + 1, "effect": "none", "correct": True}]  # not the same case
+    lines = tmp_path / "log.jsonl"
+    lines.write_text("\n".join(json.dumps(r) for r in done) + "\nnot json\n")
+    listed = tmp_path / "study.json"
+    listed.write_text(json.dumps(done))
+    for log in (lines, listed):
+        got = bench.previous(log, todo, "second")
+        assert [r["seed"] for r in got] == [todo[0]["seed"]], log
+    assert bench.previous(lines, todo, "reference") == []
