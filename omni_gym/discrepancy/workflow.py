@@ -491,7 +491,7 @@ def _search_stage(opts: GapOptions, data: DataStage, start: StartStage, say: Cal
         bar.update(1)
         model, base_sse = first.model, start.sse0
         search = SearchRun(ev, shared, n_comp, sigma, rng, opts.seed, bar, say, ex, first.refit)
-        kin = _kinematic_fit(ev, first, data.fold_of) if first.compete else None
+        kin = None  # the kinematic hypothesis, replayed only once a first step is searched at all
         while True:
             if sigma is not None and geo_mse(base_sse, n_comp) <= sigma**2 * (1 + rules.noise_margin):
                 # The evidence rule (decide): a residual within the floor leaves nothing to explain, so no
@@ -503,6 +503,8 @@ def _search_stage(opts: GapOptions, data: DataStage, start: StartStage, say: Cal
                     f"simulator's validated accuracy) by the margin ({100 * rules.noise_margin:.0f} % in MSE): "
                     "nothing beyond it to explain"), ranking=[]))
                 break
+            if first.compete and not steps and kin is None:
+                kin = _kinematic_fit(ev, first, data.fold_of)
             cpu_step = time.process_time()
             step = _search_step(search, model, base_sse, [*first.excluded, *[s.effect for s in steps]], len(steps) + 1,
                                 reference_excess=start.excess0 if steps else None,

@@ -199,5 +199,3 @@ def outlier_rule(cfg: DataSettings | None = None) -> str:
             "m/s^2) can make; flagged rows are treated as not observed (a flagged first row takes the next observed "
             "pose); 'row' is the CSV row (row 1 is the header)")
 
-
-OUTLIER_RULE = outlier_rule()
