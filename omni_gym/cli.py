@@ -16,7 +16,7 @@ from omni_gym import __version__
 from omni_gym.bounds import CLI as CLI_BOUNDS
 from omni_gym.discrepancy.data.budget import FIT_BUDGET, MIN_FIT_BUDGET, MIN_SEGMENT, SEGMENT, check_fit_budget
 from omni_gym.discrepancy.data.importers import FORMATS as IMPORT_FORMATS
-from omni_gym.interrupts import EXIT_INTERRUPTED, main_handler
+from omni_gym.interrupts import EXIT_INTERRUPTED, exit_interrupted, is_command_line, main_handler
 from omni_gym.interrupts import MESSAGE as INTERRUPTED
 from omni_gym.parallel import add_ray_option, backend_from_options, usable_cores
 from omni_gym.physics.friction import FRICTION_MODELS, SURFACES
@@ -558,6 +558,8 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print(INTERRUPTED, file=sys.stderr)
+        if is_command_line():  # the way out is done: leave without the interpreter's exit joins
+            exit_interrupted()
         return EXIT_INTERRUPTED
     finally:
         restore()

@@ -433,6 +433,7 @@ def _init_worker(parent: int, shared_file: str | None = None) -> None:
 
 
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
+MANAGER_JOIN_S = 1.0  # how long a killed pool's manager thread is waited for (see _unblock_manager)
 WATCH_PARENT_S = 0.5  # how often a worker checks that its parent lives (where PR_SET_PDEATHSIG is missing)
 
 
@@ -475,7 +476,9 @@ def _unblock_manager(writer: Any, thread: Any) -> None:
     except OSError:
         pass
     if thread is not None and thread is not threading.current_thread():
-        thread.join(timeout=10)
+        # Normally milliseconds. Bounded short: the command line leaves with os._exit after an interrupt
+        # (interrupts.exit_interrupted) whether or not the thread ended, and must end within 2 s.
+        thread.join(timeout=MANAGER_JOIN_S)
 
 
 @contextmanager
