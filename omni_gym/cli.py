@@ -543,6 +543,13 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 INPUT_ERRORS = (ValueError, OSError, OverflowError)
 
 
+def _interrupted() -> int:
+    print(INTERRUPTED, file=sys.stderr)
+    if is_command_line():  # the way out is done: leave without the interpreter's exit joins
+        exit_interrupted()
+    return EXIT_INTERRUPTED
+
+
 def main(argv: list[str] | None = None) -> int:
     restore = main_handler()  # Ctrl-C from here on: rolled back, workers stopped, one line, status 130
     try:
@@ -553,14 +560,17 @@ def main(argv: list[str] | None = None) -> int:
         with input_limit_mb(args.max_input_mb):  # for this command only (main() may be called again)
             return args.handler(args)
     except INPUT_ERRORS as exc:
+        if restore.interrupted:  # an error on the interrupt's way out, not bad input
+            return _interrupted()
         message = " ".join(str(exc).split())  # one line, whatever the source
         print(f"omni-gym: error: {message}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
-        print(INTERRUPTED, file=sys.stderr)
-        if is_command_line():  # the way out is done: leave without the interpreter's exit joins
-            exit_interrupted()
-        return EXIT_INTERRUPTED
+        return _interrupted()
+    except Exception:
+        if restore.interrupted:  # the interrupt, re-raised as another type by a library (numba's imports)
+            return _interrupted()
+        raise
     finally:
         restore()
 

@@ -22,7 +22,6 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Callable
 from typing import Any
 
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, what a shell reports for a process ended by Ctrl-C
@@ -70,32 +69,50 @@ def exit_interrupted() -> None:
     os._exit(EXIT_INTERRUPTED)
 
 
-def main_handler() -> Callable[[], None]:
-    """Install the work phase's handler (first interrupt raises ``KeyboardInterrupt``, later ones are
-    ignored); returns the function that restores the previous handler when ``main()`` returns, so that
-    ``main()`` called from Python (the tests) leaves the caller's handling as it found it. In the command
-    line SIGINT stays ignored once ``main()`` returns: Python's finalisation resets a Python-level handler
-    to the default, and a late Ctrl-C would then kill the exiting process (status -2, no message).
-    A no-op off the main thread or under an inherited ``SIG_IGN``."""
-    if threading.current_thread() is not threading.main_thread():
-        return lambda: None
-    previous = signal.getsignal(signal.SIGINT)
-    if previous is signal.SIG_IGN:
-        return lambda: None
-    interrupted = []
+class WorkHandler:
+    """The work phase's SIGINT handling, installed by :func:`main_handler`.
 
-    def first(signum: int, frame: Any) -> None:
-        interrupted.append(signum)
+    Calling it restores the previous handling. ``interrupted`` is True once an interrupt arrived: an
+    exception that surfaces after it is the interrupt's, whatever its type (numba, for one, turns a
+    ``KeyboardInterrupt`` raised while it loads its extension modules into an ``ImportError``)."""
+
+    def __init__(self) -> None:
+        self.interrupted = False
+        self._previous: Any = None
+        self._installed = False
+
+    def install(self) -> WorkHandler:
+        if threading.current_thread() is not threading.main_thread():
+            return self
+        previous = signal.getsignal(signal.SIGINT)
+        if previous is signal.SIG_IGN:
+            return self
+        self._previous, self._installed = previous, True
+        signal.signal(signal.SIGINT, self._first)
+        return self
+
+    def _first(self, signum: int, frame: Any) -> None:
+        self.interrupted = True
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # the way out has begun: later interrupts wait for it
         raise KeyboardInterrupt
 
-    def restore() -> None:
-        # In the command line the work is over (committed or rolled back) once main() returns: an interrupt
-        # while the interpreter exits would only turn its status into -2 without a message, so it is ignored.
+    def __call__(self) -> None:
+        """Restore: in the command line the work is over (committed or rolled back) once ``main()``
+        returns, and an interrupt while the interpreter exits would only turn its status into -2 without a
+        message, so SIGINT stays ignored; elsewhere the caller's handler comes back."""
+        if not self._installed:
+            return
         if not is_command_line():
-            signal.signal(signal.SIGINT, previous)
+            signal.signal(signal.SIGINT, self._previous)
         else:
             signal.signal(signal.SIGINT, signal.SIG_IGN)
 
-    signal.signal(signal.SIGINT, first)
-    return restore
+
+def main_handler() -> WorkHandler:
+    """Install the work phase's handler (first interrupt raises ``KeyboardInterrupt``, later ones are
+    ignored); returns the :class:`WorkHandler`, whose call restores the previous handler when ``main()``
+    returns, so that ``main()`` called from Python (the tests) leaves the caller's handling as it found
+    it. In the command line SIGINT stays ignored once ``main()`` returns: Python's finalisation resets a
+    Python-level handler to the default, and a late Ctrl-C would then kill the exiting process (status
+    -2, no message). A no-op off the main thread or under an inherited ``SIG_IGN``."""
+    return WorkHandler().install()

@@ -216,3 +216,36 @@ def test_interrupt_ends_the_driver_whatever_the_workers_were_doing(tmp_path):
         _cleanup(left)
         assert proc.returncode == 130 and err.strip().splitlines()[-1] == "omni-gym: interrupted", (k, err)
         assert not left, k
+
+
+def _interrupt_turned_into(exc_type):
+    """A command that receives Ctrl-C inside a library which re-raises it as ``exc_type`` (numba does so with
+    a KeyboardInterrupt raised while it loads its extension modules: ``ImportError: numba._devicearray failed
+    to import``, seen when a Ctrl-C reached `synth` as it imported numba)."""
+    def command(args):
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except KeyboardInterrupt:
+            raise exc_type("numba._devicearray failed to import") from None
+        return 0
+    return command
+
+
+@pytest.mark.parametrize("exc_type", [ImportError, ValueError])
+def test_an_interrupt_a_library_re_raised_as_another_error_is_still_an_interrupt(monkeypatch, capsys, exc_type):
+    import omni_gym.cli as cli
+
+    monkeypatch.setattr(cli, "_cmd_calibrate", _interrupt_turned_into(exc_type))
+    assert cli.main(["calibrate", "somewhere", "--out", "elsewhere"]) == 130
+    assert capsys.readouterr().err.strip().splitlines() == ["omni-gym: interrupted"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # pytest's handler is back
+
+
+def test_an_import_error_without_an_interrupt_is_not_reported_as_one(monkeypatch):
+    import omni_gym.cli as cli
+
+    def broken(args):
+        raise ImportError("a genuinely missing module")
+    monkeypatch.setattr(cli, "_cmd_calibrate", broken)
+    with pytest.raises(ImportError, match="genuinely missing"):
+        cli.main(["calibrate", "somewhere", "--out", "elsewhere"])
