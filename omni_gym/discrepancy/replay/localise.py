@@ -110,6 +110,11 @@ def localise(ds: Dataset, model: SimModel, lever: float, open_loop: list[np.ndar
         out["runs"].append({"run": run.name, "open_loop_rms": float(math.sqrt(np.mean(r ** 2))) if r.size else None,
                             "shooting_rms": None if math.isnan(shoot_rms[ri]) else float(shoot_rms[ri]),
                             "end_error": float(np.linalg.norm(r[-1, :2])) if r.size else None})
+    ol = [r["open_loop_rms"] for r in out["runs"] if r["open_loop_rms"] is not None]
+    sh = [r["shooting_rms"] for r in out["runs"] if r["shooting_rms"] is not None]
+    # The medians the report quotes (m): a drift when open loop is well above restarted, else a local error.
+    out["median_open_loop_rms"] = float(np.median(ol)) if ol else None
+    out["median_shooting_rms"] = float(np.median(sh)) if sh else None
     out["windows"] = sorted(out["windows"], key=lambda w: -w["rms"])[:10]
     if inc_all:
         inc = np.concatenate(inc_all)

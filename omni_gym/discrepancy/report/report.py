@@ -366,13 +366,12 @@ def _next_steps(result: dict) -> list[str]:
                    f"`omni-gym score {result['dataset']['path']} --model model.json` (better: on runs neither has "
                    "seen).")
     runs = sorted((r for r in w["runs"] if r["open_loop_rms"] is not None), key=lambda r: -r["open_loop_rms"])
-    if runs:
-        ol = float(np.median([r["open_loop_rms"] for r in runs]))
-        sh = [r["shooting_rms"] for r in runs if r["shooting_rms"] is not None]
-        shape = "a drift that builds up over a run" if sh and ol > 2 * float(np.median(sh)) else \
+    ol, sh = w.get("median_open_loop_rms"), w.get("median_shooting_rms")
+    if ol is not None and runs:
+        shape = "a drift that builds up over a run" if sh is not None and ol > 2 * sh else \
             "a local error (restarting from the measured state does not remove it)"
         out.append(f"* **What the residual looks like**: {shape}; median open-loop RMS {_mm(ol)} mm"
-                   + (f" against {_mm(float(np.median(sh)))} mm restarted every 0.5 s." if sh else "."))
+                   + (f" against {_mm(sh)} mm restarted every 0.5 s." if sh is not None else "."))
         out.append("* **Where**: worst runs " + ", ".join(f"{r['run']} ({_mm(r['open_loop_rms'])} mm)"
                                                          for r in runs[:3])
                    + ("; worst windows " + ", ".join(f"{x['run']} {x['t0']:.2f}-{x['t1']:.2f} s"
