@@ -70,10 +70,13 @@ def _alive(pid: int) -> bool:
 
 def run_trial(index: int, dataset: Path, work: Path, delay_s: float, target: str) -> Trial:
     out = work / f"report{index}"
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.Popen([sys.executable, "-m", "omni_gym.cli", "gap", str(dataset), "--out", str(out),
-                             "--jobs", "2", "--no-plots"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            text=True, env=env, start_new_session=True)
+    # PYTHONFAULTHANDLER: a hung command is ended with SIGABRT, which then prints every thread's stack.
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "PYTHONFAULTHANDLER": "1"}
+    err_file = work / f"stderr{index}.txt"  # a file, not a pipe nobody reads while the command runs
+    with open(err_file, "w") as err_out:
+        proc = subprocess.Popen([sys.executable, "-m", "omni_gym.cli", "gap", str(dataset), "--out", str(out),
+                                 "--jobs", "2", "--no-plots"], stdout=subprocess.DEVNULL, stderr=err_out,
+                                text=True, env=env, start_new_session=True)
     deadline = time.monotonic() + 120
     kids: list[int] = []
     while time.monotonic() < deadline and proc.poll() is None:
@@ -101,9 +104,14 @@ def run_trial(index: int, dataset: Path, work: Path, delay_s: float, target: str
         time.sleep(0.005)
     end_s = time.monotonic() - t0
     if proc.poll() is None:
+        os.kill(proc.pid, signal.SIGABRT)  # the stacks, for the report
+        time.sleep(2.0)
         os.killpg(proc.pid, signal.SIGKILL)
         end_s = HANG_S
-    _, err = proc.communicate()
+    proc.wait()
+    err = err_file.read_text(errors="replace")
+    if end_s >= HANG_S:
+        print(f"trial {index} hung; its stderr ends:\n{err[-6000:]}", file=sys.stderr, flush=True)
     time.sleep(1.0)  # the parent watch of a worker polls every 0.5 s
     left = [k for k in kids if _alive(k)]
     for k in left:

@@ -62,24 +62,29 @@ def _alive(pid: int) -> bool:
     return state not in ("Z", "X")
 
 
-def _start_gap(dataset: Path, out: Path) -> tuple[subprocess.Popen, dict[int, str]]:
+def _start_gap(dataset: Path, out: Path) -> tuple[subprocess.Popen, dict[int, str], Path]:
     """``gap --jobs 2`` in a new session (a signal reaches only the pids we name), waited for until its
-    two workers run; returns the process and its helper processes (workers and resource tracker)."""
+    two workers run; returns the process, its helper processes (workers and resource tracker) and the file
+    its stderr goes to. A file, not a pipe: a pipe nobody reads while the command runs fills up (64 KiB: the
+    progress lines and, on a cold numba cache, the compiler's warnings of the workers, which share it), and the
+    command then blocks for good writing its last line, which looked like a hang after the interrupt."""
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
-    proc = subprocess.Popen([sys.executable, "-m", "omni_gym.cli", "gap", str(dataset), "--out", str(out),
-                             "--jobs", "2", "--no-plots"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env, start_new_session=True)
+    err_path = out.parent / f"{out.name}.stderr.txt"
+    with open(err_path, "w") as err_file:
+        proc = subprocess.Popen([sys.executable, "-m", "omni_gym.cli", "gap", str(dataset), "--out", str(out),
+                                 "--jobs", "2", "--no-plots"], stdout=subprocess.DEVNULL, stderr=err_file,
+                                text=True, env=env, start_new_session=True)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
         kids = _children(proc.pid)
         if sum("spawn_main" in c for c in kids.values()) == 2:
-            return proc, kids
+            return proc, kids, err_path
         if proc.poll() is not None:
             break
         time.sleep(0.1)
     proc.kill()
-    out_, err = proc.communicate()
-    pytest.fail(f"gap --jobs 2 never had 2 workers running; stderr: {err[-2000:]}")
+    proc.wait()
+    pytest.fail(f"gap --jobs 2 never had 2 workers running; stderr: {err_path.read_text()[-2000:]}")
 
 
 def _wait_gone(pids, seconds: float) -> list[int]:
@@ -99,10 +104,10 @@ def _cleanup(pids) -> None:
 
 
 def test_workers_die_with_a_killed_parent(dataset, tmp_path):
-    proc, helpers = _start_gap(dataset, tmp_path / "report")
+    proc, helpers, _ = _start_gap(dataset, tmp_path / "report")
     time.sleep(1.0)  # the workers are inside their first fit
     os.kill(proc.pid, signal.SIGKILL)
-    proc.communicate(timeout=30)
+    proc.wait(timeout=30)
     try:
         left = _wait_gone(helpers, GONE_WITHIN_S)
         assert not left, f"still running {GONE_WITHIN_S} s after the parent was killed: " + "; ".join(
@@ -118,7 +123,7 @@ def test_interrupting_gap_with_workers_stops_them_and_writes_nothing(dataset, tm
     (``timeout -s INT``) or to the whole process group (Ctrl-C in a terminal): it exits 130 within
     seconds, says one line (no worker prints a KeyboardInterrupt), and leaves no report and no worker."""
     out = tmp_path / "report"
-    proc, helpers = _start_gap(dataset, out)
+    proc, helpers, err_path = _start_gap(dataset, out)
     time.sleep(delay)
     try:
         for _ in range(3):
@@ -127,7 +132,8 @@ def test_interrupting_gap_with_workers_stops_them_and_writes_nothing(dataset, tm
             else:
                 os.killpg(proc.pid, signal.SIGINT)  # its own session: the group is gap and its workers
             time.sleep(0.15)
-        _, err = proc.communicate(timeout=30)  # it used to hang in multiprocessing's exit join
+        proc.wait(timeout=30)  # it used to hang in multiprocessing's exit join
+        err = err_path.read_text()
         assert proc.returncode == 130, err[-2000:]
         assert "Traceback" not in err and "KeyboardInterrupt" not in err, err[-2000:]
         assert err.strip().splitlines()[-1] == "omni-gym: interrupted"
