@@ -49,6 +49,13 @@ class Trial:
                 and self.workers_left == 0)
 
 
+def _default_sigint() -> None:
+    """In the command before it runs: SIGINT at its default, as from a terminal. Started in the background
+    (``nohup ... &``) this script has SIGINT ignored, the commands would inherit that and rightly ignore
+    every interrupt (an inherited SIG_IGN is respected): each trial would look like a hang."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _children(pid: int) -> list[int]:
     kids = []
     for entry in Path("/proc").iterdir():
@@ -76,7 +83,7 @@ def run_trial(index: int, dataset: Path, work: Path, delay_s: float, target: str
     with open(err_file, "w") as err_out:
         proc = subprocess.Popen([sys.executable, "-m", "omni_gym.cli", "gap", str(dataset), "--out", str(out),
                                  "--jobs", "2", "--no-plots"], stdout=subprocess.DEVNULL, stderr=err_out,
-                                text=True, env=env, start_new_session=True)
+                                text=True, env=env, start_new_session=True, preexec_fn=_default_sigint)
     deadline = time.monotonic() + 120
     kids: list[int] = []
     while time.monotonic() < deadline and proc.poll() is None:

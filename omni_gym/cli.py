@@ -315,6 +315,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 def _simulate_into(args: argparse.Namespace, out) -> int:
     """The simulation of ``omni-gym simulate``, written to ``out`` (the transaction's temporary file)."""
     from omni_gym.io import TRAJECTORY_HEADER, read_commands, write_csv_atomic
+    from omni_gym.physics import effects as effect_library
     from omni_gym.physics.model import Actuation, load_model
     from omni_gym.physics.replay import simulate_commands
     from omni_gym.physics.world import DEFAULT_DT
@@ -323,6 +324,12 @@ def _simulate_into(args: argparse.Namespace, out) -> int:
     check_option("--dt", dt)
     check_option("--seed", args.seed)
     model = load_model(args.model, args.surface, args.friction)
+    if tracker := [name for name in model.effects if effect_library.get(name).kind == "tracker"]:
+        # One line, so that nobody compares this with tracked poses and loses what the tracker part explains.
+        print(f"omni-gym simulate: note: {args.model} has a tracker part ({', '.join(tracker)}); it describes "
+              "how a pose tracker measures the robot, not how the robot moves, so this trajectory leaves it out "
+              "(the body's physics only); `omni-gym score DATASET --model MODEL` applies it when comparing "
+              "with tracked runs", file=sys.stderr)
     times, commands = read_commands(args.commands, model.n_wheels)
     substeps = CLI_BOUNDS["run duration / --dt"]
     if not substeps.contains(round(times[-1] / dt)):

@@ -58,6 +58,24 @@ def test_model_file_round_trip_through_simulate(tmp_path):
     assert a.read_text() == b.read_text()
 
 
+
+def test_simulate_says_in_one_line_that_it_leaves_out_a_model_s_tracker_part(tmp_path, capsys):
+    """A model with tracker effects replays the body's physics only: the same trajectory as without them,
+    and one line on stderr that names them and the command that applies them; none for a physics-only model."""
+    data = load_model("williams2002").to_json()
+    data["tracker"] = {"tracker_offset": {"offset": [0.03, -0.02], "yaw": 0.01}}
+    model_file = tmp_path / "m.json"
+    model_file.write_text(json.dumps(data))
+    cmds = tmp_path / "c.csv"
+    cmds.write_text("t,w1,w2,w3\n0,5,5,5\n0.2,0,0,0\n")
+    assert main(["simulate", "--model", "williams2002", "--commands", str(cmds), "--out", str(tmp_path / "b.csv")]) == 0
+    assert capsys.readouterr().err == ""
+    out = tmp_path / "a.csv"
+    assert main(["simulate", "--model", str(model_file), "--commands", str(cmds), "--out", str(out)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "tracker part (tracker_offset)" in err[0] and "omni-gym score" in err[0]
+    assert (tmp_path / "a.csv").read_text() == (tmp_path / "b.csv").read_text()
+
 BAD_COMMANDS = {
     "unordered": ("t,w1,w2,w3\n0,1,1,1\n0.5,1,1,1\n0.4,0,0,0\n", "row 4: times must be strictly increasing"),
     "wrong_wheels": ("t,w1,w2,w3,w4\n0,1,1,1,1\n1,0,0,0,0\n", "header has 4 wheel columns, the model has 3"),

@@ -21,6 +21,23 @@ from omni_gym.cli import main
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads processes from /proc (Linux)")
 
+def _default_sigint() -> None:
+    """In a child before it runs: SIGINT at its default, as a command started from a terminal has it. A test
+    run started in the background (``make test &``, some CI runners) has SIGINT ignored, every child inherits
+    that, and the command then rightly ignores Ctrl-C (an inherited SIG_IGN is respected): every interrupt
+    test would look like a hang. (Measured: every trial of benchmarks/interrupt_trials.py "hung" when it was
+    started with ``nohup ... &``.)"""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+@pytest.fixture(autouse=True)
+def _sigint_as_in_a_terminal():
+    """This process's SIGINT handler as Python installs it in a terminal, whatever the test run inherited."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
+
+
 # How long the workers may outlive their parent: the parent watch polls every 0.5 s and PR_SET_PDEATHSIG
 # acts at once; 5 s leaves room for a loaded 2-core machine.
 GONE_WITHIN_S = 5.0
@@ -73,7 +90,7 @@ def _start_gap(dataset: Path, out: Path) -> tuple[subprocess.Popen, dict[int, st
     with open(err_path, "w") as err_file:
         proc = subprocess.Popen([sys.executable, "-m", "omni_gym.cli", "gap", str(dataset), "--out", str(out),
                                  "--jobs", "2", "--no-plots"], stdout=subprocess.DEVNULL, stderr=err_file,
-                                text=True, env=env, start_new_session=True)
+                                text=True, env=env, start_new_session=True, preexec_fn=_default_sigint)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
         kids = _children(proc.pid)
@@ -155,7 +172,8 @@ def test_ctrl_c_while_the_command_starts_is_one_line(marker):
     earlier, the interpreter itself is still starting (its own site import), which no program controls."""
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1]), "PYTHONPROFILEIMPORTTIME": "1"}
     proc = subprocess.Popen([sys.executable, "-m", "omni_gym.cli", "model", "show", "williams2002"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            preexec_fn=_default_sigint)
     for line in proc.stderr:  # "import time: self | cumulative | [indent]module"
         if line.startswith("import time:") and line.rpartition("|")[2].strip() == marker:
             break
@@ -206,7 +224,7 @@ def test_interrupt_ends_the_driver_whatever_the_workers_were_doing(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
     for k in range(10):
         proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                text=True, env=env)
+                                text=True, env=env, preexec_fn=_default_sigint)
         assert proc.stdout.readline().strip() == "started"
         workers = list(_children(proc.pid))
         time.sleep(0.05 + 0.11 * k)  # spread over the write and read phases of the 4-task maps
