@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 
 import numpy as np
@@ -467,18 +468,30 @@ def _cmd_score(args: argparse.Namespace) -> int:
     scores = score_models(ds, models)
     means = summary(scores)
     if args.json:
-        print(json.dumps({"runs": [asdict(s) for s in scores], "models": means,
-                          "note": "open-loop replay from each run's start pose; position_rms and final_error in m"},
-                         indent=2, allow_nan=False))
+        from omni_gym.discrepancy.report.finite import finite_json
+
+        clean, _ = finite_json({"runs": [asdict(s) for s in scores], "models": means,
+                                "note": "open-loop replay from each run's start pose; lengths in m, angles in "
+                                        "rad; heading_offset, yaw_scale and refit_position_rms: the per-run "
+                                        "refit (null where a run has too few tracked rows)"})
+        print(json.dumps(clean, indent=2, allow_nan=False))
         return 0
     width = max(len(n) for n in models)
-    print(f"{'run':<28s} {'model':<{width}s} {'s':>6s} {'pos RMS [mm]':>13s} {'final [mm]':>11s}")
+    print(f"{'run':<28s} {'model':<{width}s} {'s':>6s} {'pos RMS [mm]':>13s} {'final [mm]':>11s} "
+          f"{'refit: heading [deg]':>21s} {'yaw scale':>10s} {'pos RMS [mm]':>13s}")
     for sc in scores:
         print(f"{sc.run:<28s} {sc.model:<{width}s} {sc.seconds:6.1f} {1e3 * sc.position_rms:13.1f} "
-              f"{1e3 * sc.final_error:11.1f}")
+              f"{1e3 * sc.final_error:11.1f} {math.degrees(sc.heading_offset):21.2f} {sc.yaw_scale:10.3f} "
+              f"{1e3 * sc.refit_position_rms:13.1f}")
     for name, m in means.items():
-        print(f"mean over {m['runs']} runs, {name}: position RMS {1e3 * m['mean_position_rms']:.1f} mm, "
-              f"final error {1e3 * m['mean_final_error']:.1f} mm")
+        print(f"over {m['runs']} runs, {name}: position RMS mean {1e3 * m['mean_position_rms']:.1f} mm (median "
+              f"{1e3 * m['median_position_rms']:.1f}, {1e3 * m['min_position_rms']:.1f}-"
+              f"{1e3 * m['max_position_rms']:.1f}, sd {1e3 * m['std_position_rms']:.1f}), final error "
+              f"{1e3 * m['mean_final_error']:.1f} mm; after a per-run heading refit "
+              f"{1e3 * m['mean_refit_position_rms']:.1f} mm (offsets sd {math.degrees(m['std_heading_offset']):.2f} "
+              f"deg, yaw scales sd {m['std_yaw_scale']:.3f})")
+    print("refit: the initial heading offset and yaw-rate scale that bring each replay closest to its run, and "
+          "the error left: run-to-run variation no model of the robot predicts")
     return 0
 
 

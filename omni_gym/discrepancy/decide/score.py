@@ -5,6 +5,11 @@ replays runs, and compared with the tracked poses: the position RMS [m] over the
 (Euclidean x, y error; the measure of ``benchmarks/real_optiodom.py``) and the final position error
 [m] at its last tracked row. A model that ``gap`` extended on training sessions is checked this way
 on sessions it never saw.
+
+Beside each score, the per-run refit (:mod:`~omni_gym.discrepancy.decide.run_spread`): the initial heading
+offset and yaw-rate scale that would bring the replay closest to that run, and the position RMS left
+after them: how much of a run's error is run-to-run variation no model of the robot predicts. The summary
+gives the spread of the scores over runs (median, min, max, standard deviation).
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from omni_gym.discrepancy.data.dataset import Dataset
+from omni_gym.discrepancy.decide.run_spread import refit_run
 from omni_gym.discrepancy.fit.kinematic_calibration import position_rms
 from omni_gym.discrepancy.replay.measurement import START_WINDOW
 from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, simulate_poses
@@ -23,13 +29,17 @@ from omni_gym.physics.model import SimModel
 
 @dataclass
 class RunScore:
-    """One run replayed with one model: position RMS and final position error [m] against the tracker."""
+    """One run replayed with one model: position RMS and final position error [m] against the tracker;
+    the per-run refit's heading offset [rad], yaw-rate scale and the position RMS it leaves [m]."""
 
     run: str
     model: str
     seconds: float
     position_rms: float
     final_error: float
+    heading_offset: float
+    yaw_scale: float
+    refit_position_rms: float
 
 
 def score_models(ds: Dataset, models: dict[str, SimModel], dt: float = FIT_DT) -> list[RunScore]:
@@ -47,18 +57,29 @@ def score_models(ds: Dataset, models: dict[str, SimModel], dt: float = FIT_DT) -
         last = int(np.flatnonzero(run.observed)[-1])
         for j, name in enumerate(names):
             p = poses[i * len(names) + j]
+            refit = refit_run(run.pose, p)
             out.append(RunScore(run.name, name, float(run.t[-1]), position_rms(run.pose, p),
-                                float(math.hypot(*(run.pose[last, :2] - p[last, :2])))))
+                                float(math.hypot(*(run.pose[last, :2] - p[last, :2]))),
+                                refit.heading_offset, refit.yaw_scale, refit.position_rms))
     return out
 
 
 def summary(scores: list[RunScore]) -> dict[str, dict]:
-    """Per model: mean position RMS and mean final error over the runs [m], and the run count."""
+    """Per model, over the runs: the run count; the mean, median, min, max and standard deviation of the
+    position RMS [m]; the mean final error [m]; the mean position RMS left by the per-run refit [m] and the
+    standard deviations of its heading offsets [rad] and yaw-rate scales (0 with one run)."""
     out: dict[str, dict] = {}
     for name in dict.fromkeys(s.model for s in scores):
         mine = [s for s in scores if s.model == name]
-        out[name] = {"runs": len(mine), "mean_position_rms": float(np.mean([s.position_rms for s in mine])),
-                     "mean_final_error": float(np.mean([s.final_error for s in mine]))}
+        rms = np.array([s.position_rms for s in mine])
+        ddof = 1 if len(mine) > 1 else 0
+        out[name] = {"runs": len(mine), "mean_position_rms": float(np.mean(rms)),
+                     "median_position_rms": float(np.median(rms)), "min_position_rms": float(np.min(rms)),
+                     "max_position_rms": float(np.max(rms)), "std_position_rms": float(np.std(rms, ddof=ddof)),
+                     "mean_final_error": float(np.mean([s.final_error for s in mine])),
+                     "mean_refit_position_rms": float(np.nanmean([s.refit_position_rms for s in mine])),
+                     "std_heading_offset": float(np.nanstd([s.heading_offset for s in mine], ddof=ddof)),
+                     "std_yaw_scale": float(np.nanstd([s.yaw_scale for s in mine], ddof=ddof))}
     return out
 
 
