@@ -127,6 +127,9 @@ def build_parser() -> argparse.ArgumentParser:
     sc.add_argument("--model", action="append", default=[], metavar="MODEL",
                     help="a model to compare with the dataset's nominal model: preset name or model JSON file "
                          "(e.g. a gap report's model.json); repeatable")
+    sc.add_argument("--linear-map-from", metavar="TRAINING_DATASET", default=None,
+                    help="also score a linear wheel-to-twist map (3 x n, the best a purely kinematic description "
+                         "can do) fitted on this dataset's runs (wheel encoders needed); a model should beat it")
     sc.add_argument("--json", action="store_true", help="print per-run scores and means as JSON")
     sc.set_defaults(handler=_cmd_score)
     sy = sub.add_parser("synth", help="write a dataset with a hidden effect (truth to DATASET.truth.json)")
@@ -465,7 +468,17 @@ def _cmd_score(args: argparse.Namespace) -> int:
     models = {"nominal": ds.model}
     for path in args.model:
         models[path] = load_model(path, None, None)
-    scores = score_models(ds, models)
+    maps = {}
+    if args.linear_map_from is not None:
+        from omni_gym.discrepancy.fit.linear_map import fit_linear_map
+
+        train = load_dataset(args.linear_map_from)
+        if train.n_wheels != ds.n_wheels:
+            raise ValueError(f"--linear-map-from {args.linear_map_from}: {train.n_wheels} wheels, the dataset "
+                             f"{args.dataset} has {ds.n_wheels}")
+        lm = fit_linear_map(train.runs, train.model)
+        maps[f"linear map ({lm.runs} runs of {args.linear_map_from})"] = lm
+    scores = score_models(ds, models, linear_maps=maps)
     means = summary(scores)
     if args.json:
         from omni_gym.discrepancy.report.finite import finite_json
@@ -476,7 +489,7 @@ def _cmd_score(args: argparse.Namespace) -> int:
                                         "refit (null where a run has too few tracked rows)"})
         print(json.dumps(clean, indent=2, allow_nan=False))
         return 0
-    width = max(len(n) for n in models)
+    width = max(len(n) for n in [*models, *maps])
     print(f"{'run':<28s} {'model':<{width}s} {'s':>6s} {'pos RMS [mm]':>13s} {'final [mm]':>11s} "
           f"{'refit: heading [deg]':>21s} {'yaw scale':>10s} {'pos RMS [mm]':>13s}")
     for sc in scores:

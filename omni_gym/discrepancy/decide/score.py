@@ -22,6 +22,7 @@ import numpy as np
 from omni_gym.discrepancy.data.dataset import Dataset
 from omni_gym.discrepancy.decide.run_spread import refit_run
 from omni_gym.discrepancy.fit.kinematic_calibration import position_rms
+from omni_gym.discrepancy.fit.linear_map import LinearMap
 from omni_gym.discrepancy.replay.measurement import START_WINDOW
 from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, simulate_poses
 from omni_gym.physics.model import SimModel
@@ -42,21 +43,26 @@ class RunScore:
     refit_position_rms: float
 
 
-def score_models(ds: Dataset, models: dict[str, SimModel], dt: float = FIT_DT) -> list[RunScore]:
-    """Per run and model (run-major order): open-loop replay scores (module docstring).
+def score_models(ds: Dataset, models: dict[str, SimModel], dt: float = FIT_DT,
+                 linear_maps: dict[str, LinearMap] | None = None) -> list[RunScore]:
+    """Per run and model (run-major order): open-loop replay scores (module docstring). ``linear_maps``:
+    baselines scored beside the models (name → :class:`~omni_gym.discrepancy.fit.linear_map.LinearMap`),
+    each run dead-reckoned from its encoders with the map.
 
-    ValueError if a model's wheel count differs from the dataset's.
+    ValueError if a model's wheel count differs from the dataset's, or a linear map's run has no encoders.
     """
     for name, m in models.items():
         if m.n_wheels != ds.n_wheels:
             raise ValueError(f"model {name}: {m.n_wheels} wheels, the dataset {ds.path} has {ds.n_wheels}")
+    linear_maps = linear_maps or {}
     names = list(models)
     poses = simulate_poses([Job(models[n], r) for r in ds.runs for n in names], dt=dt, start_window=START_WINDOW)
     out = []
     for i, run in enumerate(ds.runs):
         last = int(np.flatnonzero(run.observed)[-1])
-        for j, name in enumerate(names):
-            p = poses[i * len(names) + j]
+        replays = [(name, poses[i * len(names) + j]) for j, name in enumerate(names)]
+        replays += [(name, lm.predict(run)) for name, lm in linear_maps.items()]
+        for name, p in replays:
             refit = refit_run(run.pose, p)
             out.append(RunScore(run.name, name, float(run.t[-1]), position_rms(run.pose, p),
                                 float(math.hypot(*(run.pose[last, :2] - p[last, :2]))),

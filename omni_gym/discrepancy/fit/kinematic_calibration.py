@@ -188,7 +188,7 @@ def nominal_geometry(model: SimModel) -> Geometry:
         raise ValueError(f"model {r.name!r}: {exc}") from None
 
 
-def _wheel_travel(run: Run) -> np.ndarray:
+def wheel_travel(run: Run) -> np.ndarray:
     """(K−1, n) wheel angle increments [rad] of each cycle, from the run's ``enc`` columns."""
     if run.enc is None:
         raise ValueError(f"run {run.name}: no measured wheel angles (enc columns): kinematic calibration "
@@ -202,12 +202,17 @@ def _wheel_travel(run: Run) -> np.ndarray:
 def dead_reckon(run: Run, geometry: Geometry, start: np.ndarray | None = None) -> np.ndarray:
     """Poses (K, 3) [m, m, rad], world frame, of ``run`` dead-reckoned with ``geometry`` from ``start`` (None:
     the run's start pose, :attr:`Run.start_pose`)."""
-    return _integrate(_wheel_travel(run), run.start_pose if start is None else start, geometry)
+    return _integrate(wheel_travel(run), run.start_pose if start is None else start, geometry)
 
 
 def _integrate(dphi: np.ndarray, start: np.ndarray, geometry: Geometry) -> np.ndarray:
-    """Exact integration of a constant body twist over each cycle (an arc), vectorised over cycles."""
-    dq = dphi @ np.linalg.pinv(geometry.wheel_matrix()).T  # (K−1, 3) body displacement per cycle
+    """Dead reckoning with ``geometry``: wheel travel (K−1, n) [rad] to poses (K, 3) from ``start``."""
+    return integrate_twist(dphi @ np.linalg.pinv(geometry.wheel_matrix()).T, start)
+
+
+def integrate_twist(dq: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """Poses (K, 3) [m, m, rad], world frame, from body displacements ``dq`` (K−1, 3) [m, m, rad] per cycle
+    held constant over each cycle (an arc: exact integration, vectorised over cycles) from ``start``."""
     dth = dq[:, 2]
     theta = start[2] + np.concatenate([[0.0], np.cumsum(dth)])
     # Over an arc the body-frame chord is [[s, −(1−c)], [1−c, s]]/Δθ · (Δx_b, Δy_b); series near Δθ = 0.
@@ -257,7 +262,7 @@ def calibrate(runs: list[Run], nominal: SimModel | Geometry, lever: float | None
         obs[0] = False  # the start pose is the integration's initial condition: no information
         if not obs.any():
             raise ValueError(f"run {run.name}: no observed pose after the start: nothing to calibrate against")
-        prepared.append((_wheel_travel(run), run.start_pose, run.pose[obs], obs))
+        prepared.append((wheel_travel(run), run.start_pose, run.pose[obs], obs))
     x0 = np.concatenate([g0.diameters, [g0.size]])
 
     def geometry(x: np.ndarray) -> Geometry:
