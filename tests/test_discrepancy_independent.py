@@ -91,6 +91,7 @@ def test_nothing_hidden_in_independent_data_is_none(tmp_path):
     assert 0.0 < parts["integration"] < 0.5e-3
 
 
+@pytest.mark.slow  # repeats the study-like com_offset cases of the slow test_independent_data_is_named_right
 def test_com_offset_of_random_direction_in_independent_data_is_named(tmp_path):
     angle = np.random.default_rng(11).uniform(-math.pi, math.pi)
     truth = {"com": [0.016 * math.cos(angle), 0.016 * math.sin(angle)]}
