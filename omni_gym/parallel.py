@@ -493,9 +493,9 @@ def _sigint_deferred() -> Iterator[None]:
     until :func:`_init_worker` ignores it (which discards it) and unblocks it; no worker raises
     ``KeyboardInterrupt`` while it starts. And a recording handler catches a SIGINT that another thread of
     this process receives meanwhile. At the end the previous handler is restored and, if an interrupt came,
-    called: it raises ``KeyboardInterrupt`` here, after the block. (An ignored SIGINT during the block, as
-    before, lost a Ctrl-C for good: in 1 of 25 trials three of them, and the run went on.) A no-op off the
-    main thread (handlers live there)."""
+    called: it raises ``KeyboardInterrupt`` here, after the block. (Ignoring SIGINT during the block, as
+    before, would lose a Ctrl-C that arrives in those milliseconds: the user presses it and nothing happens.)
+    A no-op off the main thread (handlers live there)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
