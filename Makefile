@@ -9,11 +9,9 @@ export MPLBACKEND := Agg
 
 venv: $(STAMP)
 
-# --no-compile: pip would byte-compile every installed file (torch's thousands: 48 s of the 86 s install
-# measured on 2 cores); Python compiles what is imported on first use instead.
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(PY) || python3 -m venv .venv
-	$(PIP) install -q --no-compile -c constraints.txt -e ".[dev]"
+	$(PIP) install -q -c constraints.txt -e ".[dev]"
 	touch $(STAMP)
 
 test: $(STAMP)
