@@ -156,11 +156,16 @@ def check_times(path: Path, times: np.ndarray) -> None:
     """Refuse times [s] that do not start at 0 or do not strictly increase (rows counted from 2)."""
     if times[0] != 0.0:
         raise InputError(f"{path}: row 2: the first time must be 0, got {times[0]:g}")
+    k = first_not_increasing(times)
+    if k is not None:
+        raise InputError(f"{path}: row {k + 2}: times must be strictly increasing "
+                         f"({times[k]:g} after {times[k - 1]:g})")
+
+
+def first_not_increasing(times: np.ndarray) -> int | None:
+    """Index k of the first time that does not come after the one before it (times[k] <= times[k-1]), or None."""
     bad = np.nonzero(np.diff(times) <= 0)[0]
-    if bad.size:
-        r = int(bad[0]) + 3
-        raise InputError(f"{path}: row {r}: times must be strictly increasing "
-                         f"({times[bad[0] + 1]:g} after {times[bad[0]]:g})")
+    return int(bad[0]) + 1 if bad.size else None
 
 
 def read_text(path: str | Path) -> str:

@@ -32,7 +32,7 @@ import numpy as np
 from omni_gym.bounds import FILES
 from omni_gym.discrepancy.data.dataset import Run, write_dataset
 from omni_gym.discrepancy.data.units import check_run_units
-from omni_gym.io import InputError
+from omni_gym.io import InputError, first_not_increasing
 from omni_gym.outputs import Output
 
 # --- units ---------------------------------------------------------------------------------------------
@@ -117,9 +117,8 @@ def check_increasing(t: np.ndarray, where: str, what: str = "message", first: in
     bad = np.nonzero(~np.isfinite(t))[0]
     if bad.size:
         raise InputError(f"{where}: {what} {int(bad[0]) + first}: time is not a finite number")
-    bad = np.nonzero(np.diff(t) <= 0)[0]
-    if bad.size:
-        k = int(bad[0]) + 1
+    k = first_not_increasing(t)
+    if k is not None:
         raise InputError(f"{where}: {what} {k + first}: times must be strictly increasing ({t[k]:.9g} s after "
                          f"{t[k - 1]:.9g} s)")
 
