@@ -493,7 +493,8 @@ def _sigint_deferred() -> Iterator[None]:
     until :func:`_init_worker` ignores it (which discards it) and unblocks it; no worker raises
     ``KeyboardInterrupt`` while it starts. And a recording handler catches a SIGINT that another thread of
     this process receives meanwhile. At the end the previous handler is restored and, if an interrupt came,
-    called: it raises ``KeyboardInterrupt`` here, after the block. (Ignoring SIGINT during the block, as
+    the signal is raised again for it: a Python handler raises ``KeyboardInterrupt`` here, after the block,
+    an ignored SIGINT stays ignored, the default one ends the process. (Ignoring SIGINT during the block, as
     before, would lose a Ctrl-C that arrives in those milliseconds: the user presses it and nothing happens.)
     A no-op off the main thread (handlers live there)."""
     if threading.current_thread() is not threading.main_thread():
@@ -506,11 +507,11 @@ def _sigint_deferred() -> Iterator[None]:
         yield
     finally:
         # A SIGINT held by the mask arrives at the unblock and is recorded, or, if Python runs its handler
-        # only after the next line, it runs the previous handler itself: either way it is handled once.
+        # only after the next line, the previous handler gets it directly: either way it is handled once.
         signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
         signal.signal(signal.SIGINT, previous)
-        if caught and callable(previous):
-            previous(signal.SIGINT, None)
+        if caught:
+            signal.raise_signal(signal.SIGINT)  # whatever the previous disposition is, it decides
 
 
 def _call_local(fn: Callable, a: Any, has_shared: bool) -> Any:
