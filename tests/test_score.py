@@ -140,7 +140,7 @@ def test_a_linear_map_recovers_a_skewed_rotated_kinematics_the_layout_cannot_exp
     """Poses made through a map the wheel layout cannot give (the tracked frame turned 2 degrees and y moving
     with x) are fitted from the nominal kinematics to within tracker noise, and predict unseen runs as well."""
     from omni_gym.discrepancy.fit.kinematic_calibration import nominal_geometry
-    from omni_gym.discrepancy.fit.linear_map import fit_linear_map, linear_map_rms
+    from omni_gym.discrepancy.fit.linear_map import fit_linear_map
 
     model = recovery.nominal_model()
     a_nominal = np.linalg.pinv(nominal_geometry(model).wheel_matrix())
@@ -152,7 +152,7 @@ def test_a_linear_map_recovers_a_skewed_rotated_kinematics_the_layout_cannot_exp
     # The distortion (2 deg, 1.6 % skew, 3 % yaw) moves these short paths by about 4 mm against 0.7 mm of noise.
     assert lm.start_position_rms > 4 * lm.train_position_rms
     assert lm.train_position_rms < 0.001  # tracker noise 0.5 mm per axis: 0.7 mm in the plane
-    held_out = [linear_map_rms(lm, r)[0] for r in _kinematic_runs(truth, range(10, 13))]
+    held_out = [position_rms(r.pose, lm.predict(r)) for r in _kinematic_runs(truth, range(10, 13))]
     assert max(held_out) < 0.0015  # a map that generalises: within about twice the noise on unseen runs
     assert np.allclose(lm.matrix, truth, atol=0.02 * np.max(np.abs(truth)))
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from omni_gym.discrepancy.data.dataset import Dataset
+from omni_gym.discrepancy.data.dataset import Dataset, Run
 from omni_gym.discrepancy.decide.run_spread import refit_run
 from omni_gym.discrepancy.fit.kinematic_calibration import position_rms
 from omni_gym.discrepancy.fit.linear_map import LinearMap
@@ -43,6 +43,12 @@ class RunScore:
     refit_position_rms: float
 
 
+def final_error(run: Run, poses: np.ndarray) -> float:
+    """Position error [m] of ``poses`` (K, 3) at the run's last tracked row."""
+    last = int(np.flatnonzero(run.observed)[-1])
+    return float(math.hypot(*(run.pose[last, :2] - poses[last, :2])))
+
+
 def score_models(ds: Dataset, models: dict[str, SimModel], dt: float = FIT_DT,
                  linear_maps: dict[str, LinearMap] | None = None) -> list[RunScore]:
     """Per run and model (run-major order): open-loop replay scores (module docstring). ``linear_maps``:
@@ -59,13 +65,11 @@ def score_models(ds: Dataset, models: dict[str, SimModel], dt: float = FIT_DT,
     poses = simulate_poses([Job(models[n], r) for r in ds.runs for n in names], dt=dt, start_window=START_WINDOW)
     out = []
     for i, run in enumerate(ds.runs):
-        last = int(np.flatnonzero(run.observed)[-1])
         replays = [(name, poses[i * len(names) + j]) for j, name in enumerate(names)]
         replays += [(name, lm.predict(run)) for name, lm in linear_maps.items()]
         for name, p in replays:
             refit = refit_run(run.pose, p)
-            out.append(RunScore(run.name, name, float(run.t[-1]), position_rms(run.pose, p),
-                                float(math.hypot(*(run.pose[last, :2] - p[last, :2]))),
+            out.append(RunScore(run.name, name, float(run.t[-1]), position_rms(run.pose, p), final_error(run, p),
                                 refit.heading_offset, refit.yaw_scale, refit.position_rms))
     return out
 
@@ -126,12 +130,11 @@ def heldout_whole_runs(ds: Dataset, fold_of: np.ndarray, fold_models: dict[str, 
     poses = simulate_poses(jobs, dt=dt, start_window=start_window)
     out = []
     for i, run in enumerate(ds.runs):
-        last = int(np.flatnonzero(run.observed)[-1])
         rms, fin = {}, {}
         for j, n in enumerate(names):
             p = poses[i * len(names) + j]
             rms[n] = position_rms(run.pose, p)
-            fin[n] = float(math.hypot(*(run.pose[last, :2] - p[last, :2])))
+            fin[n] = final_error(run, p)
         out.append(HeldOutRun(run.name, run.session, int(fold_of[i]), float(run.t[-1]), rms, fin))
     return out
 

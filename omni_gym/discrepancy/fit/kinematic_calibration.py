@@ -239,6 +239,23 @@ def position_rms(measured: np.ndarray, predicted: np.ndarray) -> float:
     return float(math.sqrt(np.mean(np.sum(e**2, axis=1)))) if ok.any() else math.nan
 
 
+def prepare_runs(runs: list[Run], n: int, purpose: str) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """Per run, what a whole-run dead-reckoning fit needs: (wheel travel (K−1, n) [rad], start pose (3,),
+    tracked poses (M, 3) of the observed rows after the first, the (K,) mask of those rows). ValueError naming
+    the run for a wrong encoder count, no encoders, or no observed row after the start (nothing to
+    ``purpose`` against)."""
+    prepared = []
+    for run in runs:
+        if run.enc is not None and run.enc.shape[1] != n:
+            raise ValueError(f"run {run.name}: {run.enc.shape[1]} encoder columns, the model has {n} wheels")
+        obs = run.observed
+        obs[0] = False  # the start pose is the integration's initial condition: no information
+        if not obs.any():
+            raise ValueError(f"run {run.name}: no observed pose after the start: nothing to {purpose} against")
+        prepared.append((wheel_travel(run), run.start_pose, run.pose[obs], obs))
+    return prepared
+
+
 def calibrate(runs: list[Run], nominal: SimModel | Geometry, lever: float | None = None) -> KinematicCalibration:
     """Fit the n effective wheel diameters and the length (L or l1 + l2) to ``runs`` (module docstring);
     start at ``nominal`` (a model, or a bare :class:`Geometry`: then the result has no ``model``).
@@ -254,15 +271,7 @@ def calibrate(runs: list[Run], nominal: SimModel | Geometry, lever: float | None
     g0 = nominal if isinstance(nominal, Geometry) else nominal_geometry(nominal)
     lever = g0.reach if lever is None else float(lever)
     n = len(g0.diameters)
-    prepared = []
-    for run in runs:
-        if run.enc is not None and run.enc.shape[1] != n:
-            raise ValueError(f"run {run.name}: {run.enc.shape[1]} encoder columns, the model has {n} wheels")
-        obs = run.observed
-        obs[0] = False  # the start pose is the integration's initial condition: no information
-        if not obs.any():
-            raise ValueError(f"run {run.name}: no observed pose after the start: nothing to calibrate against")
-        prepared.append((wheel_travel(run), run.start_pose, run.pose[obs], obs))
+    prepared = prepare_runs(runs, n, "calibrate")
     x0 = np.concatenate([g0.diameters, [g0.size]])
 
     def geometry(x: np.ndarray) -> Geometry:

@@ -22,7 +22,7 @@ from omni_gym.discrepancy.fit.kinematic_calibration import (
     Geometry,
     integrate_twist,
     nominal_geometry,
-    position_rms,
+    prepare_runs,
     wheel_travel,
 )
 from omni_gym.discrepancy.replay.simulate import pose_residual
@@ -66,15 +66,7 @@ def fit_linear_map(runs: list[Run], nominal: SimModel | Geometry, lever: float |
     lever = g0.reach if lever is None else float(lever)
     a0 = np.linalg.pinv(g0.wheel_matrix())  # (3, n)
     n = a0.shape[1]
-    prepared = []
-    for run in runs:
-        if run.enc is not None and run.enc.shape[1] != n:
-            raise ValueError(f"run {run.name}: {run.enc.shape[1]} encoder columns, the model has {n} wheels")
-        obs = run.observed
-        obs[0] = False  # the start pose is the integration's initial condition
-        if not obs.any():
-            raise ValueError(f"run {run.name}: no observed pose after the start: nothing to fit against")
-        prepared.append((wheel_travel(run), run.start_pose, run.pose[obs], obs))
+    prepared = prepare_runs(runs, n, "fit")
     scale = np.maximum(np.abs(a0), np.max(np.abs(a0)) * 1e-2).ravel()  # entries near 0 still move
 
     def residuals(x: np.ndarray) -> np.ndarray:
@@ -93,9 +85,3 @@ def fit_linear_map(runs: list[Run], nominal: SimModel | Geometry, lever: float |
     return LinearMap(matrix=a, runs=len(runs), rows=sum(int(p[3].sum()) for p in prepared),
                      train_position_rms=pos_rms(a), start_position_rms=pos_rms(a0))
 
-
-def linear_map_rms(lm: LinearMap, run: Run) -> tuple[float, float]:
-    """(position RMS [m] over the run's observed rows, final position error [m] at its last one)."""
-    p = lm.predict(run)
-    last = int(np.flatnonzero(run.observed)[-1])
-    return position_rms(run.pose, p), float(math.hypot(*(run.pose[last, :2] - p[last, :2])))
