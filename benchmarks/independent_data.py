@@ -160,8 +160,9 @@ def interleaved(todo: list[dict]) -> list[dict]:
 
 def previous(log: Path, todo: list[dict], generator: str) -> list[dict]:
     """The results in ``log`` (the JSON lines an earlier run printed, or the ``.json`` list it wrote beside its
-    table) of cases that are in ``todo`` exactly (same robot, category, seed and generator settings); anything
-    else in the file is ignored."""
+    table) of cases that are in ``todo`` exactly (same robot, category, seed and generator settings) and whose
+    ``gap`` finished (a case whose command failed or was killed, ``error (exit N)``, runs again); anything else
+    in the file is ignored."""
     want = {(c["robot"], c["kind"], c["seed"]): c for c in todo}
     text = Path(log).read_text(encoding="utf-8")
     try:
@@ -178,7 +179,8 @@ def previous(log: Path, todo: list[dict], generator: str) -> list[dict]:
     out = []
     for r in rows:
         c = want.get((r.get("robot"), r.get("kind"), r.get("seed"))) if isinstance(r, dict) else None
-        if c is not None and all(r.get(k) == v for k, v in c.items()) and r.get("generator", "second") == generator:
+        if c is not None and all(r.get(k) == v for k, v in c.items()) and r.get("generator", "second") == generator \
+                and not str(r.get("effect", "")).startswith("error"):
             out.append(r)
     return out
 

@@ -86,13 +86,14 @@ def test_new_kinds_are_named_right(tmp_path, kind, hidden):
 
 def test_a_stopped_study_resumes_from_its_lines_or_its_json(tmp_path):
     """--resume: results of the same cases are reused, from the printed JSON lines or the written .json list; a
-    result whose case settings differ (another generator setting, say) is not."""
+    result whose case settings differ (another generator setting, say) is not, nor one whose gap was killed."""
     import json
 
     bench = _load()
     todo = list(bench.cases(("none",), ("williams2002",), 2))
     done = [{**todo[0], "generator": "second", "effect": "none", "correct": True},
-            {**todo[1], "runs": todo[1]["runs"] + 1, "effect": "none", "correct": True}]  # not the same case
+            {**todo[1], "runs": todo[1]["runs"] + 1, "effect": "none", "correct": True},  # not the same case
+            {**todo[1], "generator": "second", "effect": "error (exit -9)", "correct": False}]  # killed: run again
     lines = tmp_path / "log.jsonl"
     lines.write_text("\n".join(json.dumps(r) for r in done) + "\nnot json\n")
     listed = tmp_path / "study.json"
