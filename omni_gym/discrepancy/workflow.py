@@ -51,6 +51,7 @@ from omni_gym.discrepancy.replay.localise import localise
 from omni_gym.discrepancy.replay.measurement import START_WINDOW
 from omni_gym.discrepancy.replay.residuals import count_components, geo_mse, run_sse
 from omni_gym.discrepancy.replay.simulate import FIT_DT
+from omni_gym.discrepancy.replay.start_trust import StartTrust, estimate_start_trust, with_start_trust
 from omni_gym.discrepancy.report.finite import finite_json
 from omni_gym.discrepancy.settings import GapSettings, accuracy_floor
 from omni_gym.outputs import Output
@@ -262,6 +263,7 @@ class DataStage:
     lever: float
     n_comp: np.ndarray
     rng: np.random.Generator
+    start_trust: StartTrust | None = None  # how far replays trust the runs' start poses (replay.start_trust)
 
 
 @dataclass
@@ -418,7 +420,13 @@ def _data_stage(opts: GapOptions, say: Callable[[str], None]) -> DataStage:
     if flagged:
         say(f"{len(flagged)} outlier row(s) excluded: "
             + ", ".join(f"{o.run} row {o.row}" for o in flagged[:5]) + (" ..." if len(flagged) > 5 else ""))
-    return DataStage(whole, fitted, ds, flagged, sessions, fold_src, fold_of, lever, count_components(ds), rng)
+    trust = None
+    if opts.settings.data.start_window is not None:
+        # Estimated on the whole runs, outliers dropped where the whole runs are what is fitted.
+        trust = estimate_start_trust(whole if fitted.segmented else ds, opts.settings.data.start_window, opts.dt)
+        whole, ds = with_start_trust(whole, trust), with_start_trust(ds, trust)
+    return DataStage(whole, fitted, ds, flagged, sessions, fold_src, fold_of, lever, count_components(ds), rng,
+                     trust)
 
 
 def _start_stage(opts: GapOptions, data: DataStage, say: Callable[[str], None]) -> StartStage:
@@ -665,7 +673,8 @@ def _result(opts: GapOptions, data: DataStage, start: StartStage, search: Search
             "note": "flags: fitted values of the named effects outside a physically plausible range (flagging only, "
                     "the fit is not changed); each ranking entry lists its own under 'implausible'"},
         outliers={"rows": [o.to_json() for o in data.flagged], "rule": outlier_rule(opts.settings.data)},
-        start={**first.to_json(), "competition": opts.competition},
+        start={**first.to_json(), "competition": opts.competition,
+               "alignment": None if data.start_trust is None else data.start_trust.to_json()},
         heldout={"metric": HELDOUT_METRIC, "folds_by": folds_by, **heldout_table(answer.rows),
                  "per_run": [r.to_json() for r in answer.rows], "drift_check": answer.drift},
         score_nominal=decision.score_nominal, where=search.where,

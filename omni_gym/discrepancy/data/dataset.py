@@ -44,7 +44,8 @@ class Run:
     ``state0``: None for a run as the format defines it (starting at rest at ``start_pose``); the
     segments the workflow cuts from long runs (:mod:`omni_gym.discrepancy.data.segments`) start moving, from
     (pose (3,), geometric-centre world velocity (3,) [m/s, m/s, rad/s], wheel angles (n,) [rad], wheel
-    speeds (n,) [rad/s]). Not part of the file format.
+    speeds (n,) [rad/s]). Not part of the file format. ``start_weight``: how far a replay of the run trusts its
+    first tracked rows over its start pose (:mod:`omni_gym.discrepancy.replay.start_trust`).
     """
 
     name: str
@@ -55,6 +56,9 @@ class Run:
     gyro: np.ndarray | None = None
     state0: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
     session: str | None = None  # the recording session (dataset.json "sessions"); None: not recorded
+    # (position, heading) share of the start-window offset a whole-run replay is moved by
+    # (omni_gym.discrepancy.replay.start_trust); not part of the file format.
+    start_weight: tuple[float, float] = (1.0, 1.0)
 
     @property
     def observed(self) -> np.ndarray:

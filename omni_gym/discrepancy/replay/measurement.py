@@ -69,7 +69,7 @@ START_WINDOW = DataSettings().start_window  # s: the default of align_to_start_w
 
 
 def align_to_start_window(run_t: np.ndarray, measured_pose: np.ndarray, pose: np.ndarray,
-                          window: float = START_WINDOW) -> np.ndarray:
+                          window: float = START_WINDOW, weight: tuple[float, float] = (1.0, 1.0)) -> np.ndarray:
     """A replay ``pose`` (K, 3) of a whole run, moved rigidly so that it matches the run's tracked rows
     ``measured_pose`` (K, 3, NaN where unobserved) over the first ``window`` [s] on average: rotated about its
     first row by the mean heading difference there, then translated by the mean position difference.
@@ -79,12 +79,14 @@ def align_to_start_window(run_t: np.ndarray, measured_pose: np.ndarray, pose: np
     first rows the replay has not yet drifted, so their mean difference estimates the start pose's error
     with a row's noise / sqrt(rows) (0.2 s at 100 Hz: 20 rows). On a uniform floor the motion is equivariant
     under a rigid move of its start, so moving the replay is the same as replaying from the moved start.
+    ``weight`` (position, heading): the share of each mean difference applied (1: all of it; less when the start
+    pose itself is more certain than the window's mean, :mod:`omni_gym.discrepancy.replay.start_trust`).
     Unchanged when fewer than two rows are observed in the window."""
     rows = np.all(np.isfinite(measured_pose), axis=1) & (run_t - run_t[0] <= window)
     if np.count_nonzero(rows) < 2:
         return pose
-    dtheta = float(np.mean(wrap_angle(measured_pose[rows, 2] - pose[rows, 2])))
+    dtheta = weight[1] * float(np.mean(wrap_angle(measured_pose[rows, 2] - pose[rows, 2])))
     turned = align_start(pose, np.array([pose[0, 0], pose[0, 1], pose[0, 2] + dtheta]))
-    shift = np.mean(measured_pose[rows, :2] - turned[rows, :2], axis=0)
+    shift = weight[0] * np.mean(measured_pose[rows, :2] - turned[rows, :2], axis=0)
     turned[:, :2] += shift
     return turned

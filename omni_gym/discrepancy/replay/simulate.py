@@ -131,7 +131,7 @@ def simulate_jobs(jobs: list[Job], dt: float = FIT_DT, start_window: float | Non
     for b, job in enumerate(jobs):
         if start_window is not None and job.state0 is None and job.k0 == 0:  # a whole run from rest
             poses[b] = align_to_start_window(job.run.t[:ends[b] + 1], job.run.pose[:ends[b] + 1], poses[b],
-                                             start_window)
+                                             start_window, job.run.start_weight)
     angles = [ang_ev[pos, b] for b, pos in enumerate(rows_at)]
     return list(zip(poses, angles, strict=True))
 
