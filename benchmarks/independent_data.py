@@ -331,6 +331,8 @@ def _command(args: argparse.Namespace) -> str:
         parts.append(f"--seed0 {args.seed0}")
     if args.generator != "second":
         parts.append(f"--generator {args.generator}")
+    if args.seeds:
+        parts.append("--seeds " + " ".join(str(x) for x in args.seeds))
     if args.out is not None:
         parts.append(f"--out {args.out}")
     return " ".join(parts)
@@ -350,8 +352,16 @@ def main() -> None:
     ap.add_argument("--resume", type=Path, default=None, metavar="LOG",
                     help="the JSON lines an earlier run of the same cases printed, or the .json it wrote: cases "
                          "found there are not run again (a long study survives an interruption)")
+    ap.add_argument("--seeds", type=int, nargs="+", default=None,
+                    help="only the study's cases with these seeds (a re-check of chosen cases; the table then "
+                         "covers those cases only)")
     args = ap.parse_args()
     todo = interleaved(list(cases(tuple(args.kinds), tuple(args.robots), args.per_kind, args.seed0)))
+    if args.seeds:
+        unknown = sorted(set(args.seeds) - {c["seed"] for c in todo})
+        if unknown:
+            ap.error(f"--seeds: no case of this study has seed(s) {unknown}")
+        todo = [c for c in todo if c["seed"] in set(args.seeds)]
     done = previous(args.resume, todo, args.generator) if args.resume is not None else []
     seen = {(r["robot"], r["kind"], r["seed"]) for r in done}
     todo = [c for c in todo if (c["robot"], c["kind"], c["seed"]) not in seen]
