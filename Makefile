@@ -18,7 +18,7 @@ test: $(STAMP)
 	$(PY) -m ruff check .
 	$(PY) -m pytest -q -n 2 --dist worksteal -m "not slow" --durations=15
 
-# The long tests (run on demand; not in .ci/run while 14 of them fail, see .ci/run): each repeats a shorter test at
+# The long tests (also run by .ci/run; the recovery sweeps that fail today are strict xfails there): each repeats a shorter test at
 # full size or checks what `make test` checks elsewhere too (the reason is beside each mark): the discrepancy
 # workflow's full 12-case recovery per effect and its quick cells, the paper story, a second drag seed, the
 # study-like independent cases, the omni3 real-data gap run.

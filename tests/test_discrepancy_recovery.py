@@ -79,7 +79,7 @@ def test_hidden_effect_quick_sweep(effect, case):
 
 
 # Known failures of the full sweep under today's rules (fresh run 2026-11-28, after the start-trust fix that
-# brought the failing sweeps from 9 of 10 effects to 6). Each is strict: the sweep is deterministic (fixed seeds,
+# brought the failing sweeps from 9 of 10 effects to 7). Each is strict: the sweep is deterministic (fixed seeds,
 # serial fits), so a change that fixes one shows as XPASS and fails until its mark is removed. The cells are
 # FULL's order (size, noise, seed); docs/discrepancy.md, "Recovery under today's rules", has the table.
 KNOWN_FAILURES = {
