@@ -25,6 +25,7 @@ from omni_gym.discrepancy.fit.kinematic_calibration import position_rms
 from omni_gym.discrepancy.fit.linear_map import LinearMap
 from omni_gym.discrepancy.replay.measurement import START_WINDOW
 from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, simulate_poses
+from omni_gym.discrepancy.replay.start_trust import estimate_start_trust, with_start_trust
 from omni_gym.physics.model import SimModel
 
 
@@ -62,6 +63,8 @@ def score_models(ds: Dataset, models: dict[str, SimModel], dt: float = FIT_DT,
             raise ValueError(f"model {name}: {m.n_wheels} wheels, the dataset {ds.path} has {ds.n_wheels}")
     linear_maps = linear_maps or {}
     names = list(models)
+    # Replays trust the runs' start poses as gap's do (the same estimate on these runs: replay.start_trust).
+    ds = with_start_trust(ds, estimate_start_trust(ds, START_WINDOW, dt))
     poses = simulate_poses([Job(models[n], r) for r in ds.runs for n in names], dt=dt, start_window=START_WINDOW)
     out = []
     for i, run in enumerate(ds.runs):
