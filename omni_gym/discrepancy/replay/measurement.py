@@ -68,6 +68,13 @@ def align_start(pose: np.ndarray, target: np.ndarray) -> np.ndarray:
 START_WINDOW = DataSettings().start_window  # s: the default of align_to_start_window (settings.DataSettings)
 
 
+def start_window_rows(run_t: np.ndarray, measured_pose: np.ndarray, window: float) -> np.ndarray | None:
+    """(K,) mask of the run's tracked rows within its first ``window`` [s] (times ``run_t`` (K,), tracked poses
+    ``measured_pose`` (K, 3), NaN where unobserved); None when fewer than two are tracked: too few to align to."""
+    rows = np.all(np.isfinite(measured_pose), axis=1) & (run_t - run_t[0] <= window)
+    return rows if np.count_nonzero(rows) >= 2 else None
+
+
 def align_to_start_window(run_t: np.ndarray, measured_pose: np.ndarray, pose: np.ndarray,
                           window: float = START_WINDOW, weight: tuple[float, float] = (1.0, 1.0)) -> np.ndarray:
     """A replay ``pose`` (K, 3) of a whole run, moved rigidly so that it matches the run's tracked rows
@@ -82,8 +89,8 @@ def align_to_start_window(run_t: np.ndarray, measured_pose: np.ndarray, pose: np
     ``weight`` (position, heading): the share of each mean difference applied (1: all of it; less when the start
     pose itself is more certain than the window's mean, :mod:`omni_gym.discrepancy.replay.start_trust`).
     Unchanged when fewer than two rows are observed in the window."""
-    rows = np.all(np.isfinite(measured_pose), axis=1) & (run_t - run_t[0] <= window)
-    if np.count_nonzero(rows) < 2:
+    rows = start_window_rows(run_t, measured_pose, window)
+    if rows is None:
         return pose
     dtheta = weight[1] * float(np.mean(wrap_angle(measured_pose[rows, 2] - pose[rows, 2])))
     turned = align_start(pose, np.array([pose[0, 0], pose[0, 1], pose[0, 2] + dtheta]))

@@ -30,6 +30,7 @@ import numpy as np
 
 from omni_gym.angles import wrap_angle
 from omni_gym.discrepancy.data.dataset import Dataset
+from omni_gym.discrepancy.replay.measurement import start_window_rows
 from omni_gym.discrepancy.replay.residuals import channel_noise
 from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, pose_residual, simulate_poses
 
@@ -50,7 +51,7 @@ class StartTrust:
     weights: dict[str, tuple[float, float]]
 
     def to_json(self) -> dict:
-        w = np.array(list(self.weights.values())) if self.weights else np.ones((1, 2))
+        w = np.array(list(self.weights.values()))  # never empty: estimate_start_trust returns None instead
         return {"window_s": self.window, "start_position_m": self.start_position,
                 "start_heading_rad": self.start_heading, "row_position_m": self.row_position,
                 "row_heading_rad": self.row_heading,
@@ -84,12 +85,11 @@ def estimate_start_trust(ds: Dataset, window: float, dt: float = FIT_DT) -> Star
     var_head = float(ch[2]) / lever**2  # rad²
     names, n, dpos2, dhead2 = [], [], [], []
     for r, p in zip(runs, poses, strict=True):
-        rows = r.observed & (r.t - r.t[0] <= window)
-        k = int(np.count_nonzero(rows))
-        if k < 2:
+        rows = start_window_rows(r.t, r.pose, window)
+        if rows is None:
             continue
         names.append(r.name)
-        n.append(k)
+        n.append(int(np.count_nonzero(rows)))
         dpos2.append(float(np.mean(np.mean(r.pose[rows, :2] - p[rows, :2], axis=0) ** 2)))
         dhead2.append(float(np.mean(wrap_angle(r.pose[rows, 2] - p[rows, 2]))) ** 2)
     if not names:
