@@ -155,6 +155,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "default and why in docs/formats.md, 'Importing OptiOdom logs')")
     im.add_argument("--inertia", type=float, default=None,
                     help="optiodom: assumed yaw inertia [kg·m²] (default 0.5·mass·ρ², ρ the wheel centres' distance)")
+    im.add_argument("--time-base", choices=("auto", "tracker", "file"), default=None,
+                    help="optiodom: auto (default): each run on the tracker's clock from the metadata's "
+                         "synchronisation window, where there is one; file: the time column as written "
+                         "(docs/formats.md, 'The time base')")
     im.add_argument("--surface", choices=sorted(SURFACES), default=None,
                     help="floor preset of the nominal model (optiodom default grip: no slip, as kinematic odometry "
                          "assumes; csv, rosbag2: overrides the --model's)")
@@ -539,9 +543,12 @@ def _cmd_import(args: argparse.Namespace) -> int:
     surface = optiodom.SURFACE if args.surface is None else args.surface
     # mass None: the default of the sessions' robot type (omni3 8 kg, omni4 4 kg; docs/formats.md)
     s = optiodom.import_optiodom(args.sessions, args.out, force=args.force, mass=args.mass, inertia=args.inertia,
-                                 surface=surface)
+                                 surface=surface, time_base=args.time_base or "auto")
     print(f"imported {s.runs} runs from {len(s.sessions)} session(s), {s.duration:.1f} s of robot time "
           f"(assumed: mass {s.mass:g} kg, inertia {s.inertia:.4g} kg·m², surface {s.surface}) -> {s.out}")
+    print(s.time_base)
+    for note in s.notes:
+        print(note)
     return 0
 
 

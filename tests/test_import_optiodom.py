@@ -7,6 +7,7 @@ wheel geometry of ``data/optiodom-omni3/README.md`` and an exact integration of 
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import shutil
@@ -49,6 +50,13 @@ def read_raw(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t (K,), pose (K, 3), ticks (K, 3)) of an OptiOdom run file, read with numpy alone."""
     a = np.loadtxt(path, delimiter=",", ndmin=2)
     return a[:, 0], a[:, 1:4], a[:, 4:7]
+
+
+def sync_windows(path: Path) -> list[tuple[float, float, float, float]]:
+    """Per run (gt_ti, gt_tf, odo_ti, odo_tf) [s] of a metadata file, read with the csv module alone."""
+    rows = {row[0]: [float(c) for c in row[1:] if c.strip()] for row in csv.reader(path.read_text().splitlines())
+            if row and row[0] in ("gt_ti", "gt_tf", "odo_ti", "odo_tf")}
+    return list(zip(rows["gt_ti"], rows["gt_tf"], rows["odo_ti"], rows["odo_tf"], strict=True))
 
 
 def integrate(t: np.ndarray, speeds: np.ndarray, start: np.ndarray) -> np.ndarray:
@@ -119,11 +127,17 @@ def test_commands_encoders_and_poses_follow_the_ticks(short_dataset):
     assert summary.runs == 4 and summary.sessions == ("221220201730",)
     assert [r.name for r in ds.runs] == [f"221220201730_run-0{i}" for i in range(1, 5)]
     assert summary.duration == pytest.approx(sum(r.t[-1] for r in ds.runs))
-    for run in ds.runs:
+    windows = sync_windows(SHORT / "221220201730_metadata.csv")
+    for i, run in enumerate(ds.runs):
         t, pose, ticks = read_raw(SHORT / f"{run.name}.csv")
-        assert np.array_equal(run.t, t)  # the bundled files start at t = 0
+        # The tracker's time base: row k at t_k · (gt_tf − gt_ti) / (odo_tf − odo_ti) (the bundled files start
+        # at t = 0); omni3's whole ticks are the rotation over the cycle, so the angles are the ticks and the
+        # speeds the ticks over the stretched interval.
+        gt_ti, gt_tf, odo_ti, odo_tf = windows[i]
+        t = t * (gt_tf - gt_ti) / (odo_tf - odo_ti)
+        assert np.allclose(run.t, t, rtol=1e-12, atol=0)
         # Row k-1 holds the speed of the ticks counted over (t_{k-1}, t_k]; the last row stops.
-        assert np.allclose(run.cmd[:-1], ticks[1:] * RAD_PER_TICK / np.diff(t)[:, None], rtol=1e-12, atol=0)
+        assert np.allclose(run.cmd[:-1], ticks[1:] * RAD_PER_TICK / np.diff(t)[:, None], rtol=1e-9, atol=0)
         assert np.all(run.cmd[-1] == 0)
         assert np.allclose(run.enc, np.vstack([np.zeros(3), np.cumsum(ticks[1:], axis=0)]) * RAD_PER_TICK,
                            rtol=1e-12, atol=0)
@@ -372,11 +386,14 @@ def _one_line(capsys) -> str:
     return err
 
 
-def test_cli_imports_prints_one_line_and_refuses_to_overwrite_without_force(tmp_path, capsys):
+def test_cli_imports_prints_what_and_the_time_base_and_refuses_to_overwrite_without_force(tmp_path, capsys):
     out = tmp_path / "ds"
     assert main(["import", "optiodom", str(SHORT), "--out", str(out)]) == 0
-    line = capsys.readouterr().out.strip()
-    assert "\n" not in line and "imported 4 runs from 1 session(s), 69.7 s" in line and str(out) in line
+    lines = capsys.readouterr().out.strip().splitlines()
+    # Robot time on the tracker's clock: the metadata's gt_tf − gt_ti summed over the four runs, 70.91 s
+    # (the files' time column: 69.7 s).
+    assert len(lines) == 2 and "imported 4 runs from 1 session(s), 70.9 s" in lines[0] and str(out) in lines[0]
+    assert lines[1].startswith("time base: 221220201730 the tracker's clock, 1.01")
     before = (out / "dataset.json").read_text()
     # Exists: refused, untouched.
     assert main(["import", "optiodom", str(SHORT), "--out", str(out), "--mass", "5"]) == 2

@@ -85,7 +85,8 @@ def copy_session(src: Path, dst: Path, runs: tuple[int, ...] = (1,), rows: int |
 
 @pytest.fixture(scope="module")
 def square_runs():
-    metas, runs = read_sessions([SQUARE])
+    """Two runs on the file's time base: the README's formula reads the time column as written."""
+    metas, runs = read_sessions([SQUARE], time_base="file")
     return metas[0], runs[:2]
 
 
@@ -191,10 +192,11 @@ def test_a_run_in_both_forms_and_a_short_row_are_refused(tmp_path):
 
 @pytest.fixture(scope="module")
 def omni4_dataset(tmp_path_factory):
-    """Runs 1 and 2 of square/080920201715 (58 s each) imported."""
+    """Runs 1 and 2 of square/080920201715 (58 s each) imported on the file's time base (the README's
+    recursion reads the time column as written; the tracker's time base has its own tests)."""
     root = tmp_path_factory.mktemp("omni4")
     folder = copy_session(SQUARE, root / "session", runs=(1, 2))
-    import_optiodom([folder], root / "ds")
+    import_optiodom([folder], root / "ds", time_base="file")
     from omni_gym.discrepancy.data.dataset import load_dataset
 
     return folder, root / "ds", load_dataset(root / "ds")

@@ -71,7 +71,11 @@ class RobotType:
     ``n_wheels``; ``li_count``: how many values ``Li`` has (omni3: L; omni4: l1, l2); ``column``: the
     name of a wheel's count column in messages; ``whole_counts``: the counts are whole encoder ticks
     (omni3) rather than fractional encoder units (omni4 logs wheel revolutions: encRes 1); ``cycle`` [s]:
-    the documented control cycle (for descriptions; the times are read from the files).
+    the documented control cycle (for descriptions; the times are read from the files); ``counts_are``:
+    what a row's count measures when the tracker's clock and the log's disagree (docs/formats.md, "The time
+    base"): ``"rotation"``, the encoder ticks counted over the cycle, whatever it lasted (omni3: whole
+    ticks), or ``"speed"``, the wheel speed times the nominal cycle (omni4: fractional revolutions, whose
+    sum over a run falls short of the tracked travel by the clock scale).
     """
 
     kind: str
@@ -80,14 +84,15 @@ class RobotType:
     column: str
     whole_counts: bool
     cycle: float
+    counts_are: str
 
     def run_columns(self) -> tuple[str, ...]:
         return ("time", "x", "y", "theta", *(f"{self.column}_{i + 1}" for i in range(self.n_wheels)))
 
 
 TYPES: dict[str, RobotType] = {
-    "omni3": RobotType("omni3", 3, 1, "ticks", True, 0.04),
-    "omni4": RobotType("omni4", 4, 2, "odo", False, 0.01),
+    "omni3": RobotType("omni3", 3, 1, "ticks", True, 0.04, "rotation"),
+    "omni4": RobotType("omni4", 4, 2, "odo", False, 0.01, "speed"),
 }
 
 # Each robot type's geometry, mass properties, rollers and body radius are the physics presets
@@ -118,6 +123,37 @@ def default_mass(kind: str) -> float:
 
 
 @dataclass(frozen=True)
+class SyncWindow:
+    """One run's synchronisation window, as OptiOdom's synchronisation wrote it to the metadata
+    (``gt_ti``, ``gt_tf``, ``odo_ti``, ``odo_tf`` [s]): the motion-capture interval [gt_ti, gt_tf] on the
+    tracker's clock was resampled onto the odometry rows of [odo_ti, odo_tf] on the robot's log clock.
+    ``line``: the metadata line of ``gt_ti`` (for messages)."""
+
+    gt_ti: float
+    gt_tf: float
+    odo_ti: float
+    odo_tf: float
+    line: int
+
+    @property
+    def clock_scale(self) -> float:
+        """Tracker seconds per logged second over the run: (gt_tf − gt_ti) / (odo_tf − odo_ti)."""
+        return (self.gt_tf - self.gt_ti) / (self.odo_tf - self.odo_ti)
+
+
+# The time bases an OptiOdom run can be imported on (``--time-base``; docs/formats.md, "The time base"):
+# "tracker": each row lasts the tracker's share of the run (the synchronisation window), the logged counts
+# are wheel speed × the nominal cycle; "file": the time column as written, the counts as wheel rotation.
+TIME_BASES = ("auto", "tracker", "file")  # auto: tracker where the metadata has the windows, else file
+# A run's clock scale further than this from its session's median is reported (measured spread within a
+# bundled session: at most 0.6 %; the two path families differ by 4 %).
+CLOCK_SCALE_SPREAD = 0.01
+# Clock scales outside this range are refused: no logger's clock is off by a factor of two (the bundled
+# sessions: 1.01–1.11), so the window belongs to another file.
+CLOCK_SCALE_RANGE = (0.5, 2.0)
+
+
+@dataclass(frozen=True)
 class Metadata:
     """One session's ``<id>_metadata.csv``: the numbers the import uses (SI units).
 
@@ -132,6 +168,7 @@ class Metadata:
     enc_res: float
     Li: tuple[float, ...]
     D: tuple[float, ...]
+    sync: tuple[SyncWindow, ...] = ()  # per run (run-01 first); empty: the metadata has no windows
 
     @property
     def robot_type(self) -> RobotType:
@@ -169,7 +206,8 @@ class RawRun:
 @dataclass(frozen=True)
 class ImportSummary:
     """What an import wrote: sessions, runs, robot time [s], the dataset folder and the assumed mass
-    [kg], inertia [kg·m²] and surface preset of its nominal model; ``kind`` the robot type."""
+    [kg], inertia [kg·m²] and surface preset of its nominal model; ``kind`` the robot type; the time base
+    and any notes on it."""
 
     sessions: tuple[str, ...]
     runs: int
@@ -179,6 +217,8 @@ class ImportSummary:
     inertia: float
     surface: str
     kind: str = "omni3"
+    time_base: str = ""  # one sentence (Sessions.describe_time_base)
+    notes: tuple[str, ...] = ()  # lines to print: runs whose clock is unlike their session's
 
 
 # --- reading ----------------------------------------------------------------------------------------
@@ -280,7 +320,43 @@ def read_metadata(path: str | Path) -> Metadata:
         if not radius.contains(v / 2):
             raise InputError(f"{path}: line {line}: Di {v:g} m: a wheel radius {radius.within()} is required")
     return Metadata(path=path, session=session, kind=kind, ngear=scalars["ngear"], enc_res=scalars["encRes"],
-                    Li=Li, D=D)
+                    Li=Li, D=D, sync=_sync_windows(path, values))
+
+
+SYNC_KEYS = ("gt_ti", "gt_tf", "odo_ti", "odo_tf")
+
+
+def _sync_windows(path: Path, values: dict[str, tuple[int, list[str]]]) -> tuple[SyncWindow, ...]:
+    """The per-run synchronisation windows of a metadata file (rows ``gt_ti``, ``gt_tf``, ``odo_ti``,
+    ``odo_tf``, one value per run); () if none of the rows is there; InputError naming the line if only
+    some are, their lengths differ, or a window is not a finite interval of positive length."""
+    present = [k for k in SYNC_KEYS if k in values]
+    if not present:
+        return ()
+    if len(present) != len(SYNC_KEYS):
+        missing = [k for k in SYNC_KEYS if k not in values]
+        raise InputError(f"{path}: has {', '.join(present)} but no {', '.join(missing)} row: the synchronisation "
+                         "windows need all four (or none: then import with --time-base file)")
+    columns = {}
+    for key in SYNC_KEYS:
+        line, cells = values[key]
+        numbers = [_number(c, path, line, key) for c in cells]
+        for v in numbers:
+            if not math.isfinite(v) or abs(v) > FILES["t"].hi:
+                raise InputError(f"{path}: line {line}: {key} {FILES['t'].describe()}, got {v:g}")
+        columns[key] = (line, numbers)
+    counts = {len(columns[k][1]) for k in SYNC_KEYS}
+    if len(counts) != 1:
+        raise InputError(f"{path}: line {columns['gt_ti'][0]}: gt_ti, gt_tf, odo_ti and odo_tf have "
+                         f"{', '.join(str(len(columns[k][1])) for k in SYNC_KEYS)} values: one per run each")
+    out = []
+    for i, (gi, gf, oi, of) in enumerate(zip(*(columns[k][1] for k in SYNC_KEYS), strict=True)):
+        for key, lo, hi in (("gt", gi, gf), ("odo", oi, of)):
+            if not hi > lo:
+                raise InputError(f"{path}: line {columns[key + '_tf'][0]}: run {i + 1}: {key}_tf {hi:g} is not after "
+                                 f"{key}_ti {lo:g}")
+        out.append(SyncWindow(gi, gf, oi, of, columns["gt_ti"][0]))
+    return tuple(out)
 
 
 def read_run_file(path: str | Path, kind: str = "omni3") -> RawRun:
@@ -335,8 +411,14 @@ def run_name(path: Path) -> str:
     return name
 
 
-def convert_run(raw: RawRun, meta: Metadata, name: str | None = None) -> Run:
+def convert_run(raw: RawRun, meta: Metadata, name: str | None = None, clock_scale: float = 1.0) -> Run:
     """A :class:`Run` of our format from one OptiOdom run (mapping in the module docstring).
+
+    ``clock_scale``: tracker seconds per logged second (:attr:`SyncWindow.clock_scale`; 1: the file's time
+    base). Row k is at t_k · clock_scale. If the type's counts are a rotation (omni3), the wheel angles are
+    the counts and the speeds the counts over the stretched interval; if they are a speed times the nominal
+    cycle (omni4), the speeds are the counts over the file's interval and the angles the counts ·
+    clock_scale (:class:`RobotType`).
 
     Times are shifted to start at 0 if the file's first time is not 0. A pose row with any NaN cell
     becomes unobserved (NaN x, y, theta). InputError if the run has fewer than two rows, its first pose
@@ -348,7 +430,8 @@ def convert_run(raw: RawRun, meta: Metadata, name: str | None = None) -> Run:
     n = raw.ticks.shape[1]
     if K < 2:
         raise InputError(f"{path}: line {raw.lines[0]}: a run needs at least two rows (one cycle), got {K}")
-    t = raw.t - raw.t[0]
+    file_t = raw.t - raw.t[0]
+    t = file_t * clock_scale
     if not FILES["t"].contains(t[-1]):
         raise InputError(f"{path}: line {raw.lines[-1]}: run duration {FILES['t'].describe()}, got {t[-1]:g}")
     pose = raw.pose.copy()
@@ -362,9 +445,11 @@ def convert_run(raw: RawRun, meta: Metadata, name: str | None = None) -> Run:
     ticks = raw.ticks[1:]  # row k's counts: the motion over (t_{k-1}, t_k]; row 0's came before the run
     cmd = np.zeros((K, n))
     with np.errstate(over="ignore"):  # a huge count overflows to inf: refused by the bound below
-        cmd[:-1] = ticks * q / np.diff(t)[:, None] + 0.0  # + 0.0: a "-0" count is written as 0.0
+        speed_scale, angle_scale = ((1.0 / clock_scale, 1.0) if meta.robot_type.counts_are == "rotation"
+                                    else (1.0, clock_scale))
+        cmd[:-1] = ticks * (q * speed_scale) / np.diff(file_t)[:, None] + 0.0  # + 0.0: a "-0" count is 0.0
         enc = np.zeros((K, n))
-        enc[1:] = np.cumsum(ticks, axis=0) * q + 0.0  # omni3: sum whole ticks first: exact
+        enc[1:] = np.cumsum(ticks, axis=0) * (q * angle_scale) + 0.0  # omni3: sum whole ticks first: exact
     for what, values, bound in (("wheel speed", cmd[:-1], FILES["w1 … wn"]),
                                 ("wheel angle", enc[1:], FILES["enc1 … encn"])):
         outside = np.nonzero(~np.all((values >= bound.lo) & (values <= bound.hi), axis=1))[0]
@@ -406,17 +491,93 @@ def find_session(folder: str | Path) -> tuple[Path, list[Path]]:
     return metas[0], [runs[k] for k in sorted(runs)]
 
 
-def read_sessions(folders: list[str | Path]) -> tuple[list[Metadata], list[Run]]:
-    """Read and convert every run of the given session folders (in the order given).
+@dataclass
+class Sessions:
+    """What :func:`read_sessions_timed` read: the sessions' metadata, the converted runs, each session's
+    time base (session → ``"tracker"`` or ``"file"``), each run's clock scale (run name → tracker s per
+    logged s; 1.0 on the file's time base), and lines to report (a run whose clock scale is unlike its
+    session's, a session without windows under ``auto``)."""
+
+    metas: list[Metadata]
+    runs: list[Run]
+    time_bases: dict[str, str]
+    clock_scales: dict[str, float]
+    notes: list[str]
+
+    def describe_time_base(self) -> str:
+        """One sentence on the time base, for the dataset's description and the import's output."""
+        parts = []
+        for meta in self.metas:
+            if self.time_bases[meta.session] == "file":
+                parts.append(f"{meta.session} the file's time column")
+                continue
+            mine = [self.clock_scales[r.name] for r in self.runs if r.session == meta.session]
+            parts.append(f"{meta.session} the tracker's clock, {min(mine):.4f}–{max(mine):.4f} tracker s per logged s"
+                         if len(mine) > 1 else f"{meta.session} the tracker's clock, {mine[0]:.4f} tracker s per "
+                         "logged s")
+        return f"time base: {'; '.join(parts)}"
+
+
+def _run_number(path: Path) -> int:
+    match = _RUN_FILE.match(path.name)
+    return int(match.group("number")) if match else 0
+
+
+def clock_scale_of(meta: Metadata, raw: RawRun) -> float:
+    """The run's clock scale from its synchronisation window (:class:`SyncWindow`); InputError naming the
+    metadata line if the session has no windows, none for this run, or a window that does not describe
+    the file (its odometry interval is not the file's duration, or the scale is out of reach)."""
+    number = _run_number(raw.path)
+    if not meta.sync:
+        raise InputError(f"{meta.path}: no synchronisation windows (gt_ti, gt_tf, odo_ti, odo_tf rows): the "
+                         "tracker's time base is unknown; import with --time-base file to use the time column")
+    if not 1 <= number <= len(meta.sync):
+        raise InputError(f"{meta.path}: line {meta.sync[0].line}: {len(meta.sync)} synchronisation window(s), none "
+                         f"for run {number} ({raw.path.name}); import with --time-base file to use the time column")
+    window = meta.sync[number - 1]
+    duration = float(raw.t[-1] - raw.t[0])
+    cycle = float(np.median(np.diff(raw.t))) if len(raw.t) > 1 else 0.0
+    logged = window.odo_tf - window.odo_ti
+    if abs(duration - logged) > 1.5 * cycle:
+        raise InputError(f"{meta.path}: line {window.line}: run {number}: the odometry window odo_tf − odo_ti = "
+                         f"{logged:g} s but {raw.path.name} lasts {duration:g} s: the window is not this file's; "
+                         "import with --time-base file to use the time column")
+    scale = window.clock_scale
+    lo, hi = CLOCK_SCALE_RANGE
+    if not lo <= scale <= hi:
+        raise InputError(f"{meta.path}: line {window.line}: run {number}: the tracker window lasts {scale:.3g}× the "
+                         f"odometry window (allowed {lo:g}–{hi:g}): the clocks cannot differ that much")
+    return scale
+
+
+def _unlike_session(meta: Metadata, names: list[str], scales: list[float]) -> list[str]:
+    """Lines naming the runs whose clock scale is further than CLOCK_SCALE_SPREAD from the session median."""
+    if len(scales) < 3:  # a median of two says nothing about which one is unusual
+        return []
+    median = float(np.median(scales))
+    return [f"note: {name}: clock scale {s:.4f} is {100 * (s / median - 1):+.1f} % from its session's "
+            f"({meta.session}, median {median:.4f}): its synchronisation window may be off"
+            for name, s in zip(names, scales, strict=True) if abs(s / median - 1) > CLOCK_SCALE_SPREAD]
+
+
+def read_sessions_timed(folders: list[str | Path], time_base: str = "auto") -> Sessions:
+    """Read and convert every run of the given session folders (in the order given) on ``time_base``
+    (``"tracker"``: each run's synchronisation window, :func:`clock_scale_of`; ``"file"``: the time column;
+    ``"auto"``: tracker for a session whose metadata has the windows, file (with a note) for one without).
 
     Refuses sessions of different robot types or configurations (``type``, ``ngear``, ``encRes``, ``Li``,
     ``Di``) and a session given twice; run names are the file names without ``.csv``/``.csv.gz``
     (``<id>_run-NN``).
     """
+    if time_base not in TIME_BASES:
+        raise InputError(f"--time-base {time_base!r}: choose one of {', '.join(TIME_BASES)}")
     if not folders:
         raise InputError("optiodom: no session folder given")
     metas: list[Metadata] = []
     runs: list[Run] = []
+    scales: dict[str, float] = {}
+    bases: dict[str, str] = {}
+    notes: list[str] = []
     for folder in folders:
         meta_path, run_paths = find_session(folder)
         meta = read_metadata(meta_path)
@@ -431,8 +592,39 @@ def read_sessions(folders: list[str | Path]) -> tuple[list[Metadata], list[Run]]
                                      f"{_fmt(meta.robot_key()[key])}); import sessions of one robot configuration "
                                      "together")
         metas.append(meta)
-        runs.extend(convert_run(read_run_file(p, meta.kind), meta) for p in run_paths)
-    return metas, runs
+        base = time_base
+        if base == "auto":
+            base = "tracker" if meta.sync else "file"
+            if not meta.sync:
+                notes.append(f"note: {meta.path}: no synchronisation windows (gt_ti, gt_tf, odo_ti, odo_tf): session "
+                             f"{meta.session} keeps the file's time column")
+        raws = [read_run_file(p, meta.kind) for p in run_paths]
+        session_scales = [1.0] * len(raws)
+        if base == "tracker":
+            try:
+                session_scales = [clock_scale_of(meta, raw) for raw in raws]
+            except InputError as exc:
+                if time_base == "tracker":
+                    raise
+                # auto: windows that do not describe these files (a cut run, say) give the session no time base
+                base = "file"
+                notes.append(f"note: {exc}; session {meta.session} keeps the file's time column")
+        bases[meta.session] = base
+        names, mine = [], []
+        for raw, scale in zip(raws, session_scales, strict=True):
+            runs.append(convert_run(raw, meta, clock_scale=scale))
+            scales[runs[-1].name] = scale
+            names.append(runs[-1].name)
+            mine.append(scale)
+        if base == "tracker":
+            notes.extend(_unlike_session(meta, names, mine))
+    return Sessions(metas, runs, bases, scales, notes)
+
+
+def read_sessions(folders: list[str | Path], time_base: str = "auto") -> tuple[list[Metadata], list[Run]]:
+    """(metadata, runs) of :func:`read_sessions_timed`."""
+    read = read_sessions_timed(folders, time_base)
+    return read.metas, read.runs
 
 
 def _fmt(value) -> str:
@@ -561,14 +753,17 @@ def check_scale(metas: list[Metadata], runs: list[Run]) -> None:
 
 
 def import_optiodom(folders: list[str | Path], out: str | Path, force: bool = False, mass: float | None = None,
-                    inertia: float | None = None, surface: str = SURFACE) -> ImportSummary:
+                    inertia: float | None = None, surface: str = SURFACE, time_base: str = "auto") -> ImportSummary:
     """Import OptiOdom session folders into the dataset folder ``out``; returns what was written.
 
-    ``mass`` [kg]: default :func:`default_mass` of the sessions' type. The output is complete or absent
+    ``mass`` [kg]: default :func:`default_mass` of the sessions' type. ``time_base``: see
+    :func:`read_sessions_timed`. The output is complete or absent
     (:class:`omni_gym.outputs.Output`, as ``omni-gym synth``): an existing dataset is refused unless
     ``force``; an output inside (or equal to) a session folder always.
     """
     surface_preset(surface)  # an unknown preset is refused before anything is read or locked
+    if time_base not in TIME_BASES:
+        raise InputError(f"--time-base {time_base!r}: choose one of {', '.join(TIME_BASES)}")
     if mass is not None:
         MODEL_BOUNDS["mass"].check(mass, "--mass")
     if inertia is not None:
@@ -578,14 +773,19 @@ def import_optiodom(folders: list[str | Path], out: str | Path, force: bool = Fa
     read: dict = {}
 
     def build():
-        metas, runs = read_sessions(folders)
+        sessions = read_sessions_timed(folders, time_base)
+        metas, runs = sessions.metas, sessions.runs
         check_scale(metas, runs)
         model = nominal_model(metas[0], mass, inertia, surface)
-        read.update(metas=metas, runs=runs, model=model)
-        return model.to_json(), describe(metas, len(runs), model.robot.mass, model.robot.inertia, surface), runs
+        read.update(sessions=sessions, model=model)
+        desc = describe(metas, len(runs), model.robot.mass, model.robot.inertia, surface)
+        timing = sessions.describe_time_base()
+        return model.to_json(), f"{desc} {timing[0].upper()}{timing[1:]}.", runs
 
     write_imported(out, folders, force, build)
-    metas, runs, model = read["metas"], read["runs"], read["model"]
+    sessions, model = read["sessions"], read["model"]
+    metas, runs = sessions.metas, sessions.runs
     return ImportSummary(sessions=tuple(m.session for m in metas), runs=len(runs),
                          duration=float(sum(r.t[-1] for r in runs)), out=out, mass=model.robot.mass,
-                         inertia=model.robot.inertia, surface=surface, kind=metas[0].kind)
+                         inertia=model.robot.inertia, surface=surface, kind=metas[0].kind,
+                         time_base=sessions.describe_time_base(), notes=tuple(sessions.notes))

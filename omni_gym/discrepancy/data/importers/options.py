@@ -22,7 +22,7 @@ DEFAULTS = {"joint_topic": "/joint_states", "wheel_field": "position", "max_gap"
 
 # Options that belong to one format only: given with another format, they would be silently ignored.
 ONLY = {"columns": "csv", "joints": "rosbag2", "pose_topic": "rosbag2", "frames": "rosbag2", "command_topic": "rosbag2",
-        "mass": "optiodom", "inertia": "optiodom"}
+        "mass": "optiodom", "inertia": "optiodom", "time_base": "optiodom"}
 
 
 def import_logs(args: Namespace) -> list[str]:
