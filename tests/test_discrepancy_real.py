@@ -25,7 +25,12 @@ RUNS = ("221220201701_run-01", "221220201701_run-02", "221220201953_run-01", "22
 def test_gap_on_four_real_runs_adds_an_effect_and_shrinks_the_heldout_gap(tmp_path):
     """One test, not several sharing a module fixture: pytest-xdist would run the minute-long gap once per
     worker that draws one of them."""
-    import_optiodom([DATA / "circular" / "221220201701", DATA / "square" / "221220201953"], tmp_path / "all")
+    # On the file's time column: gap's mechanics on real runs, on segments fixed by the data as written. On the
+    # tracker's clock (the import's default) the 20 s budget cuts other segments (the rows are 2 % longer), on
+    # which wheel_geometry fits at its bounds and is refused as implausible and tracker_offset is unstable
+    # across folds (0.18): no effect is added there (measured); the time base has its own tests.
+    import_optiodom([DATA / "circular" / "221220201701", DATA / "square" / "221220201953"], tmp_path / "all",
+                    time_base="file")
     ds = load_dataset(tmp_path / "all")
     write_dataset(tmp_path / "subset", ds.model_json, ds.description, [r for r in ds.runs if r.name in RUNS])
     # From the dataset's model (the default, auto, starts from the calibration here: it predicts the held-out
@@ -39,7 +44,7 @@ def test_gap_on_four_real_runs_adds_an_effect_and_shrinks_the_heldout_gap(tmp_pa
     assert len(result["effects"]) == 1 and result["effects"][0] in REGISTRY, result["effects"]
     assert result["steps"][0]["status"] in ("named", "partial")
     assert result["effects"][0] in result["model"].get("effects", {})  # model.json carries it
-    # ...and the held-out gap shrinks. Measured: wheel_geometry, 19.4 -> 8.0 mm beyond noise (59 % removed:
+    # ...and the held-out gap shrinks. Measured: wheel_radius, 19.5 -> 9.3 mm beyond noise (52 % removed:
     # kept as a partial step, the answer stays `unexplained` below the 70 % naming rule). A few per cent of
     # geometry error dominates the nominal residual on these runs (kinematic calibration halves the
     # position RMS), so a geometric effect must remove at least half of the gap on held-out segments.

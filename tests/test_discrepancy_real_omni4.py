@@ -58,12 +58,15 @@ def test_gap_on_four_real_mecanum_runs_skips_roller_gap_and_shrinks_the_heldout_
     assert result["start"]["kind"] == "kinematic", result["start"]["why"]
     model = SimModel.from_json(result["model"], where="gap result")
     assert np.allclose(model.robot.roller_angles(), nominal.robot.roller_angles())
-    # Leave-one-session-out whole runs, open loop: measured nominal 124 / 111 mm, calibration 90 / 58 mm. The
-    # calibration is well below nominal on each held-out session, and whatever gap adds on top may not make a
-    # held-out session drift more than the calibration (its drift check; 1e-9 m: the same model replayed twice).
+    # Leave-one-session-out whole runs, open loop, on the tracker's clock (the import's default): measured
+    # nominal 91 / 81 mm, calibration 79 / 37 mm (on the file's time column the nominal model was 124 / 111 mm:
+    # its 60 mm wheels are the robot's on the tracker's clock, so there is less for the calibration to fix; the
+    # circles are predicted from two square runs of one driving direction, 0.86×). The calibration is below
+    # nominal on each held-out session (bound 0.9×), and whatever gap adds on top may not make a held-out
+    # session drift more than the calibration (its drift check; 1e-9 m: the same model replayed twice).
     heldout = result["heldout"]
     assert heldout["folds_by"] == "session" and len(heldout["per_session"]) == 2
     for s in heldout["per_session"]:
         rms = s["mean_position_rms"]
-        assert rms["kinematic"] < 0.85 * rms["nominal"], s
+        assert rms["kinematic"] < 0.9 * rms["nominal"], s
         assert rms["extended"] <= rms["kinematic"] + 1e-9, s

@@ -13,7 +13,8 @@ A session folder holds
 
 * ``<id>_metadata.csv``: rows ``key,value[,value…]`` (trailing empty cells allowed): ``type`` (``omni3`` or
   ``omni4``), ``ngear`` (gear ratio n:1), ``encRes`` (encoder units per motor turn), ``Li`` [m] (one value for
-  omni3, two for omni4), ``Di`` [m] (one wheel diameter per wheel); other rows are ignored;
+  omni3, two for omni4), ``Di`` [m] (one wheel diameter per wheel), optionally ``gt_ti``, ``gt_tf``,
+  ``odo_ti``, ``odo_tf`` [s] (one value per run: the synchronisation windows); other rows are ignored;
 * ``<id>_run-NN.csv`` or ``<id>_run-NN.csv.gz`` (gzip-compressed; the same content): no header, one row per
   control cycle: ``time [s], x [m], y [m], theta [rad], then one column per wheel`` (encoder units counted
   during the cycle): the pose of the robot centre in the motion-capture world frame (``NaN`` where tracking
@@ -28,7 +29,10 @@ Mapping to the dataset format (``docs/formats.md`` "Dataset" and "Importing Opti
   (24 of the 41 bundled omni3 runs have a few there, at most 32 ticks, under 1 mm of wheel travel).
   Wheel travel in one cycle [m] = (D_i / 2) · that angle = π · D_i · count / (ngear · encRes).
 * ``enc1…encn`` [rad] = cumulative counts · 2π / (ngear · encRes), 0 at t = 0.
-* Times are shifted so the first row is t = 0 (the bundled files already start at 0).
+* Times are shifted so the first row is t = 0 (the bundled files already start at 0), then put on the
+  tracker's clock: row k at t_k · s, s = (gt_tf − gt_ti)/(odo_tf − odo_ti) from the run's synchronisation
+  window in the metadata (``--time-base``, :func:`read_sessions_timed`, :class:`RobotType`
+  ``counts_are``; the evidence in docs/formats.md, "The time base").
 * The first row's pose is the run's start pose (kept, not moved to the origin); it must be tracked.
   A row with a NaN pose cell becomes an unobserved row (empty x, y, theta). NaN counts are refused.
 * The nominal model comes from the metadata (:func:`nominal_model`): the geometry of the data's README,
