@@ -188,6 +188,10 @@ def build_parser() -> argparse.ArgumentParser:
                                           "diameters and L, or l1 + l2 for mecanum wheels) -> a model JSON")
     ca.add_argument("dataset", help="dataset folder with enc1…encn columns (e.g. from omni-gym import optiodom)")
     ca.add_argument("--out", required=True, help="model JSON to write (the nominal model with the fitted values)")
+    ca.add_argument("--tracker", action="store_true",
+                    help="also fit the tracked frame (the tracked point's offset from the wheel centre and its yaw) "
+                         "with the kinematics, written as a tracker_offset effect (a measurement effect: score and "
+                         "gap apply it; the physics is unchanged)")
     _add_force_option(ca, "an existing --out file")
     ca.set_defaults(handler=_cmd_calibrate)
     xp = sub.add_parser("export", help="a trained agent -> ONNX (and TorchScript) with its observation "
@@ -572,7 +576,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from omni_gym.discrepancy.fit.calibrate import calibrate_dataset, summary_lines
 
-    cal = calibrate_dataset(args.dataset, args.out, force=args.force)
+    cal = calibrate_dataset(args.dataset, args.out, force=args.force, tracker=args.tracker)
     print("\n".join(summary_lines(cal, args.out)))
     return 0
 

@@ -1,8 +1,10 @@
 """``omni-gym calibrate DATASET --out model.json``: kinematic odometry calibration of an imported dataset.
 
 Fits the effective wheel diameters and the robot's length (omni wheels: the centre-to-wheel distance L;
-mecanum wheels: l1 + l2) by least squares of the runs' dead reckoning against their tracked poses
-(:mod:`omni_gym.discrepancy.fit.kinematic_calibration`), and writes the dataset's nominal model with the
+mecanum wheels: l1 + l2), with ``--tracker`` also the tracked frame (the tracked point's offset from the
+centre and the frame's yaw, a ``tracker_offset`` effect in the written model), by least squares of the
+runs' dead reckoning against their tracked poses (:mod:`omni_gym.discrepancy.fit.kinematic_calibration`),
+and writes the dataset's nominal model with the
 fitted values as a model JSON (``docs/formats.md``) that ``score``, ``simulate``, ``gap``-free use and
 ``gym.make(..., model=...)`` read. It needs wheel odometry: every run must have the ``enc1 … encn``
 columns (an imported OptiOdom dataset has them).
@@ -22,8 +24,10 @@ from omni_gym.discrepancy.fit.kinematic_calibration import KinematicCalibration,
 from omni_gym.outputs import Output, write_json_atomic
 
 
-def calibrate_dataset(dataset: str | Path, out: str | Path, force: bool = False) -> KinematicCalibration:
-    """Calibrate the nominal model of ``dataset`` on all its runs and write the result to ``out`` [JSON].
+def calibrate_dataset(dataset: str | Path, out: str | Path, force: bool = False,
+                      tracker: bool = False) -> KinematicCalibration:
+    """Calibrate the nominal model of ``dataset`` on all its runs and write the result to ``out`` [JSON];
+    ``tracker``: fit the tracked frame (offset, yaw) jointly, written as a ``tracker_offset`` effect.
 
     ValueError (one line, naming the dataset and the run) for a dataset without wheel odometry; an
     :class:`omni_gym.outputs.OutputError` for an ``out`` that may not be written.
@@ -40,7 +44,7 @@ def calibrate_dataset(dataset: str | Path, out: str | Path, force: bool = False)
             raise ValueError(f"{dataset}: run {run.name}: row {k + 2}: empty encoder cell; calibrate needs every "
                              "wheel angle")
     try:
-        cal = calibrate(ds.runs, ds.model)
+        cal = calibrate(ds.runs, ds.model, tracker=tracker)
     except ValueError as exc:
         raise ValueError(f"{dataset}: {exc}") from None
     with output as tx:
@@ -54,10 +58,15 @@ def summary_lines(cal: KinematicCalibration, out: str | Path) -> list[str]:
     def mm(values) -> str:
         return ", ".join(f"{1e3 * float(v):.2f}" for v in values)
 
+    frame = []
+    if cal.tracker is not None:
+        frame = [f"tracked frame (tracker_offset): offset ({mm(cal.tracker['offset'])}) mm from the centre, body "
+                 f"frame; yaw {1e3 * cal.tracker['yaw']:.1f} mrad"]
     return [
         f"calibrated on {cal.runs} runs ({cal.rows} tracked rows): D = [{mm(cal.diameters)}] mm "
         f"(nominal [{mm(cal.nominal_diameters)}]), {cal.size_name} = {1e3 * cal.L:.2f} mm "
         f"(nominal {1e3 * cal.nominal_L:.2f})",
+        *frame,
         f"position RMS of dead reckoning against the tracker: {1e3 * cal.nominal_position_rms:.1f} mm nominal -> "
         f"{1e3 * cal.train_position_rms:.1f} mm calibrated (these runs; check held-out runs with "
         f"omni-gym score HELDOUT --model {out})",

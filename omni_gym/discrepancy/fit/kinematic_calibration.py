@@ -26,6 +26,14 @@ Dead reckoning (:func:`dead_reckon`), per control cycle (t_{k-1}, t_k]:
 Every run starts at its start pose (the first row). The cost (:func:`calibrate`) is the pose residual
 of :func:`omni_gym.discrepancy.replay.simulate.pose_residual` (x, y and heading × lever [m]) on every observed
 row of every training run, minimised with :func:`scipy.optimize.least_squares`.
+
+With ``tracker=True`` the tracked frame is fitted with the kinematics, over the same whole runs: the
+tracked point's offset o [m] (body frame) and the tracked heading's yaw ψ [rad] of the ``tracker_offset``
+effect (``omni_gym.physics.effects.tracker_offset``). The centre starts at the tracked start pose moved back
+by o and ψ, is dead-reckoned as above, and is compared with the tracker through the same offset: a point
+o off the centre moves at v + ω z × o, a frame turned by ψ sees every displacement turned by ψ. Both are
+linear in the wheel speeds, which is why a free linear wheel-to-twist map captures them and a calibration
+of diameters and size alone cannot.
 """
 
 from __future__ import annotations
@@ -125,8 +133,9 @@ class KinematicCalibration:
 
     ``diameters`` (n,) [m] effective wheel diameters and ``L`` [m] the fitted length (``size_name``: ``L``
     the common centre-to-wheel distance for omni3, ``l1+l2`` for omni4); ``nominal_diameters``,
-    ``nominal_L`` the nominal model's. ``train_position_rms`` [m]: RMS over every observed training row
-    of the position error (Euclidean, x and y), ``train_pose_rms`` [m]: RMS of the fitted cost's components
+    ``nominal_L`` the nominal model's; ``tracker``: the fitted ``tracker_offset`` parameters (``offset`` [m],
+    body frame; ``yaw`` [rad], counter-clockwise) or None. ``train_position_rms`` [m]: RMS over every observed
+    training row of the position error (Euclidean, x and y), ``train_pose_rms`` [m]: RMS of the fitted cost's components
     (x, y, heading × ``lever``); ``nominal_*`` the same with the nominal geometry. ``model``: the
     calibrated :class:`SimModel` (:func:`to_model`); ``nominal``: the model it started from (both None when
     calibrated from a bare :class:`Geometry`). ``runs`` and ``rows``: training runs and observed rows used.
@@ -146,6 +155,7 @@ class KinematicCalibration:
     nominal: SimModel | None = field(repr=False)
     model: SimModel | None = field(repr=False)
     start: Geometry = field(repr=False)
+    tracker: dict | None = None  # fitted tracker_offset parameters (offset [m] (2,), yaw [rad]); None: not fitted
 
     @property
     def size_name(self) -> str:
@@ -163,7 +173,13 @@ class KinematicCalibration:
                 "nominal_diameters": [float(v) for v in self.nominal_diameters], "nominal_L": float(self.nominal_L),
                 "train_position_rms": self.train_position_rms, "train_pose_rms": self.train_pose_rms,
                 "nominal_position_rms": self.nominal_position_rms, "nominal_pose_rms": self.nominal_pose_rms,
-                "lever": self.lever, "runs": self.runs, "rows": self.rows}
+                "lever": self.lever, "runs": self.runs, "rows": self.rows,
+                **({"tracker": self.tracker} if self.tracker is not None else {})}
+
+    def predict(self, run: Run) -> np.ndarray:
+        """Poses (K, 3) the tracker would report for ``run`` dead-reckoned with the fitted geometry from its
+        start pose (through the fitted tracked frame, if any)."""
+        return predict_tracked(wheel_travel(run), run.start_pose, self.geometry, self.tracker)
 
 
 def _is_mecanum(model: SimModel) -> bool:
@@ -232,6 +248,33 @@ def integrate_twist(dq: np.ndarray, start: np.ndarray) -> np.ndarray:
     return poses
 
 
+def _to_tracker(pose: np.ndarray, offset: np.ndarray, yaw: float) -> np.ndarray:
+    """Centre poses (K, 3) → the tracked point's (the ``tracker_offset`` effect's measurement)."""
+    c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+    out = pose.copy()
+    out[:, 0] += c * offset[0] - s * offset[1]
+    out[:, 1] += s * offset[0] + c * offset[1]
+    out[:, 2] += yaw
+    return out
+
+
+def _to_centre(pose: np.ndarray, offset: np.ndarray, yaw: float) -> np.ndarray:
+    """One tracked pose (3,) → the centre's (the inverse of :func:`_to_tracker`)."""
+    theta = float(pose[2]) - yaw
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([pose[0] - (c * offset[0] - s * offset[1]), pose[1] - (s * offset[0] + c * offset[1]), theta])
+
+
+def predict_tracked(dphi: np.ndarray, start: np.ndarray, geometry: Geometry, tracker: dict | None) -> np.ndarray:
+    """Tracked poses (K, 3) from wheel travel (K−1, n) [rad] and the tracked start pose ``start`` (3,):
+    dead reckoning of the centre with ``geometry``, through the tracked frame ``tracker`` (``offset`` [m],
+    ``yaw`` [rad]; None: the tracker sees the centre)."""
+    if tracker is None:
+        return _integrate(dphi, start, geometry)
+    offset, yaw = np.asarray(tracker["offset"], dtype=float), float(tracker["yaw"])
+    return _to_tracker(_integrate(dphi, _to_centre(start, offset, yaw), geometry), offset, yaw)
+
+
 def position_rms(measured: np.ndarray, predicted: np.ndarray) -> float:
     """RMS [m] over observed rows of the Euclidean position error (NaN rows of ``measured`` skipped)."""
     ok = np.all(np.isfinite(measured), axis=1)
@@ -256,9 +299,17 @@ def prepare_runs(runs: list[Run], n: int, purpose: str) -> list[tuple[np.ndarray
     return prepared
 
 
-def calibrate(runs: list[Run], nominal: SimModel | Geometry, lever: float | None = None) -> KinematicCalibration:
+# Search box of the tracked frame (tracker=True): the tracked point within one wheel-centre distance of the
+# centre (the tracker_offset effect's fit box), the frame within ±0.2 rad (about 11°).
+_TRACKER_YAW = 0.2
+
+
+def calibrate(runs: list[Run], nominal: SimModel | Geometry, lever: float | None = None,
+              tracker: bool = False) -> KinematicCalibration:
     """Fit the n effective wheel diameters and the length (L or l1 + l2) to ``runs`` (module docstring);
     start at ``nominal`` (a model, or a bare :class:`Geometry`: then the result has no ``model``).
+    ``tracker``: also fit the tracked frame (offset, yaw) jointly (module docstring); the model then
+    carries a ``tracker_offset`` effect.
 
     ``lever`` [m] weighs the heading error as the workflow does (default: the largest nominal wheel-centre
     distance, :func:`omni_gym.discrepancy.synthetic.synth.pose_lever`, held fixed during the fit).
@@ -273,17 +324,27 @@ def calibrate(runs: list[Run], nominal: SimModel | Geometry, lever: float | None
     n = len(g0.diameters)
     prepared = prepare_runs(runs, n, "calibrate")
     x0 = np.concatenate([g0.diameters, [g0.size]])
+    lo, hi, scale = x0 * _LO, x0 * _HI, x0.copy()
+    if tracker:
+        reach = g0.reach
+        x0 = np.concatenate([x0, [0.0, 0.0, 0.0]])
+        lo = np.concatenate([lo, [-reach, -reach, -_TRACKER_YAW]])
+        hi = np.concatenate([hi, [reach, reach, _TRACKER_YAW]])
+        scale = np.concatenate([scale, [0.1 * reach, 0.1 * reach, 0.05]])
 
     def geometry(x: np.ndarray) -> Geometry:
         return replace(g0, diameters=x[:n], size=float(x[n]))
 
+    def frame(x: np.ndarray) -> dict | None:
+        return {"offset": [float(x[n + 1]), float(x[n + 2])], "yaw": float(x[n + 3])} if tracker else None
+
     def residuals(x: np.ndarray) -> np.ndarray:
-        g = geometry(x)
-        out = [pose_residual(meas, _integrate(dphi, start, g)[obs], lever).ravel()
+        g, f = geometry(x), frame(x)
+        out = [pose_residual(meas, predict_tracked(dphi, start, g, f)[obs], lever).ravel()
                for dphi, start, meas, obs in prepared]
         return np.concatenate(out)
 
-    fit = least_squares(residuals, x0, bounds=(x0 * _LO, x0 * _HI), x_scale=x0, xtol=1e-12, ftol=1e-12)
+    fit = least_squares(residuals, x0, bounds=(lo, hi), x_scale=scale, xtol=1e-12, ftol=1e-12)
     if not fit.success:
         raise ValueError(f"kinematic calibration did not converge: {fit.message}")
     x = fit.x
@@ -298,23 +359,26 @@ def calibrate(runs: list[Run], nominal: SimModel | Geometry, lever: float | None
     diameters = x[:n].copy()
     model = None
     if isinstance(nominal, SimModel):
-        model = calibrated_model(nominal, diameters, float(x[n]))
+        model = calibrated_model(nominal, diameters, float(x[n]), frame(x))
     return KinematicCalibration(
         diameters=diameters, L=float(x[n]), train_position_rms=pos1, train_pose_rms=pose1,
         nominal_diameters=g0.diameters.copy(), nominal_L=g0.size, nominal_position_rms=pos0, nominal_pose_rms=pose0,
         lever=lever, runs=len(runs), rows=rows, nominal=nominal if isinstance(nominal, SimModel) else None,
-        model=model, start=g0)
+        model=model, start=g0, tracker=frame(x))
 
 
-def calibrated_model(nominal: SimModel, diameters: np.ndarray, L: float) -> SimModel:
+def calibrated_model(nominal: SimModel, diameters: np.ndarray, L: float, tracker: dict | None = None) -> SimModel:
     """``nominal`` with the wheel diameters ``diameters`` (n,) [m] and the length ``L`` [m] (omni wheels: the
-    centre-to-wheel distance; mecanum wheels: l1 + l2, see :func:`nominal_geometry`).
+    centre-to-wheel distance; mecanum wheels: l1 + l2, see :func:`nominal_geometry`), and the tracked frame
+    ``tracker`` as a ``tracker_offset`` effect (None: the nominal's tracker effects, if any, kept).
 
     Diameters: a ``wheel_radius`` effect with scales D_i / (2·r_nominal) (replacing any the nominal has).
     Length: omni wheels: the ``wheel_geometry`` effect's ``distance`` (L / L_nominal on every wheel, no
     mount yaw) if the effect library has it; otherwise, and always for mecanum wheels (whose lengths the
     calibration scales together, as that effect would), the nominal wheel positions scaled by the ratio.
     """
+    if tracker is not None:
+        nominal = nominal.with_effect("tracker_offset", {"offset": list(tracker["offset"]), "yaw": tracker["yaw"]})
     g0 = nominal_geometry(nominal)
     r = nominal.robot
     model = nominal.with_effect("wheel_radius",
@@ -337,4 +401,4 @@ def to_model(result: KinematicCalibration) -> SimModel:
     calibrated from a bare :class:`Geometry`."""
     if result.nominal is None:
         raise ValueError("this calibration started from a bare geometry: it has no model")
-    return calibrated_model(result.nominal, result.diameters, result.L)
+    return calibrated_model(result.nominal, result.diameters, result.L, result.tracker)
