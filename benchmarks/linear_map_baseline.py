@@ -1,18 +1,19 @@
-"""Both real robots, every held-out session: the extended model against two kinematic baselines, through
-``omni-gym score`` as a user runs it.
+"""Both real robots, every held-out session: the extended model and the calibration with its tracked frame
+against two kinematic baselines, through ``omni-gym score`` as a user runs it.
 
 Per robot, the training sessions (those of ``benchmarks/real_optiodom.py``) are imported into one dataset and
-each held-out session into its own; then, per held-out session::
+each held-out session into its own (the importer's defaults: each run on the tracker's clock); then, per
+held-out session::
 
     omni-gym calibrate TRAIN --out kinematic.json
-    omni-gym score HELDOUT --model kinematic.json --model EXTENDED --linear-map-from TRAIN --json
+    omni-gym calibrate TRAIN --tracker --out kinematic_tracker.json
+    omni-gym score HELDOUT --model kinematic.json --model EXTENDED --model kinematic_tracker.json \
+        --linear-map-from TRAIN --json
 
-with two committed extended models of ``gap`` on the same training runs: ``gap`` with the command line's
-defaults (the ``model`` of ``benchmarks/results/heldout_sessions_<robot>_gap.json``: the kinematic
-calibration competes, and what ``gap`` names is added to it) and the model of
-``benchmarks/results/real_optiodom_<robot>_model.json`` (an earlier ``gap`` from the nominal start, kept for
-comparison). Reported per session: position RMS [mm] of each model (open-loop replay, mean over runs),
-each ÷ the kinematic calibration, and the error left after the per-run heading refit (initial heading
+with EXTENDED the model of ``gap`` on the same training runs with the command line's defaults (the ``model`` of
+``benchmarks/results/heldout_sessions_<robot>_gap.json``: the kinematic calibration competes, and what ``gap``
+names is added to it). Reported per session: position RMS [mm] of each model (open-loop replay, mean over
+runs), each ÷ the kinematic calibration, and the error left after the per-run heading refit (initial heading
 offset and yaw-rate scale: run-to-run variation no model of the robot predicts).
 
     python benchmarks/linear_map_baseline.py --out benchmarks/results/linear_map_baseline.md
@@ -44,7 +45,7 @@ def omni_gym(*args: str) -> str:
     return done.stdout
 
 
-KEYS = ("nominal", "kinematic", "extended", "earlier", "linear_map")
+KEYS = ("nominal", "kinematic", "extended", "kinematic_tracker", "linear_map")
 
 
 def robot_rows(name: str, work: Path) -> list[dict]:
@@ -53,19 +54,20 @@ def robot_rows(name: str, work: Path) -> list[dict]:
     omni_gym("import", "optiodom", *[str(robot.data / s) for s in robot.train], "--out", str(train))
     kinematic = work / f"{name}_kinematic.json"
     omni_gym("calibrate", str(train), "--out", str(kinematic))
+    with_frame = work / f"{name}_kinematic_tracker.json"
+    omni_gym("calibrate", str(train), "--tracker", "--out", str(with_frame))
     results = ROOT / "benchmarks" / "results"
     defaults = work / f"{name}_gap_defaults.json"
     defaults.write_text(json.dumps(json.loads((results / f"heldout_sessions_{name}_gap.json").read_text())["model"]))
-    earlier = results / f"real_optiodom_{name}_model.json"
     rows = []
     for session in robot.heldout:
         held = work / f"{name}_{session.replace('/', '_')}"
         omni_gym("import", "optiodom", str(robot.data / session), "--out", str(held))
         t0 = time.monotonic()
         out = json.loads(omni_gym("score", str(held), "--model", str(kinematic), "--model", str(defaults),
-                                  "--model", str(earlier), "--linear-map-from", str(train), "--json"))
+                                  "--model", str(with_frame), "--linear-map-from", str(train), "--json"))
         models = out["models"]
-        names = list(models)  # nominal, kinematic, gap defaults, earlier gap, linear map
+        names = list(models)  # nominal, kinematic, gap defaults, calibration + tracked frame, linear map
         rows.append({"robot": name, "session": session, "runs": models[names[0]]["runs"],
                      "wall_s": time.monotonic() - t0,
                      **{key: models[n] for key, n in zip(KEYS, names, strict=True)}})
@@ -76,22 +78,22 @@ def robot_rows(name: str, work: Path) -> list[dict]:
 
 def table(rows: list[dict], command: str, wall_s: float) -> str:
     lines = [
-        "# Both real robots: extended model against the kinematic calibration and a linear wheel-to-twist map",
+        "# Both real robots: the extended model and the calibration with its tracked frame against the kinematic "
+        "calibration and a linear wheel-to-twist map",
         "",
         f"`{command}` ({wall_s:.0f} s on 2 cores). Each held-out session imported on its own and scored with "
-        "`omni-gym score HELDOUT --model kinematic.json --model EXTENDED --model EARLIER --linear-map-from TRAIN "
-        "--json`: "
-        "position RMS [mm], open-loop replay from each run's start pose, mean over the session's runs. "
-        "kinematic: `omni-gym calibrate TRAIN`, replayed in the simulator; extended: the model of `gap TRAIN` "
-        "with its defaults (`heldout_sessions_<robot>_gap.json`); earlier gap model: "
-        "`real_optiodom_<robot>_model.json` (gap from the nominal start); tracker parts applied by `score`; "
-        "linear map: 3 × n, fitted "
-        "on TRAIN, dead-reckoned from each run's encoders. Refit: the error left after a per-run initial "
-        "heading offset and yaw-rate scale (what no model of the robot predicts).",
+        "`omni-gym score HELDOUT --model kinematic.json --model EXTENDED --model kinematic_tracker.json "
+        "--linear-map-from TRAIN --json`: position RMS [mm], open-loop replay from each run's start pose, mean over "
+        "the session's runs. kinematic: `omni-gym calibrate TRAIN`, replayed in the simulator; extended: the model "
+        "of `gap TRAIN` with its defaults (`heldout_sessions_<robot>_gap.json`); calibration + tracked frame: "
+        "`omni-gym calibrate TRAIN --tracker` (the tracked point's offset and yaw fitted with the kinematics over "
+        "whole runs); tracker parts applied by `score`; linear map: 3 × n, fitted on TRAIN, dead-reckoned from "
+        "each run's encoders. Refit: the error left after a per-run initial heading offset and yaw-rate scale "
+        "(what no model of the robot predicts).",
         "",
-        "| robot | held-out session | runs | nominal | kinematic | extended (gap defaults) | earlier gap model | "
-        "linear map | extended ÷ kinematic | earlier ÷ kinematic | linear map ÷ kinematic | extended, refit | "
-        "linear map, refit |",
+        "| robot | held-out session | runs | nominal | kinematic | extended (gap defaults) | calibration + tracked "
+        "frame | linear map | extended ÷ kinematic | calibration + frame ÷ kinematic | linear map ÷ kinematic | "
+        "calibration + frame, refit | linear map, refit |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
@@ -99,19 +101,20 @@ def table(rows: list[dict], command: str, wall_s: float) -> str:
         mm = {key: 1e3 * r[key]["mean_position_rms"] for key in KEYS}
         lines.append(
             f"| {r['robot']} | {r['session']} | {r['runs']} | {mm['nominal']:.1f} | {mm['kinematic']:.1f} | "
-            f"{mm['extended']:.1f} | {mm['earlier']:.1f} | {mm['linear_map']:.1f} | "
-            f"{r['extended']['mean_position_rms'] / k:.2f} | {r['earlier']['mean_position_rms'] / k:.2f} | "
-            f"{r['linear_map']['mean_position_rms'] / k:.2f} | {1e3 * r['extended']['mean_refit_position_rms']:.1f} | "
+            f"{mm['extended']:.1f} | {mm['kinematic_tracker']:.1f} | {mm['linear_map']:.1f} | "
+            f"{r['extended']['mean_position_rms'] / k:.2f} | {r['kinematic_tracker']['mean_position_rms'] / k:.2f} | "
+            f"{r['linear_map']['mean_position_rms'] / k:.2f} | "
+            f"{1e3 * r['kinematic_tracker']['mean_refit_position_rms']:.1f} | "
             f"{1e3 * r['linear_map']['mean_refit_position_rms']:.1f} |")
     for robot in dict.fromkeys(r["robot"] for r in rows):
         mine = [r for r in rows if r["robot"] == robot]
         ratio = {key: [r[key]["mean_position_rms"] / r["kinematic"]["mean_position_rms"] for r in mine]
-                 for key in ("extended", "earlier", "linear_map")}
+                 for key in ("extended", "kinematic_tracker", "linear_map")}
         span = {key: f"{min(v):.2f}–{max(v):.2f} (mean {sum(v) / len(v):.2f})" for key, v in ratio.items()}
-        wins = sum(e < m for e, m in zip(ratio["extended"], ratio["linear_map"], strict=True))
-        lines += ["", f"**{robot}** (÷ kinematic): extended {span['extended']}; earlier gap model "
-                  f"{span['earlier']}; linear map {span['linear_map']}. The extended model beats the linear map on "
-                  f"{wins} of {len(mine)} sessions."]
+        wins = sum(e < m for e, m in zip(ratio["kinematic_tracker"], ratio["linear_map"], strict=True))
+        lines += ["", f"**{robot}** (÷ kinematic): extended {span['extended']}; calibration + tracked frame "
+                  f"{span['kinematic_tracker']}; linear map {span['linear_map']}. The calibration with its tracked "
+                  f"frame beats the linear map on {wins} of {len(mine)} sessions."]
     return "\n".join(lines) + "\n"
 
 

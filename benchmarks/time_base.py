@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import tempfile
 import time
@@ -69,8 +70,9 @@ def geometry(model: dict) -> str:
     """Wheel diameters [mm] and the wheel-centre size of a calibrated model JSON."""
     scale = model.get("effects", {}).get("wheel_radius", {}).get("scale", [1.0] * len(model["wheels"]))
     d = [2e3 * model["wheel_radius"] * s for s in scale]
-    reach = max(abs(c) for w in model["wheels"] for c in w["position"])
-    return f"D {', '.join(f'{v:.1f}' for v in d)} mm; wheel centres within ±{1e3 * reach:.1f} mm"
+    distance = model.get("effects", {}).get("wheel_geometry", {}).get("distance", [1.0] * len(model["wheels"]))
+    reach = max(math.hypot(*w["position"]) * f for w, f in zip(model["wheels"], distance, strict=True))
+    return f"D {', '.join(f'{v:.1f}' for v in d)} mm; wheel centres {1e3 * reach:.1f} mm from the centre"
 
 
 def table(rows: list[dict], calibrations: dict, command: str, wall_s: float) -> str:

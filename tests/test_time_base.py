@@ -15,7 +15,15 @@ import numpy as np
 import pytest
 
 from omni_gym.cli import main
-from omni_gym.discrepancy.data.importers.optiodom import read_sessions, read_sessions_timed
+from omni_gym.discrepancy.data.importers.optiodom import (
+    clock_scale_of,
+    convert_run,
+    find_session,
+    read_metadata,
+    read_run_file,
+    read_sessions,
+    read_sessions_timed,
+)
 from omni_gym.discrepancy.fit.kinematic_calibration import calibrate, dead_reckon, position_rms
 from omni_gym.io import InputError
 
@@ -86,8 +94,15 @@ def test_omni3_whole_ticks_keep_their_rotation_and_stretch_the_speed():
 
 
 def _read(session: str, base: str, numbers: tuple[int, ...]):
-    runs = read_sessions([OMNI4 / session], time_base=base)[1]
-    return [runs[k - 1] for k in numbers]
+    """Runs ``numbers`` of a bundled omni4 session on time base ``base``, reading only those files (the
+    importer's per-run steps, as read_sessions_timed composes them)."""
+    meta_path, paths = find_session(OMNI4 / session)
+    meta = read_metadata(meta_path)
+    out = []
+    for k in numbers:
+        raw = read_run_file(paths[k - 1], "omni4")
+        out.append(convert_run(raw, meta, clock_scale=clock_scale_of(meta, raw) if base == "tracker" else 1.0))
+    return out
 
 
 def test_on_the_tracker_clock_the_omni4_wheels_are_their_nominal_size_and_predict_other_sessions_better():
@@ -103,7 +118,7 @@ def test_on_the_tracker_clock_the_omni4_wheels_are_their_nominal_size_and_predic
     worse than 1.02× (a session may gain nothing: the day-2 circles share the training circles' clock), the
     mean at most 0.92×.
     """
-    from omni_gym.discrepancy.data.importers.optiodom import nominal_model, read_metadata
+    from omni_gym.discrepancy.data.importers.optiodom import nominal_model
 
     nominal = nominal_model(read_metadata(next((OMNI4 / "square" / "080920201810").glob("*_metadata.csv"))))
     train = ("circular/080920201015", "square/080920201810")
