@@ -180,6 +180,8 @@ def test_metadata_without_windows_keeps_the_time_column_and_partial_windows_are_
     partial = copy_session(OMNI3, tmp_path / "partial", runs=(1,), meta_edit=drop({"odo_tf"}))
     with pytest.raises(InputError, match=r"has gt_ti, gt_tf, odo_ti but no odo_tf row"):
         read_sessions_timed([partial])
+    # The message's way out works: the file's time column needs no windows.
+    assert read_sessions_timed([partial], time_base="file").time_bases == {"221220201730": "file"}
 
     def backwards(text: str) -> str:
         return text.replace("gt_tf,23.72", "gt_tf,1.5")

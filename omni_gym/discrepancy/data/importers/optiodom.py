@@ -173,6 +173,7 @@ class Metadata:
     Li: tuple[float, ...]
     D: tuple[float, ...]
     sync: tuple[SyncWindow, ...] = ()  # per run (run-01 first); empty: the metadata has no windows
+    sync_error: str = ""  # why the window rows could not be read (raised only where a window is needed)
 
     @property
     def robot_type(self) -> RobotType:
@@ -323,8 +324,12 @@ def read_metadata(path: str | Path) -> Metadata:
     for v in D:
         if not radius.contains(v / 2):
             raise InputError(f"{path}: line {line}: Di {v:g} m: a wheel radius {radius.within()} is required")
+    try:
+        sync, sync_error = _sync_windows(path, values), ""
+    except InputError as exc:  # needed for the tracker's time base only: --time-base file reads without them
+        sync, sync_error = (), str(exc)
     return Metadata(path=path, session=session, kind=kind, ngear=scalars["ngear"], enc_res=scalars["encRes"],
-                    Li=Li, D=D, sync=_sync_windows(path, values))
+                    Li=Li, D=D, sync=sync, sync_error=sync_error)
 
 
 SYNC_KEYS = ("gt_ti", "gt_tf", "odo_ti", "odo_tf")
@@ -532,6 +537,8 @@ def clock_scale_of(meta: Metadata, raw: RawRun) -> float:
     metadata line if the session has no windows, none for this run, or a window that does not describe
     the file (its odometry interval is not the file's duration, or the scale is out of reach)."""
     number = _run_number(raw.path)
+    if meta.sync_error:
+        raise InputError(meta.sync_error)
     if not meta.sync:
         raise InputError(f"{meta.path}: no synchronisation windows (gt_ti, gt_tf, odo_ti, odo_tf rows): the "
                          "tracker's time base is unknown; import with --time-base file to use the time column")
@@ -598,6 +605,8 @@ def read_sessions_timed(folders: list[str | Path], time_base: str = "auto") -> S
         metas.append(meta)
         base = time_base
         if base == "auto":
+            if meta.sync_error:
+                raise InputError(meta.sync_error)
             base = "tracker" if meta.sync else "file"
             if not meta.sync:
                 notes.append(f"note: {meta.path}: no synchronisation windows (gt_ti, gt_tf, odo_ti, odo_tf): session "
