@@ -140,8 +140,8 @@ def test_on_the_tracker_clock_the_omni4_wheels_are_their_nominal_size_and_predic
 
 
 def test_a_run_whose_clock_is_unlike_its_sessions_is_reported(tmp_path):
-    """Run 2's tracker window made 3 % longer than the others' (the bundled sessions spread by at most
-    0.6 %): named in a note; the other runs are not."""
+    """Run 2's tracker window made 3 % longer than the others' (every bundled run is within 0.53 % of its
+    session's median): named in a note; the other runs are not."""
     def stretch(text: str) -> str:
         lines = text.splitlines()
         for i, line in enumerate(lines):

@@ -149,8 +149,8 @@ class SyncWindow:
 # "tracker": each row lasts the tracker's share of the run (the synchronisation window), the logged counts
 # are wheel speed × the nominal cycle; "file": the time column as written, the counts as wheel rotation.
 TIME_BASES = ("auto", "tracker", "file")  # auto: tracker where the metadata has the windows, else file
-# A run's clock scale further than this from its session's median is reported (measured spread within a
-# bundled session: at most 0.6 %; the two path families differ by 4 %).
+# A run's clock scale further than this from its session's median is reported (measured: every bundled run
+# is within 0.53 % of its session's median; the two path families differ by 4 %).
 CLOCK_SCALE_SPREAD = 0.01
 # Clock scales outside this range are refused: no logger's clock is off by a factor of two (the bundled
 # sessions: 1.01–1.11), so the window belongs to another file.
