@@ -576,8 +576,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from omni_gym.discrepancy.fit.calibrate import calibrate_dataset, summary_lines
 
-    cal = calibrate_dataset(args.dataset, args.out, force=args.force, tracker=args.tracker)
-    print("\n".join(summary_lines(cal, args.out)))
+    cal, checks = calibrate_dataset(args.dataset, args.out, force=args.force, tracker=args.tracker)
+    print("\n".join(summary_lines(cal, args.out, checks)))
     return 0
 
 
