@@ -248,31 +248,15 @@ def integrate_twist(dq: np.ndarray, start: np.ndarray) -> np.ndarray:
     return poses
 
 
-def _to_tracker(pose: np.ndarray, offset: np.ndarray, yaw: float) -> np.ndarray:
-    """Centre poses (K, 3) → the tracked point's (the ``tracker_offset`` effect's measurement)."""
-    c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-    out = pose.copy()
-    out[:, 0] += c * offset[0] - s * offset[1]
-    out[:, 1] += s * offset[0] + c * offset[1]
-    out[:, 2] += yaw
-    return out
-
-
-def _to_centre(pose: np.ndarray, offset: np.ndarray, yaw: float) -> np.ndarray:
-    """One tracked pose (3,) → the centre's (the inverse of :func:`_to_tracker`)."""
-    theta = float(pose[2]) - yaw
-    c, s = math.cos(theta), math.sin(theta)
-    return np.array([pose[0] - (c * offset[0] - s * offset[1]), pose[1] - (s * offset[0] + c * offset[1]), theta])
-
-
 def predict_tracked(dphi: np.ndarray, start: np.ndarray, geometry: Geometry, tracker: dict | None) -> np.ndarray:
     """Tracked poses (K, 3) from wheel travel (K−1, n) [rad] and the tracked start pose ``start`` (3,):
     dead reckoning of the centre with ``geometry``, through the tracked frame ``tracker`` (``offset`` [m],
     ``yaw`` [rad]; None: the tracker sees the centre)."""
     if tracker is None:
         return _integrate(dphi, start, geometry)
-    offset, yaw = np.asarray(tracker["offset"], dtype=float), float(tracker["yaw"])
-    return _to_tracker(_integrate(dphi, _to_centre(start, offset, yaw), geometry), offset, yaw)
+    frame = effect_library.REGISTRY["tracker_offset"]  # the effect's own measurement and its inverse
+    centre, _ = frame.unmeasure(tracker, np.asarray(start, dtype=float), np.zeros(3))
+    return frame.measure(tracker, None, _integrate(dphi, centre, geometry))
 
 
 def position_rms(measured: np.ndarray, predicted: np.ndarray) -> float:
