@@ -7,7 +7,6 @@ wheel geometry of ``data/optiodom-omni3/README.md`` and an exact integration of 
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import shutil
@@ -26,6 +25,7 @@ from omni_gym.io import InputError
 from omni_gym.physics.friction import Surface
 from omni_gym.physics.kinematics import forward
 from omni_gym.physics.world import DEFAULT_DT
+from tests.test_time_base import windows
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data" / "optiodom-omni3"
@@ -50,13 +50,6 @@ def read_raw(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t (K,), pose (K, 3), ticks (K, 3)) of an OptiOdom run file, read with numpy alone."""
     a = np.loadtxt(path, delimiter=",", ndmin=2)
     return a[:, 0], a[:, 1:4], a[:, 4:7]
-
-
-def sync_windows(path: Path) -> list[tuple[float, float, float, float]]:
-    """Per run (gt_ti, gt_tf, odo_ti, odo_tf) [s] of a metadata file, read with the csv module alone."""
-    rows = {row[0]: [float(c) for c in row[1:] if c.strip()] for row in csv.reader(path.read_text().splitlines())
-            if row and row[0] in ("gt_ti", "gt_tf", "odo_ti", "odo_tf")}
-    return list(zip(rows["gt_ti"], rows["gt_tf"], rows["odo_ti"], rows["odo_tf"], strict=True))
 
 
 def integrate(t: np.ndarray, speeds: np.ndarray, start: np.ndarray) -> np.ndarray:
@@ -127,13 +120,13 @@ def test_commands_encoders_and_poses_follow_the_ticks(short_dataset):
     assert summary.runs == 4 and summary.sessions == ("221220201730",)
     assert [r.name for r in ds.runs] == [f"221220201730_run-0{i}" for i in range(1, 5)]
     assert summary.duration == pytest.approx(sum(r.t[-1] for r in ds.runs))
-    windows = sync_windows(SHORT / "221220201730_metadata.csv")
+    sync = windows(SHORT)
     for i, run in enumerate(ds.runs):
         t, pose, ticks = read_raw(SHORT / f"{run.name}.csv")
         # The tracker's time base: row k at t_k · (gt_tf − gt_ti) / (odo_tf − odo_ti) (the bundled files start
         # at t = 0); omni3's whole ticks are the rotation over the cycle, so the angles are the ticks and the
         # speeds the ticks over the stretched interval.
-        gt_ti, gt_tf, odo_ti, odo_tf = windows[i]
+        gt_ti, gt_tf, odo_ti, odo_tf = sync[i]
         t = t * (gt_tf - gt_ti) / (odo_tf - odo_ti)
         assert np.allclose(run.t, t, rtol=1e-12, atol=0)
         # Row k-1 holds the speed of the ticks counted over (t_{k-1}, t_k]; the last row stops.

@@ -64,14 +64,16 @@ def readme_dead_reckoning(path: Path, D: float = D, l12: float = L12) -> np.ndar
 
 def copy_session(src: Path, dst: Path, runs: tuple[int, ...] = (1,), rows: int | None = None,
                  plain: bool = False, meta: str | None = None) -> Path:
-    """A session folder with some runs of ``src`` (first ``rows`` rows; plain .csv if ``plain``) and its
-    metadata (or the text ``meta``)."""
+    """A session folder with some runs of ``src`` (its .csv.gz or plain .csv files; first ``rows`` rows;
+    written plain .csv if ``plain``) and its metadata (or the text ``meta``)."""
     dst.mkdir(parents=True)
     sid = src.name
     text = meta if meta is not None else (src / f"{sid}_metadata.csv").read_text()
     (dst / f"{sid}_metadata.csv").write_text(text)
     for k in runs:
-        lines = gzip.decompress((src / f"{sid}_run-{k:02d}.csv.gz").read_bytes()).decode().splitlines()
+        source = src / f"{sid}_run-{k:02d}.csv"
+        lines = (source.read_text() if source.exists() else
+                 gzip.decompress(source.with_suffix(".csv.gz").read_bytes()).decode()).splitlines()
         body = "\n".join(lines[:rows]) + "\n"
         if plain:
             (dst / f"{sid}_run-{k:02d}.csv").write_text(body)

@@ -8,7 +8,6 @@ here come from the metadata and the run files read with the csv module and numpy
 from __future__ import annotations
 
 import csv
-import gzip
 from pathlib import Path
 
 import numpy as np
@@ -26,11 +25,13 @@ from omni_gym.discrepancy.data.importers.optiodom import (
 )
 from omni_gym.discrepancy.fit.kinematic_calibration import calibrate, dead_reckon, position_rms
 from omni_gym.io import InputError
+from tests.test_import_optiodom_omni4 import copy_session
 
 ROOT = Path(__file__).resolve().parents[1]
 OMNI4 = ROOT / "data" / "optiodom-omni4"
 SQUARE = OMNI4 / "square" / "080920201715"
 OMNI3 = ROOT / "data" / "optiodom-omni3" / "circular" / "221220201730"
+OMNI3_META = (OMNI3 / "221220201730_metadata.csv").read_text()
 
 
 def windows(folder: Path) -> list[tuple[float, float, float, float]]:
@@ -45,21 +46,6 @@ def windows(folder: Path) -> list[tuple[float, float, float, float]]:
 def scale_of(window: tuple[float, float, float, float]) -> float:
     gt_ti, gt_tf, odo_ti, odo_tf = window
     return (gt_tf - gt_ti) / (odo_tf - odo_ti)
-
-
-def copy_session(src: Path, dst: Path, runs: tuple[int, ...], meta_edit=None, rows: int | None = None) -> Path:
-    """A session folder with runs of ``src`` (first ``rows`` rows) and its metadata (edited by ``meta_edit``)."""
-    dst.mkdir(parents=True)
-    sid = src.name
-    text = (src / f"{sid}_metadata.csv").read_text()
-    (dst / f"{sid}_metadata.csv").write_text(meta_edit(text) if meta_edit else text)
-    for k in runs:
-        plain = src / f"{sid}_run-{k:02d}.csv"
-        body = plain.read_text() if plain.exists() else gzip.decompress(
-            (src / f"{sid}_run-{k:02d}.csv.gz").read_bytes()).decode()
-        lines = body.splitlines()[:rows]
-        (dst / f"{sid}_run-{k:02d}.csv").write_text("\n".join(lines) + "\n")
-    return dst
 
 
 def test_omni4_rows_take_the_tracker_window_and_keep_the_logged_wheel_speeds():
@@ -151,7 +137,7 @@ def test_a_run_whose_clock_is_unlike_its_sessions_is_reported(tmp_path):
                 lines[i] = ",".join(cells)
         return "\n".join(lines) + "\n"
 
-    folder = copy_session(OMNI3, tmp_path / "s", runs=(1, 2, 3, 4), meta_edit=stretch)
+    folder = copy_session(OMNI3, tmp_path / "s", runs=(1, 2, 3, 4), plain=True, meta=stretch(OMNI3_META))
     notes = read_sessions_timed([folder]).notes
     assert len(notes) == 1 and "221220201730_run-02: clock scale" in notes[0] and "from its session's" in notes[0]
 
@@ -159,7 +145,7 @@ def test_a_run_whose_clock_is_unlike_its_sessions_is_reported(tmp_path):
 def test_windows_that_do_not_describe_the_file_are_refused_or_left_out(tmp_path):
     """A run cut to 30 rows no longer lasts odo_tf − odo_ti: ``tracker`` refuses it naming the metadata
     line; ``auto`` keeps the file's time column for that session and says so."""
-    folder = copy_session(OMNI3, tmp_path / "s", runs=(1,), rows=30)
+    folder = copy_session(OMNI3, tmp_path / "s", runs=(1,), rows=30, plain=True)
     with pytest.raises(InputError, match=r"_metadata\.csv: line \d+: run 1: the odometry window .* is not this "
                                          r"file's"):
         read_sessions_timed([folder], time_base="tracker")
@@ -172,12 +158,13 @@ def test_metadata_without_windows_keeps_the_time_column_and_partial_windows_are_
     def drop(keys):
         return lambda text: "\n".join(line for line in text.splitlines() if line.split(",")[0] not in keys) + "\n"
 
-    none = copy_session(OMNI3, tmp_path / "none", runs=(1,), meta_edit=drop({"gt_ti", "gt_tf", "odo_ti", "odo_tf"}))
+    none = copy_session(OMNI3, tmp_path / "none", runs=(1,), plain=True,
+                        meta=drop({"gt_ti", "gt_tf", "odo_ti", "odo_tf"})(OMNI3_META))
     read = read_sessions_timed([none])
     assert read.time_bases == {"221220201730": "file"} and "no synchronisation windows" in read.notes[0]
     with pytest.raises(InputError, match="no synchronisation windows"):
         read_sessions_timed([none], time_base="tracker")
-    partial = copy_session(OMNI3, tmp_path / "partial", runs=(1,), meta_edit=drop({"odo_tf"}))
+    partial = copy_session(OMNI3, tmp_path / "partial", runs=(1,), plain=True, meta=drop({"odo_tf"})(OMNI3_META))
     with pytest.raises(InputError, match=r"has gt_ti, gt_tf, odo_ti but no odo_tf row"):
         read_sessions_timed([partial])
     # The message's way out works: the file's time column needs no windows.
@@ -186,7 +173,7 @@ def test_metadata_without_windows_keeps_the_time_column_and_partial_windows_are_
     def backwards(text: str) -> str:
         return text.replace("gt_tf,23.72", "gt_tf,1.5")
 
-    bad = copy_session(OMNI3, tmp_path / "bad", runs=(1,), meta_edit=backwards)
+    bad = copy_session(OMNI3, tmp_path / "bad", runs=(1,), plain=True, meta=backwards(OMNI3_META))
     with pytest.raises(InputError, match=r"line \d+: run 1: gt_tf 1.5 is not after gt_ti 6.52"):
         read_sessions_timed([bad])
 
