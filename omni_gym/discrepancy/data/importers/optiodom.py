@@ -527,6 +527,11 @@ class Sessions:
         return f"time base: {'; '.join(parts)}"
 
 
+def _check_time_base(time_base: str) -> None:
+    if time_base not in TIME_BASES:
+        raise InputError(f"--time-base {time_base!r}: choose one of {', '.join(TIME_BASES)}")
+
+
 def _run_number(path: Path) -> int:
     match = _RUN_FILE.match(path.name)
     return int(match.group("number")) if match else 0
@@ -580,8 +585,7 @@ def read_sessions_timed(folders: list[str | Path], time_base: str = "auto") -> S
     ``Di``) and a session given twice; run names are the file names without ``.csv``/``.csv.gz``
     (``<id>_run-NN``).
     """
-    if time_base not in TIME_BASES:
-        raise InputError(f"--time-base {time_base!r}: choose one of {', '.join(TIME_BASES)}")
+    _check_time_base(time_base)
     if not folders:
         raise InputError("optiodom: no session folder given")
     metas: list[Metadata] = []
@@ -623,14 +627,12 @@ def read_sessions_timed(folders: list[str | Path], time_base: str = "auto") -> S
                 base = "file"
                 notes.append(f"note: {exc}; session {meta.session} keeps the file's time column")
         bases[meta.session] = base
-        names, mine = [], []
-        for raw, scale in zip(raws, session_scales, strict=True):
-            runs.append(convert_run(raw, meta, clock_scale=scale))
-            scales[runs[-1].name] = scale
-            names.append(runs[-1].name)
-            mine.append(scale)
+        converted = [convert_run(raw, meta, clock_scale=scale) for raw, scale in zip(raws, session_scales, strict=True)]
+        runs.extend(converted)
+        names = [r.name for r in converted]
+        scales.update(zip(names, session_scales, strict=True))
         if base == "tracker":
-            notes.extend(_unlike_session(meta, names, mine))
+            notes.extend(_unlike_session(meta, names, session_scales))
     return Sessions(metas, runs, bases, scales, notes)
 
 
@@ -775,8 +777,7 @@ def import_optiodom(folders: list[str | Path], out: str | Path, force: bool = Fa
     ``force``; an output inside (or equal to) a session folder always.
     """
     surface_preset(surface)  # an unknown preset is refused before anything is read or locked
-    if time_base not in TIME_BASES:
-        raise InputError(f"--time-base {time_base!r}: choose one of {', '.join(TIME_BASES)}")
+    _check_time_base(time_base)  # refused before anything is read or locked, as the surface
     if mass is not None:
         MODEL_BOUNDS["mass"].check(mass, "--mass")
     if inertia is not None:
