@@ -18,10 +18,11 @@ test: $(STAMP)
 	$(PY) -m ruff check .
 	$(PY) -m pytest -q -n 2 --dist worksteal -m "not slow" --durations=15
 
-# The long tests (also run by .ci/run; the recovery sweeps that fail today are strict xfails there): each repeats a shorter test at
-# full size or checks what `make test` checks elsewhere too (the reason is beside each mark): the discrepancy
-# workflow's full 12-case recovery per effect and its quick cells, the paper story, a second drag seed, the
-# study-like independent cases, the omni3 real-data gap run.
+# The long tests (also run by .ci/run; the recovery sweeps that fail today are strict xfails there), the reason
+# beside each mark: the discrepancy workflow's full 12-case recovery per effect and its quick cells, the paper
+# story, a second drag seed, the study-like independent cases, gap end to end on both real robots, the
+# multi-effect staircase, sparse end points, the default path's evidence rule, the costlier interrupt and
+# kill -9 cases, and the three-wheel and Phunopas batch-EKF equivalence.
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -n 2 --dist worksteal -m slow
 

@@ -211,6 +211,7 @@ def test_gap_writes_report_and_json_and_is_deterministic(small_dataset, tmp_path
     assert json.dumps(again) == json.dumps(written)
 
 
+@pytest.mark.slow  # about 15 CPU-s: a gap search, then the CLI (make test-slow, which CI runs)
 def test_fitted_model_replays_through_simulate(small_dataset, tmp_path):
     result = gap(small_dataset, None, progress=False)
     assert result["effect"] == "motor_lag"
@@ -249,6 +250,7 @@ def test_progress_ticks_stay_within_each_fits_bound(small_dataset):
         assert 2 <= len(ticks) <= max_ticks(cand), (cand.name, len(ticks), max_ticks(cand))
 
 
+@pytest.mark.slow  # about 15 CPU-s (make test-slow, which CI runs)
 def test_localisation_points_at_acceleration_for_motor_lag(small_dataset):
     where = gap(small_dataset, None, progress=False)["where"]
     # A first-order lag only matters while the commands change: beyond tracker noise, the local
@@ -305,6 +307,7 @@ def test_paper_story_roller_gap_from_the_initial_model(tmp_path):
     assert truth["effect"] == "roller_gap" and result["model"]["effects"]["roller_gap"] == result["params"]
 
 
+@pytest.mark.slow  # about 40 CPU-s: a whole gap search on sparse data (make test-slow, which CI runs)
 def test_sparse_end_points_still_answer_with_uncertainty(tmp_path):
     folder = tmp_path / "sparse"
     write_synthetic(folder, nominal_model(), 'com_offset:{"com": [0.015, -0.01]}', 8, 0.001, 5, DURATION,

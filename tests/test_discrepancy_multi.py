@@ -43,6 +43,7 @@ def result(report) -> dict:
     return json.loads((report / "result.json").read_text())
 
 
+@pytest.mark.slow  # about 50 CPU-s: a two-step gap search (make test-slow, which CI runs)
 def test_two_hidden_effects_are_named_with_a_staircase_in_result_and_report(result, report):
     # One test over the module's gap run: under pytest-xdist each worker that runs a test of this module
     # computes the module fixture again (about 50 CPU-s per gap run), so its checks share one test.

@@ -21,7 +21,7 @@ DATA = Path(__file__).resolve().parents[1] / "data" / "optiodom-omni3"
 RUNS = ("221220201701_run-01", "221220201701_run-02", "221220201953_run-01", "221220201953_run-02")
 
 
-@pytest.mark.slow  # the same end-to-end gap on real OptiOdom logs as test_discrepancy_real_omni4.py (make test)
+@pytest.mark.slow  # gap end to end on real OptiOdom logs, as test_discrepancy_real_omni4.py for the mecanum robot
 def test_gap_on_four_real_runs_adds_an_effect_and_shrinks_the_heldout_gap(tmp_path):
     """One test, not several sharing a module fixture: pytest-xdist would run the minute-long gap once per
     worker that draws one of them."""

@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from omni_gym.discrepancy.data.dataset import load_dataset, write_dataset
 from omni_gym.discrepancy.data.importers.optiodom import import_optiodom
@@ -26,6 +27,7 @@ DATA = Path(__file__).resolve().parents[1] / "data" / "optiodom-omni4"
 RUNS = ("080920201015_run-01", "080920201015_run-04", "080920201810_run-01", "080920201810_run-04")
 
 
+@pytest.mark.slow  # about 70 CPU-s: gap end to end on real logs (make test-slow, which CI runs)
 def test_gap_on_four_real_mecanum_runs_skips_roller_gap_and_shrinks_the_heldout_gap(tmp_path):
     """One test, not several sharing a module fixture: pytest-xdist would run the minute-long gap once per
     worker that draws one of them."""

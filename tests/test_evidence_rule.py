@@ -121,6 +121,7 @@ def test_a_whole_run_replay_is_aligned_to_its_first_tracked_rows():
     assert np.array_equal(align_to_start_window(t, sparse, wrong), wrong)
 
 
+@pytest.mark.slow  # about 40 CPU-s: gap's default path end to end (make test-slow, which CI runs)
 def test_the_default_path_names_the_physical_effect_over_the_calibration(tmp_path, capsys):
     """Data from the second generator with a 20 mm centre-of-mass offset (the robot slips on carpet):
     ``omni-gym gap`` with its defaults names com_offset; the kinematic calibration competed in the same

@@ -83,6 +83,7 @@ def test_no_outliers_on_noise_free_stick_slip_data(tmp_path):
         assert find_outliers(ds, pose_lever(ds.model)) == [], hidden
 
 
+@pytest.mark.slow  # about 16 CPU-s: gap through the CLI (make test-slow, which CI runs)
 def test_gap_cli_flags_a_3m_outlier_keeps_the_effect_and_reports_stages(lag_dataset, tmp_path):
     """Full library, through the CLI with stderr piped (as under a log redirect)."""
     bad = _with_jump(lag_dataset, tmp_path / "bad", run=1, row=40)

@@ -215,6 +215,7 @@ if __name__ == "__main__":
 '''
 
 
+@pytest.mark.slow  # about 20 CPU-s; make test keeps the interrupt cases with workers (make test-slow, which CI runs)
 def test_interrupt_ends_the_driver_whatever_the_workers_were_doing(tmp_path):
     """SIGINT at many points of a run whose workers write large results: every trial ends (status 130, one
     line, no worker left). A worker killed mid-write used to leave the pool's manager thread reading the

@@ -166,6 +166,7 @@ def test_load_dataset_ignores_stray_temporary_and_hidden_files(tmp_path, dataset
 # --- gap -------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # about 20 CPU-s: two gap runs; make test keeps the concurrent-gap and kill -9 synth/train cases
 def test_kill9_during_gap_into_existing_report_leaves_it_intact_and_a_rerun_succeeds(tmp_path, dataset):
     rep = tmp_path / "rep"
     old = _old_report(rep)
