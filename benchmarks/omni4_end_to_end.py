@@ -9,8 +9,8 @@ The two design models:
 
 * **nominal**: ``OmniPathFollow-Mecanum-v0`` with its defaults (the ``optiodom_omni4`` preset: wheel centres at
   ±0.1 m, wheel radius 0.03 m; carpet, ``initial`` friction, lift-off 0.5 /s);
-* **calibrated**: ``OmniPathFollow-Custom-v0`` with ``benchmarks/inputs/omni4_calibrated_model.json``, the model
-  ``benchmarks/real_optiodom.py --robot omni4 --gap-start kinematic`` fitted to the real omni4 logs (wheel
+* **calibrated**: ``OmniPathFollow-Custom-v0`` with ``benchmarks/inputs/omni4_calibrated_model.json``, the model an
+  earlier ``benchmarks/real_optiodom.py`` fitted to the real omni4 logs on the files' time column (wheel
   centres at ±0.104 m, effective wheel radii 1.070–1.086 × 0.03 m, a floor where the wheels grip, no lift-off;
   the logs are MIT-licensed, ``data/optiodom-omni4/LICENSE``).
 

@@ -34,8 +34,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from linear_map_baseline import omni_gym  # noqa: E402  (the command line as a user runs it)
-from real_optiodom import ROBOTS  # noqa: E402  (the benchmark's own split of sessions)
+from real_optiodom import ROBOTS, omni_gym  # noqa: E402  (the benchmark's split of sessions; the command line)
 
 BASES = ("file", "tracker")
 

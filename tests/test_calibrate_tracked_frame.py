@@ -78,7 +78,7 @@ def test_real_omni3_the_tracked_frame_generalises_to_a_held_out_session(nominal)
     ``predict`` (the tracker's view of the dead reckoning). Measured: offset (−26.5, −32.9) mm, yaw 6.6 mrad
     (both training sessions: (−27.7, −31.6) mm, 10.0 mrad); held-out position RMS 59.8 mm calibrated →
     19.2 mm with the tracked frame (0.32×; all five held-out sessions through `omni-gym score`:
-    benchmarks/linear_map_baseline.py). Bound 0.6×: fails when the frame stops generalising."""
+    benchmarks/real_optiodom.py). Bound 0.6×: fails when the frame stops generalising."""
     _, train = read_sessions([DATA / "circular" / "221220201701"])
     _, heldout = read_sessions([DATA / "circular" / "221220201730"])
     plain, joint = calibrate(train, nominal), calibrate(train, nominal, tracker=True)

@@ -120,7 +120,7 @@ def _models_in(obj):
 def test_every_committed_model_json_still_loads():
     files = [p for d in ("agents", "benchmarks", "data", "docs") for p in (ROOT / d).rglob("*.json")]
     models = [(f, m) for f in files for m in _models_in(json.loads(f.read_text(encoding="utf-8-sig")))]
-    assert models, "the repository commits model JSON (benchmarks/results/real_optiodom_model.json)"
+    assert models, "the repository commits model JSON (benchmarks/inputs/omni4_calibrated_model.json)"
     for f, m in models:
         SimModel.from_json(m, where=str(f))
 

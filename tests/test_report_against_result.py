@@ -5,8 +5,8 @@ does not hold, or quotes a stale one, is a sentence a user cannot check. So ever
 be a value of the result, shown in one of the report's units (m as mm, fractions as %, radians as degrees),
 and the outcome, the named effect and the ranking's order must be the result's.
 
-The omni3 and omni4 results are the committed outputs of ``benchmarks/heldout_sessions.py`` (``gap`` on the
-real robots' training runs); the synthetic one is made here.
+The omni3 and omni4 results are the committed ``result.json`` of ``gap`` on the real robots' training runs
+(``benchmarks/real_optiodom.py``: ``real_optiodom_<robot>_gap.json``); the synthetic one is made here.
 """
 
 from __future__ import annotations
@@ -93,14 +93,14 @@ def _check(result: dict) -> str:
 
 def test_the_check_finds_a_number_the_result_does_not_hold():
     """The check itself: a report quoting a number that is in no field of its result is caught."""
-    result = json.loads((RESULTS / "heldout_sessions_omni3_gap.json").read_text())
+    result = json.loads((RESULTS / "real_optiodom_omni3_gap.json").read_text())
     report = markdown(result, []) + "\nThe residual is 123.457 mm.\n"
     assert _unsupported(report, result) == ["123.457"]
 
 
 @pytest.mark.parametrize("robot", ["omni3", "omni4"])
 def test_real_robot_report_says_only_what_its_result_holds(robot):
-    result = json.loads((RESULTS / f"heldout_sessions_{robot}_gap.json").read_text())
+    result = json.loads((RESULTS / f"real_optiodom_{robot}_gap.json").read_text())
     report = _check(result)
     assert f"{result['dataset']['runs']} runs" in report
 
