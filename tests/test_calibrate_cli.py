@@ -124,3 +124,22 @@ def test_calibrate_holds_out_each_recorded_session(tmp_path):
     import_optiodom([SESSION], tmp_path / "one")
     one = cli("calibrate", str(tmp_path / "one"), "--out", str(tmp_path / "o.json"))
     assert one.returncode == 0 and "held out: the runs are one recording session" in one.stdout
+
+
+def test_calibrate_writes_the_model_gap_starts_from(tmp_path):
+    """On the omni3 training sessions of the committed two-robot benchmark, ``omni-gym calibrate`` writes the
+    kinematic model (wheel radii and L, on the tracker's clock) that ``gap`` with its defaults started from
+    (its ``result.json``: ``start.model``, kept as ``benchmarks/results/real_optiodom_omni3_gap.json``).
+    Tolerance 1e-9 relative: the same least squares on the same rows, run on another day's numpy build."""
+    data = ROOT / "data" / "optiodom-omni3"
+    import_optiodom([data / "circular" / "221220201701", data / "square" / "221220201953"], tmp_path / "train")
+    done = cli("calibrate", str(tmp_path / "train"), "--out", str(tmp_path / "kinematic.json"))
+    assert done.returncode == 0, done.stderr
+    written = json.loads((tmp_path / "kinematic.json").read_text())["effects"]
+    gap = json.loads((ROOT / "benchmarks" / "results" / "real_optiodom_omni3_gap.json").read_text())
+    assert gap["start"]["kind"] == "kinematic"
+    started = gap["start"]["model"]["effects"]
+    assert written.keys() == started.keys() == {"wheel_radius", "wheel_geometry"}
+    for effect, params in started.items():
+        for name, values in params.items():
+            np.testing.assert_allclose(written[effect][name], values, rtol=1e-9, atol=1e-12, err_msg=effect)
