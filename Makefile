@@ -22,7 +22,7 @@ test: $(STAMP)
 # beside each mark: the discrepancy workflow's full 12-case recovery per effect and its quick cells, the paper
 # story, a second drag seed, the study-like independent cases, gap end to end on both real robots, the
 # multi-effect staircase, sparse end points, the default path's evidence rule, the costlier interrupt and
-# kill -9 cases, and the three-wheel and Phunopas batch-EKF equivalence.
+# kill -9 cases, the three-wheel and Phunopas batch-EKF equivalence, and every test that starts a Ray cluster.
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -n 2 --dist worksteal -m slow
 

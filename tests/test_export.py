@@ -101,6 +101,7 @@ TINY_RLLIB = """OmniPathFollow-Phunopas-v0:
 """
 
 
+@pytest.mark.slow  # a live Ray cluster: 10-25 s of start-up per worker on 2 cores (the rllib extra; CI runs test-slow)
 def test_rllib_model_parity(ray_cluster, tmp_path, capsys):
     """An RLlib model (one tiny PPO iteration): the exported mean action equals RLlibPolicy's."""
     pytest.importorskip("ray")

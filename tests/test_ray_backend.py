@@ -74,6 +74,7 @@ def _same_report(a: Path, b: Path) -> None:
     assert (a / "report.md").read_bytes() == (b / "report.md").read_bytes()
 
 
+@pytest.mark.slow  # a live Ray cluster: 10-25 s of start-up per worker on 2 cores (the rllib extra; CI runs test-slow)
 def test_map_keeps_order_and_values_on_every_backend(ray_cluster) -> None:
     # Library functions: a worker must import the function, and this test module is not importable there.
     xs = [5, 0, 3, 9, 1, 7, 2]
@@ -85,6 +86,7 @@ def test_map_keeps_order_and_values_on_every_backend(ray_cluster) -> None:
         assert parallel_map(operator.add, xs, backend, shared=10) == [10 + x for x in xs]
 
 
+@pytest.mark.slow  # a live Ray cluster: 10-25 s of start-up per worker on 2 cores (the rllib extra; CI runs test-slow)
 def test_gap_through_ray_equals_the_local_run_byte_for_byte(dataset, local_report, ray_cluster, fast_library,
                                                             tmp_path) -> None:
     out = tmp_path / "rep"
@@ -95,6 +97,7 @@ def test_gap_through_ray_equals_the_local_run_byte_for_byte(dataset, local_repor
     assert local["effect"] == "motor_lag"  # the comparison is about a real answer, not an empty search
 
 
+@pytest.mark.slow  # a live Ray cluster: 10-25 s of start-up per worker on 2 cores (the rllib extra; CI runs test-slow)
 def test_gap_survives_a_worker_killed_mid_task(dataset, local_report, ray_cluster, fast_library, tmp_path) -> None:
     """SIGKILL a Ray worker while it runs a fit: Ray re-runs the task, and the result is unchanged."""
     killed: list[int] = []
@@ -124,6 +127,7 @@ def test_gap_survives_a_worker_killed_mid_task(dataset, local_report, ray_cluste
     _same_report(local_report, out)
 
 
+@pytest.mark.slow  # a live Ray cluster: 10-25 s of start-up per worker on 2 cores (the rllib extra; CI runs test-slow)
 def test_gap_cli_with_ray_address_equals_the_local_run(dataset, local_report, ray_cluster, tmp_path) -> None:
     """A second process joins the cluster by address (``--ray ADDRESS``; the token of the cluster's
     ``ray.init`` is sent, RAY_AUTH_MODE=token being inherited). The subprocess applies the same

@@ -73,6 +73,7 @@ def _evaluate(policy: Path, env_id: str, capsys, seed: int = 5000) -> dict:
     return json.loads(capsys.readouterr().out)
 
 
+@pytest.mark.slow  # a live Ray cluster: 10-25 s of start-up per worker on 2 cores (the rllib extra; CI runs test-slow)
 def test_ppo_trains_restores_and_samples_the_native_vector_env(trained, capsys):
     """One test per id over the module's training: under pytest-xdist each worker that draws a test using
     ``trained`` would train again (about 20 s per id), so its checks share one test."""
@@ -222,6 +223,7 @@ def test_missing_or_corrupt_checkpoint_is_a_one_line_error(layout, tmp_path, cap
     assert err.startswith("omni-gym: error: ") and len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.slow  # a live Ray cluster: 10-25 s of start-up per worker on 2 cores (the rllib extra; CI runs test-slow)
 def test_too_many_env_runners_for_the_cluster_is_refused(ray_cluster, tmp_path, capsys):
     out = tmp_path / "m"
     argv = _train_argv(PATH_IDS[0], _tiny_file(tmp_path, PATH_IDS[0]), out, ray_cluster)
