@@ -25,7 +25,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import numpy as np  # noqa: E402
-from real_optiodom import plot_growth  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
+from real_optiodom import ROBOTS, named_effects, plot_growth  # noqa: E402  (benchmarks/ is on sys.path as a script)
 
 from omni_gym.discrepancy.data.dataset import Run  # noqa: E402
 from omni_gym.discrepancy.data.importers.optiodom import nominal_model, read_sessions  # noqa: E402
@@ -35,23 +35,15 @@ from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, simulate_poses  # 
 from omni_gym.io import read_json  # noqa: E402
 from omni_gym.physics.model import SimModel  # noqa: E402
 
-DATA = Path(__file__).resolve().parents[1] / "data"
-ROBOTS = {
-    "omni3": ("optiodom-omni3", ("circular/221220201701", "square/221220201953"),
-              ("circular/221220201643", "circular/221220201722", "circular/221220201726", "circular/221220201730",
-               "joystick/211220201842")),
-    "omni4": ("optiodom-omni4", ("circular/080920201015", "square/080920201810"),
-              ("square/080920201715", "circular/231220200440", "circular/231220200502")),
-}
 MODELS = ("nominal", "kinematic", "extended")
 BIN = 1.0  # s: error-growth bins
 
 
 def load(robot: str) -> tuple[SimModel, list[Run], dict[str, list[Run]]]:
     """Nominal model, training runs and the held-out sessions' runs (name → runs) of ``robot``."""
-    folder, train, held = ROBOTS[robot]
-    metas, runs = read_sessions([DATA / folder / s for s in train])
-    sessions = {s: read_sessions([DATA / folder / s])[1] for s in held}
+    spec = ROBOTS[robot]  # the two-robot benchmark's split of sessions
+    metas, runs = read_sessions([spec.data / s for s in spec.train])
+    sessions = {s: read_sessions([spec.data / s])[1] for s in spec.heldout}
     return nominal_model(metas[0]), runs, sessions
 
 
@@ -87,11 +79,8 @@ def study(robot: str, gap_dir: Path) -> dict:
                       "per_run": {m: [float(x) for x in v] for m, v in rms.items()}})
         growth[name] = {m: [[(b + 0.5) * BIN, float(np.mean(v))] for b, v in sorted(c.items())]
                         for m, c in curves.items()}
-    steps = [s for s in result.get("steps", []) if s.get("status") in ("named", "partial")]
     flags = result.get("plausibility", {}).get("flags", [])
-    named = [{"effect": s["effect"], "status": s["status"], "params": s["params"],
-              "params_5_95": s.get("params_5_95"),
-              "implausible": [f for f in flags if f.get("effect") == s["effect"]]} for s in steps]
+    named = [{**n, "implausible": [f for f in flags if f.get("effect") == n["effect"]]} for n in named_effects(result)]
     return {"robot": robot, "train_runs": len(train), "kinematic": cal.to_json(), "gap_answer": result["effect"],
             "gap_start": result.get("start", {}).get("kind") or result.get("start", {}).get("model"),
             "named": named, "gap_heldout": result.get("heldout"), "sessions": table, "growth": growth}

@@ -300,7 +300,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.jobs < 1:
         ap.error(f"--jobs must be at least 1, got {args.jobs}")
     args.out.mkdir(parents=True, exist_ok=True)
-    command = "python benchmarks/real_optiodom.py " + " ".join(sys.argv[1:] if argv is None else argv)
+    command = " ".join(["python benchmarks/real_optiodom.py", *(sys.argv[1:] if argv is None else argv)])
     t0 = time.monotonic()
     records = []
     with tempfile.TemporaryDirectory(prefix="omni-gym-real-optiodom-") as tmp:
@@ -310,9 +310,9 @@ def main(argv: list[str] | None = None) -> int:
             target = args.out / f"real_optiodom_{name}_gap.json"
             if args.gap_records is None or target.resolve() != (args.gap_records / target.name).resolve():
                 target.write_text(json.dumps(result, indent=1) + "\n")
-    text = markdown(records, command.strip(), time.monotonic() - t0)
+    text = markdown(records, command, time.monotonic() - t0)
     (args.out / "real_optiodom.md").write_text(text)
-    (args.out / "real_optiodom.json").write_text(json.dumps({"command": command.strip(), "robots": records},
+    (args.out / "real_optiodom.json").write_text(json.dumps({"command": command, "robots": records},
                                                             indent=1) + "\n")
     plot(records, args.out / "real_optiodom.png")
     say(f"wrote {args.out / 'real_optiodom.md'}, .json and .png")
