@@ -22,6 +22,8 @@ with their identified values and 5–95 % ranges, its wall time and the calibrat
 
     # both robots, gap run on each robot's 24 training runs (about 13 min on 2 cores)
     python benchmarks/real_optiodom.py --jobs 2 --out benchmarks/results
+    # gap started from calibrate --tracker's joint fit (about 9 min on 2 cores)
+    python benchmarks/real_optiodom.py --start tracker --out benchmarks/results/start_tracker
     # re-score from the gap results an earlier run wrote (real_optiodom_<robot>_gap.json in DIR; 2 min)
     python benchmarks/real_optiodom.py --gap-records benchmarks/results --out DIR
 
@@ -120,7 +122,8 @@ def named_effects(result: dict) -> list[dict]:
             for s in result.get("steps", []) if s.get("status") in ("named", "partial")]
 
 
-def gap_result(robot: Robot, train: Path, work: Path, jobs: int, records: Path | None) -> tuple[dict, str]:
+def gap_result(robot: Robot, train: Path, work: Path, jobs: int, records: Path | None,
+               start: str = "auto") -> tuple[dict, str]:
     """gap's result.json on the training dataset (run now, or read from ``records``) and where it came from."""
     if records is not None:
         path = records / f"real_optiodom_{robot.name}_gap.json"
@@ -128,12 +131,15 @@ def gap_result(robot: Robot, train: Path, work: Path, jobs: int, records: Path |
             raise SystemExit(f"real_optiodom: --gap-records {records}: no {path.name} there")
         return json.loads(path.read_text()), f"the gap result in {path.name} (reused)"
     report = work / f"{robot.name}_report"
-    say(f"{robot.name}: omni-gym gap on the training runs, --jobs {jobs} (its progress follows)")
-    omni_gym("gap", str(train), "--out", str(report), "--jobs", str(jobs), stream=True)
-    return json.loads((report / "result.json").read_text()), f"`omni-gym gap TRAIN --jobs {jobs}`"
+    extra = [] if start == "auto" else ["--start", start]  # the default stays the command users run
+    args = ["--jobs", str(jobs), *extra]
+    say(f"{robot.name}: omni-gym gap on the training runs, {' '.join(args)} (its progress follows)")
+    omni_gym("gap", str(train), "--out", str(report), *args, stream=True)
+    return json.loads((report / "result.json").read_text()), f"`omni-gym gap TRAIN {' '.join(args)}`"
 
 
-def robot_record(robot: Robot, work: Path, jobs: int, records: Path | None) -> tuple[dict, dict]:
+def robot_record(robot: Robot, work: Path, jobs: int, records: Path | None,
+                 start: str = "auto") -> tuple[dict, dict]:
     """One robot's rows and facts (module docstring); and gap's whole result (to keep beside the table)."""
     train = work / f"{robot.name}_train"
     say(f"{robot.name}: importing the training sessions")
@@ -143,7 +149,7 @@ def robot_record(robot: Robot, work: Path, jobs: int, records: Path | None) -> t
     said = omni_gym("calibrate", str(train), "--out", str(kinematic))
     calibrate_s = time.monotonic() - t0
     said_frame = omni_gym("calibrate", str(train), "--tracker", "--out", str(with_frame))
-    result, source = gap_result(robot, train, work, jobs, records)
+    result, source = gap_result(robot, train, work, jobs, records, start)
     extended = work / f"{robot.name}_extended.json"
     extended.write_text(json.dumps(result["model"]))
     rows = []
@@ -295,6 +301,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=2, metavar="N", help="gap's local worker processes (default 2)")
     ap.add_argument("--gap-records", type=Path, default=None, metavar="DIR",
                     help="reuse real_optiodom_<robot>_gap.json from DIR instead of running gap")
+    ap.add_argument("--start", choices=("auto", "tracker"), default="auto",
+                    help="gap's --start (default auto, gap's own default; tracker: from calibrate --tracker's model)")
     ap.add_argument("--out", type=Path, required=True, help="folder of real_optiodom.md, .json, .png")
     args = ap.parse_args(argv)
     if args.jobs < 1:
@@ -305,7 +313,7 @@ def main(argv: list[str] | None = None) -> int:
     records = []
     with tempfile.TemporaryDirectory(prefix="omni-gym-real-optiodom-") as tmp:
         for name in args.robots:
-            facts, result = robot_record(ROBOTS[name], Path(tmp), args.jobs, args.gap_records)
+            facts, result = robot_record(ROBOTS[name], Path(tmp), args.jobs, args.gap_records, args.start)
             records.append(facts)
             target = args.out / f"real_optiodom_{name}_gap.json"
             if args.gap_records is None or target.resolve() != (args.gap_records / target.name).resolve():

@@ -110,11 +110,13 @@ def build_parser() -> argparse.ArgumentParser:
                          "longer dataset is fitted on an even sample of segments of every run, each "
                          f"SECONDS / runs long ({MIN_SEGMENT:g} to {SEGMENT:g} s; 24 runs and the default: 5 s) "
                          "and replayed from the tracked state at its start; inf: always whole runs")
-    gp.add_argument("--start", choices=("auto", "kinematic", "nominal"), default="auto",
+    gp.add_argument("--start", choices=("auto", "kinematic", "tracker", "nominal"), default="auto",
                     help="first model, on top of which effects are searched: auto (default): the dataset's model, "
                          "with the kinematic odometry calibration (as omni-gym calibrate) competing with the "
                          "library's effects at the first step when every run has wheel odometry; kinematic = start "
-                         "from the calibration; nominal = the dataset's model, no calibration")
+                         "from the calibration; tracker = start from the calibration with the tracked frame fitted "
+                         "jointly over whole runs (as omni-gym calibrate --tracker; faster, see docs/discrepancy.md); "
+                         "nominal = the dataset's model, no calibration")
     add_ray_option(gp, "the candidate fits", "all (or --jobs N > 1)")
     gp.add_argument("--jobs", type=int, default=1,
                     help="local worker processes for the candidate fits, at most this machine's cores (with "

@@ -29,10 +29,10 @@ ROOT = Path(__file__).resolve().parents[1]
 SESSION = ROOT / "data" / "optiodom-omni3" / "circular" / "221220201730"
 
 
-def cli(*args: str) -> subprocess.CompletedProcess:
+def cli(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     return subprocess.run([sys.executable, "-m", "omni_gym.cli", *args], capture_output=True, text=True,
-                          env=env, cwd=ROOT, timeout=120)
+                          env=env, cwd=ROOT, timeout=timeout)
 
 
 @pytest.fixture(scope="module")
@@ -143,3 +143,50 @@ def test_calibrate_writes_the_model_gap_starts_from(tmp_path):
     for effect, params in started.items():
         for name, values in params.items():
             np.testing.assert_allclose(written[effect][name], values, rtol=1e-9, atol=1e-12, err_msg=effect)
+
+
+def test_gap_tracker_start_is_the_model_calibrate_tracker_writes(dataset, tmp_path):
+    """``gap --start tracker`` starts from what ``omni-gym calibrate --tracker`` writes: the same wheel radii,
+    length and tracked frame (1e-12 relative: one least-squares fit of the same rows in the same process
+    order). Each held-out fold starts from the calibration of the other runs alone, and the plain kinematic
+    calibration (no frame) stays the side-by-side baseline."""
+    from omni_gym.discrepancy.fit.kinematic_calibration import calibrate
+    from omni_gym.discrepancy.workflow import start_model
+
+    res = cli("calibrate", str(dataset), "--tracker", "--out", str(tmp_path / "frame.json"))
+    assert res.returncode == 0, res.stderr
+    written = json.loads((tmp_path / "frame.json").read_text())
+    ds = load_dataset(dataset)
+    first = start_model(ds, np.array([0, 1]), "tracker")
+    started = first.model.to_json()
+    assert first.kind == "tracker" and set(first.excluded) == {"wheel_radius", "wheel_geometry", "tracker_offset"}
+    assert started["effects"].keys() == written["effects"].keys() == {"wheel_radius", "wheel_geometry"}
+    for part in ("effects", "tracker"):
+        for effect, params in written[part].items():
+            for name, values in params.items():
+                np.testing.assert_allclose(started[part][effect][name], values, rtol=1e-12, atol=1e-15)
+    for k, fold in enumerate(first.fold_models):  # fold k is scored on run k: fitted on the other run
+        alone = calibrate([ds.runs[1 - k]], ds.model, tracker=True).model.to_json()
+        assert fold.to_json()["tracker"] == alone["tracker"] and fold.to_json()["effects"] == alone["effects"]
+    assert "tracker" not in first.kinematic_all.to_json() or not first.kinematic_all.to_json()["tracker"]
+
+
+@pytest.mark.slow  # about 100 s of CPU: a whole gap search (six candidates on two 17 s runs)
+def test_gap_cli_tracker_start_keeps_the_frame_in_model_json(dataset, tmp_path):
+    """``omni-gym gap --start tracker`` as a user runs it: the search starts from the joint calibration, keeps
+    its effects as fitted, says so in result.json and report.md, and model.json carries the tracked frame under
+    its ``tracker`` key (what ``omni-gym score`` applies) exactly as ``calibrate --tracker`` wrote it."""
+    assert cli("calibrate", str(dataset), "--tracker", "--out", str(tmp_path / "frame.json")).returncode == 0
+    done = cli("gap", str(dataset), "--start", "tracker", "--max-effects", "1", "--out", str(tmp_path / "rep"),
+               timeout=900)  # a search: 2-3 minutes on a busy 2-core machine
+    assert done.returncode == 0, done.stderr
+    assert "start: kinematic calibration with the tracked frame" in done.stderr
+    result = json.loads((tmp_path / "rep" / "result.json").read_text())
+    assert result["start"]["kind"] == "tracker"
+    assert set(result["start"]["kept_effects"]) == {"wheel_radius", "wheel_geometry", "tracker_offset"}
+    frame = json.loads((tmp_path / "frame.json").read_text())["tracker"]
+    model = json.loads((tmp_path / "rep" / "model.json").read_text())
+    assert model["tracker"]["tracker_offset"] == frame["tracker_offset"]
+    report = (tmp_path / "rep" / "report.md").read_text()
+    assert "kinematic calibration of the runs with the tracked frame" in report
+    assert "Tracker (measurement) effects (tracker_offset" in report

@@ -60,7 +60,7 @@ from omni_gym.physics.effects.base import Dim
 from omni_gym.physics.liftoff import contact_cases
 from omni_gym.physics.model import SimModel
 
-STARTS = ("nominal", "kinematic", "auto")  # gap's first model (``start``): see :func:`start_model`
+STARTS = ("nominal", "kinematic", "tracker", "auto")  # gap's first model (``start``): see :func:`start_model`
 KINEMATIC = "kinematic_calibration"  # the calibration's name as a hypothesis of the first step (_kinematic_fit)
 MAX_EFFECTS = 3  # most effects one gap run names (each step fits the whole library again)
 METRIC = ("held-out pose error beyond tracker noise [m]: sqrt(max(0, M - noise^2)), M the geometric mean over runs "
@@ -87,9 +87,11 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
     line's: the search starts from the dataset's model and, when every run has wheel odometry, the kinematic
     odometry calibration competes with the library's effects at the first step, scored on the same held-out
     folds; if it wins, the search goes on from it), ``nominal`` (the dataset's model, no calibration),
-    ``kinematic`` (the calibration insisted on; needs wheel odometry), or a given :class:`SimModel` (e.g. a
-    calibration made elsewhere: used for every fold as it is, its effects kept and not searched again; None:
-    ``auto``); :func:`start_model`.
+    ``kinematic`` (the calibration insisted on; needs wheel odometry), ``tracker`` (the calibration with the
+    tracked frame fitted jointly over whole runs, as ``omni-gym calibrate --tracker`` writes it: its wheel
+    diameters, size and ``tracker_offset`` kept, not searched again; needs wheel odometry), or a given
+    :class:`SimModel` (e.g. a calibration made elsewhere: used for every fold as it is, its effects kept and
+    not searched again; None: ``auto``); :func:`start_model`.
     ``settings``: the fit's, the event search's and the decision's settings (None: the defaults); recorded in
     full in result.json (``settings.fit``, ``settings.event_search``, ``settings.rules``).
     """
@@ -434,6 +436,8 @@ def _start_stage(opts: GapOptions, data: DataStage, say: Callable[[str], None]) 
     first = start_model(data.whole, data.fold_src, opts.start, opts.dt)
     if first.kind == "kinematic":
         say(f"start: kinematic calibration ({first.describe()})")
+    elif first.kind == "tracker":
+        say(f"start: kinematic calibration with the tracked frame ({first.describe()})")
     elif first.kind == "given":
         say("starting from the given model" + (f" (keeping its {', '.join(first.excluded)})" if first.excluded else ""))
     say(f"simulating the {first.kind} model")
@@ -700,7 +704,8 @@ HELDOUT_METRIC = ("whole-run open-loop position RMS [m] (Euclidean x, y error ov
 class StartModel:
     """gap's first model and, per held-out fold, the same model fitted without that fold's runs.
 
-    ``kind``: ``nominal``, ``kinematic`` or ``given`` (a model passed in); ``model``: fitted on all runs;
+    ``kind``: ``nominal``, ``kinematic``, ``tracker`` (the calibration with the tracked frame) or ``given`` (a
+    model passed in); ``model``: fitted on all runs;
     ``fold_models[k]``: fitted on the source runs outside fold k (the same model for every fold when ``kind``
     is nominal or given);
     ``excluded``: effects of a given start model, kept as they are (not searched again); ``refit``: the
@@ -727,8 +732,11 @@ class StartModel:
         c = self.calibration
         if c is None:
             return "nominal model"
+        t = c.get("tracker")
+        frame = ("" if t is None else f", tracked frame offset ({1e3 * t['offset'][0]:.1f}, "
+                 f"{1e3 * t['offset'][1]:.1f}) mm, yaw {1e3 * t['yaw']:.1f} mrad")
         return (f"D = [{', '.join(f'{1e3 * d:.2f}' for d in c['diameters'])}] mm, {c['size_name']} = "
-                f"{1e3 * c['L']:.2f} mm on all {c['runs']} runs")
+                f"{1e3 * c['L']:.2f} mm{frame} on all {c['runs']} runs")
 
     def to_json(self) -> dict:
         return {"kind": self.kind, "model": self.model.to_json(), "kept_effects": list(self.excluded),
@@ -779,10 +787,10 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
     nominal = ds.model
     K = int(fold_src.max()) + 1
     odometry = _has_odometry(ds)
-    if start == "kinematic" and not odometry:
+    if start in ("kinematic", "tracker") and not odometry:
         bad = next(r.name for r in ds.runs if r.enc is None or not np.all(np.isfinite(r.enc)))
         raise ValueError(f"{ds.path}: run {bad} has no complete wheel odometry (enc1 … enc{ds.n_wheels}): a "
-                         "kinematic start dead-reckons from measured wheel angles")
+                         f"{start} start dead-reckons from measured wheel angles")
     if not odometry:
         if isinstance(start, SimModel):
             return StartModel("given", nominal, start, [start] * K, excluded=tuple(start.effects),
@@ -794,8 +802,8 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
         fold_cals = [calibrate([r for r, f in zip(ds.runs, fold_src, strict=True) if f != k], nominal)
                      for k in range(K)]
     except ValueError as exc:  # e.g. no convergence on sparse observations
-        if start == "kinematic":
-            raise ValueError(f"{ds.path}: kinematic start: {exc}") from None
+        if start in ("kinematic", "tracker"):
+            raise ValueError(f"{ds.path}: {start} start: {exc}") from None
         first = start if isinstance(start, SimModel) else nominal
         return StartModel("given" if isinstance(start, SimModel) else "nominal", nominal, first, [first] * K,
                           excluded=tuple(start.effects) if isinstance(start, SimModel) else (),
@@ -806,6 +814,8 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
                           calibration=cal.to_json(), fold_calibrations=[c.to_json() for c in fold_cals],
                           kinematic_folds=kin_folds, kinematic_all=cal.model,
                           why="the model given (the same for every fold: fitted on which runs, gap cannot know)")
+    if start == "tracker":
+        return _tracker_start(ds, fold_src, nominal, cal, fold_cals)
     if start in ("nominal", "auto"):
         return StartModel("nominal", nominal, nominal, [nominal] * K, calibration=cal.to_json(),
                           fold_calibrations=[c.to_json() for c in fold_cals], kinematic_folds=kin_folds,
@@ -821,6 +831,27 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
                       kinematic_all=cal.model,
                       why="effects are searched on top of the kinematic calibration (fitted on each fold's "
                           "training runs for held-out scores)")
+
+
+def _tracker_start(ds: Dataset, fold_src: np.ndarray, nominal: SimModel, cal, fold_cals: list) -> StartModel:
+    """The ``tracker`` start: the kinematics and the tracked frame (offset, yaw) fitted jointly by dead
+    reckoning over whole runs (:func:`calibrate` with ``tracker=True``, what ``omni-gym calibrate --tracker``
+    writes), on all runs and on each fold's training runs. Its effects are kept as fitted (the search adds
+    others on top); the plain kinematic calibration ``cal``/``fold_cals`` stays the side-by-side baseline."""
+    K = len(fold_cals)
+    try:
+        joint = calibrate(ds.runs, nominal, tracker=True)
+        fold_joint = [calibrate([r for r, f in zip(ds.runs, fold_src, strict=True) if f != k], nominal,
+                                tracker=True) for k in range(K)]
+    except ValueError as exc:
+        raise ValueError(f"{ds.path}: tracker start: {exc}") from None
+    return StartModel("tracker", nominal, joint.model, [c.model for c in fold_joint],
+                      excluded=tuple(joint.model.effects), calibration=joint.to_json(),
+                      fold_calibrations=[c.to_json() for c in fold_joint],
+                      kinematic_folds=[c.model for c in fold_cals], kinematic_all=cal.model,
+                      why="effects are searched on top of the kinematic calibration with the tracked frame, fitted "
+                          "jointly over whole runs (on each fold's training runs for held-out scores; its "
+                          "effects are kept as fitted)")
 
 
 @dataclass(frozen=True)

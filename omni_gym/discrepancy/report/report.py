@@ -272,7 +272,8 @@ def _fitted_lines(result: dict) -> list[str]:
 
 def _model_json_lines(effect: str, effects: list[str], start: str | None = None) -> list[str]:
     """What model.json is for (``start``: result.json's ``start.kind``, the model the search began from)."""
-    base = "the kinematic calibration of the runs" if start == "kinematic" else "the nominal model"
+    base = {"kinematic": "the kinematic calibration of the runs",
+            "tracker": "the kinematic calibration of the runs with the tracked frame"}.get(start, "the nominal model")
     if effect == "kinematic_calibration" and not effects:
         what = "the kinematic calibration of the runs (effective wheel diameters and size), which explains the data"
     elif effect not in ("unexplained", "none"):
@@ -283,6 +284,8 @@ def _model_json_lines(effect: str, effects: list[str], start: str | None = None)
     else:
         what = f"{base} unchanged (no effect was named)"
     tracker = [e for e in effects if REGISTRY[e].kind == "tracker"]
+    if start == "tracker" and "tracker_offset" not in tracker:  # the start's tracked frame
+        tracker.insert(0, "tracker_offset")
     note = ([f"Tracker (measurement) effects ({', '.join(tracker)}) explain how the data were measured, not how "
              "the robot moves: model.json keeps them under its `tracker` key, which simulators and environments "
              "ignore.", ""] if tracker else [])
@@ -352,7 +355,7 @@ def _next_steps(result: dict) -> list[str]:
                     "(wheel_radius, com_offset), long runs (wheel_liftoff); more and longer runs, or a less noisy "
                     "tracker, make a small effect visible."]
         return out + [""]
-    started = (result.get("start") or {}).get("kind") == "kinematic"
+    started = (result.get("start") or {}).get("kind") in ("kinematic", "tracker")
     tried = next((r for r in result.get("ranking", []) if r["effect"] == "kinematic_calibration"), None)
     calibrate = f"`omni-gym calibrate {result['dataset']['path']} --out model.json`"
     if result["effect"] == "unexplained" and tried is not None and not started:
