@@ -212,6 +212,101 @@ class World:
         self.contact_processes = state["contact_processes"]
         self._next_switch_tick = state["next_switch_tick"]
 
+    # --- copying one robot's state into others (planners: rollouts from the true state) ------------
+
+    _ROBOT_ROWS = ("sp", "wp", "wheels", "contact", "ext_force", "force", "slip", "collided")
+
+    def copy_robot(self, source: World, j: int, robots: np.ndarray | list[int] | None = None,
+                   contacts: str = "hold") -> None:
+        """Make each robot of ``robots`` (default all) an exact copy of robot ``j`` of ``source``.
+
+        Copied: the parameters (the kernel's rows and the body's mass, moment and centre of gravity), the
+        body's pose in its arena frame and its velocity, every wheel state (angle, speed, command, PI
+        integral, load, the rigid-material memo), the contact mask, the external force, the collision flag
+        and the robot's local clock. ``source`` may be this world. Stepped with the same commands, a copy
+        reproduces the source robot bit for bit: arenas share one binade (:data:`ARENA_BASE`), so the local
+        pose moves between them exactly, and the body's internal centre of gravity is set directly, not
+        through pymunk's position setter (which adds the rotated offset, one rounding away).
+
+        ``contacts``: ``"hold"`` keeps the copied mask for as long as the copy runs (no contact process:
+        a planner that knows which wheels are up now, not when they will lift); ``"copy"`` gives each copy
+        an independent deep copy of the source's contact process, generator included (the source's future
+        lift-off schedule: the copy and the source switch on the same substeps).
+        """
+        import copy
+
+        if contacts not in ("hold", "copy"):
+            raise ValueError(f"contacts must be 'hold' or 'copy', got {contacts!r}")
+        if source.n_wheels != self.n_wheels or source.dt != self.dt or source.actuation != self.actuation:
+            raise ValueError("copy_robot: the worlds differ in wheel count, substep or actuation")
+        if not 0 <= j < source.n_robots:
+            raise IndexError(f"copy_robot: robot {j} out of range for a world of {source.n_robots}")
+        idx = np.arange(self.n_robots) if robots is None else np.asarray(robots, dtype=int).reshape(-1)
+        src = source.bodies[j]
+        cog = src.center_of_gravity
+        angle, vel, omega = src.angle, src.velocity, src.angular_velocity
+        # pymunk's position is the body origin, p − R(θ)·cog, one rounding from the internal centre of
+        # gravity p that it integrates. With cog set to 0 and the angle set again (which rebuilds the
+        # transform from p), the position reads p exactly; the same two steps put it back.
+        src.center_of_gravity = (0.0, 0.0)
+        src.angle = angle
+        p = src.position
+        src.center_of_gravity = cog
+        src.angle = angle
+        local = (p[0] - source.origins[j, 0], p[1] - source.origins[j, 1])  # exact: one binade
+        age = source.tick - int(source.start_tick[j])
+        proc = source.contact_processes[j]
+        for k in idx:
+            k = int(k)
+            if source is self and k == j:
+                continue
+            for name in self._ROBOT_ROWS:
+                getattr(self, name)[k] = getattr(source, name)[j]
+            body = self.bodies[k]
+            if body.mass != src.mass or body.moment != src.moment:  # a change makes pymunk re-check the body
+                body.mass = src.mass
+                body.moment = src.moment
+            body.center_of_gravity = (0.0, 0.0)
+            body.angle = angle
+            body.position = (self.origins[k, 0] + local[0], self.origins[k, 1] + local[1])
+            body.center_of_gravity = cog
+            body.angle = angle
+            body.velocity = vel
+            body.angular_velocity = omega
+            body.space.reindex_shapes_for_body(body)
+            self.models[k] = source.models[j]
+            self._load_cache[k] = dict(source._load_cache[j])
+            self.start_tick[k] = self.tick - age
+            self.contact_processes[k] = copy.deepcopy(proc) if contacts == "copy" and proc is not None else None
+            if self.contact_processes[k] is None:
+                self._switch_tick[k] = _NEVER
+            else:  # the source's pending switch, on this world's clock
+                pending = int(source._switch_tick[j])
+                self._switch_tick[k] = _NEVER if pending == _NEVER else pending - source.tick + self.tick
+        self._next_switch_tick = int(self._switch_tick.min())
+
+    def place(self, robots: np.ndarray | list[int], poses: np.ndarray, velocities: np.ndarray) -> None:
+        """Put robots at ``poses`` (k, 3) [m, m, rad] (geometric centre, arena frame) moving at ``velocities``
+        (k, 3): ẋ, ẏ [m/s] of the geometric centre (world frame) and ω [rad/s], as :attr:`pose` and
+        :attr:`velocity` read them. Wheel states, contacts and clocks are left as they are (a planner that
+        replaces a copied robot's pose by an estimate)."""
+        idx = np.asarray(robots, dtype=int).reshape(-1)
+        poses = np.asarray(poses, dtype=float).reshape(len(idx), 3)
+        velocities = np.asarray(velocities, dtype=float).reshape(len(idx), 3)
+        if not (np.all(np.isfinite(poses)) and np.all(np.isfinite(velocities))):
+            raise ValueError("place: poses and velocities must be finite")
+        for row, j in enumerate(idx):
+            body = self.bodies[j]
+            theta, om = poses[row, 2], velocities[row, 2]
+            cx, cy = self.sp[j, SP_CX], self.sp[j, SP_CY]
+            c, s = math.cos(theta), math.sin(theta)
+            rx, ry = c * cx - s * cy, s * cx + c * cy  # the centre of gravity's offset, world frame
+            body.angle = theta
+            body.position = (self.origins[j, 0] + poses[row, 0], self.origins[j, 1] + poses[row, 1])
+            body.velocity = (velocities[row, 0] - om * ry, velocities[row, 1] + om * rx)  # v_com = v + ω × ρ
+            body.angular_velocity = om
+            body.space.reindex_shapes_for_body(body)
+
     # --- construction ---------------------------------------------------------------------------
 
     def _build_space(self, models: list[SimModel]) -> None:
