@@ -110,3 +110,19 @@ def test_copy_robot_refuses_what_it_cannot_copy():
         World(load_model("phunopas2018", "carpet")).copy_robot(a, 2)
     with pytest.raises(ValueError, match="contacts must be"):
         World(load_model("phunopas2018", "carpet")).copy_robot(a, 0, contacts="future")
+
+
+def test_place_puts_a_robot_where_pose_and_velocity_then_read():
+    """``World.place`` takes what ``pose`` and ``velocity`` return (geometric centre, arena frame; world-frame
+    velocity): read back to rounding (1e-9 m: positions are stored at 2^20 m, ulp 2.3e-10 m), also with the
+    centre of gravity off the centre (where the body's own velocity differs from the centre's by ω × ρ)."""
+    model = load_model("phunopas2018", "carpet").with_effect("com_offset", {"com": [0.02, -0.015]})
+    w = World(model, n_robots=3)
+    poses = np.array([[0.4, -0.3, 2.5], [-1.0, 0.2, -0.7]])
+    vels = np.array([[0.3, -0.1, 1.5], [0.0, 0.2, -2.0]])
+    w.place([2, 0], poses, vels)
+    assert np.allclose(w.pose[[2, 0]], poses, rtol=0, atol=1e-9)
+    assert np.allclose(w.velocity[[2, 0]], vels, rtol=0, atol=1e-12)
+    assert np.array_equal(w.pose[1], np.zeros(3))  # the others stay
+    with pytest.raises(ValueError, match="finite"):
+        w.place([1], np.array([[np.nan, 0, 0]]), np.zeros((1, 3)))
