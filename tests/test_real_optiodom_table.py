@@ -15,17 +15,24 @@ from pathlib import Path
 import pytest
 
 RESULTS = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
+# The default run and the run with gap started from calibrate --tracker's joint fit (--start tracker).
+FOLDERS = [RESULTS, RESULTS / "start_tracker"]
 KEYS = ("nominal", "kinematic", "kinematic_tracker", "extended", "linear_map")  # the table's column order
 
 
-@pytest.fixture(scope="module")
-def record() -> dict:
-    return json.loads((RESULTS / "real_optiodom.json").read_text())
+@pytest.fixture(scope="module", params=FOLDERS, ids=["default", "start_tracker"])
+def folder(request) -> Path:
+    return request.param
 
 
 @pytest.fixture(scope="module")
-def table() -> str:
-    return (RESULTS / "real_optiodom.md").read_text()
+def record(folder) -> dict:
+    return json.loads((folder / "real_optiodom.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def table(folder) -> str:
+    return (folder / "real_optiodom.md").read_text()
 
 
 def rows(text: str) -> dict[tuple[str, str], list[str]]:
@@ -68,13 +75,17 @@ def test_goal_verdicts_and_linear_map_counts_follow_from_the_record(record, tabl
         assert f"(mean {sum(ratios) / len(ratios):.2f})" in section
 
 
-def test_named_effects_and_wall_time_are_gaps_own(record, table):
+def test_named_effects_and_wall_time_are_gaps_own(record, table, folder):
     for robot in record["robots"]:
-        gap = json.loads((RESULTS / f"real_optiodom_{robot['robot']}_gap.json").read_text())
+        gap = json.loads((folder / f"real_optiodom_{robot['robot']}_gap.json").read_text())
         section = table.split(f"### {robot['title']}")[1].split("###")[0]
         assert f"answer `{gap['effect']}` in {gap['work']['wall_s']:.0f} s" in section
         kept = [s for s in gap["steps"] if s["status"] in ("named", "partial")]
-        assert kept, "both robots' gap keeps one partial step (tracker_offset, mecanum_lateral)"
+        if folder == RESULTS:  # the default start keeps one partial step per robot
+            assert kept, "both robots' gap keeps one partial step (tracker_offset, mecanum_lateral)"
+        else:  # started from the joint fit, nothing more is kept, and the report says so
+            assert not kept and "no effect named: the extended model is gap's start model" in section
+            assert gap["start"]["kind"] == "tracker"
         for step in kept:
             # the model carries what is said: physics under "effects", the tracker part under "tracker"
             carried = {**gap["model"]["effects"], **gap["model"].get("tracker", {})}
