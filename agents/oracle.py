@@ -225,3 +225,34 @@ class MPPIOracle:
         w /= w.sum(axis=1, keepdims=True)
         self.plan = np.einsum("nk,nkha->nha", w, seqs)
         self.last_costs = J
+
+
+# --- names: the oracle as a policy of the benchmark tables ---------------------------------------------------
+
+ORACLE = "mppi oracle"  # the default OracleConfig, true state
+SENSOR_ORACLE = "mppi oracle, sensor-only"  # the default OracleConfig, state="ekf"
+
+
+def oracle_name(config: OracleConfig) -> str:
+    """The table name of an oracle: :data:`ORACLE` or :data:`SENSOR_ORACLE` for the default settings, with the
+    fields that differ appended (``"mppi oracle [horizon=1, samples=64]"``); :func:`oracle_config` reads it."""
+    base = SENSOR_ORACLE if config.state == "ekf" else ORACLE
+    default = OracleConfig(state=config.state)
+    diff = [f"{k}={getattr(config, k):g}" for k in OracleConfig.__dataclass_fields__
+            if k != "state" and getattr(config, k) != getattr(default, k)]
+    return base + (f" [{', '.join(diff)}]" if diff else "")
+
+
+def oracle_config(name: str) -> OracleConfig | None:
+    """The settings :func:`oracle_name` wrote into ``name``; None if ``name`` names no oracle."""
+    base, _, rest = name.partition(" [")
+    if base not in (ORACLE, SENSOR_ORACLE) or (rest and not rest.endswith("]")):
+        return None
+    kw: dict = {"state": "ekf" if base == SENSOR_ORACLE else "true"}
+    fields = OracleConfig.__dataclass_fields__
+    for item in filter(None, rest[:-1].split(", ")):
+        key, _, value = item.partition("=")
+        if key not in fields or key == "state":
+            return None
+        kw[key] = int(value) if fields[key].type in (int, "int") else float(value)
+    return OracleConfig(**kw)

@@ -43,6 +43,7 @@ from baselines import CONDITIONS, conditions  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from agents.normalised_score import FULL_ANCHOR, ZERO_ANCHOR, score_episodes  # noqa: E402
+from agents.oracle import ORACLE, SENSOR_ORACLE, oracle_config  # noqa: E402
 from agents.policies import POLICY_NAMES  # noqa: E402
 from agents.rollout import Episode  # noqa: E402
 from omni_gym.outputs import write_text_atomic  # noqa: E402
@@ -51,7 +52,7 @@ from omni_gym.parallel import backend_from_options, parallel_map  # noqa: E402
 MECANUM = "OmniPathFollow-Mecanum-v0"
 ENV_IDS = ("OmniPathFollow-WilliamsPaper-v0", "OmniPathFollow-Williams-v1", "OmniPathFollow-Phunopas-v0", MECANUM)
 RANDOM, TRUE_STATE = "random", "true-state law (k = 2/s)"
-SCRIPTED = (RANDOM, *POLICY_NAMES, TRUE_STATE)
+SCRIPTED = (RANDOM, *POLICY_NAMES, TRUE_STATE, ORACLE, SENSOR_ORACLE)
 
 
 class RandomPolicy:
@@ -79,7 +80,7 @@ class Cell:
     def key(self, seed: int) -> str:
         from rl_vs_baselines import policy_fingerprint
 
-        fp = self.policy if self.policy in SCRIPTED else policy_fingerprint(self.policy)
+        fp = self.policy if self.policy in SCRIPTED or oracle_config(self.policy) else policy_fingerprint(self.policy)
         return json.dumps([self.env_id, self.policy, fp, self.cond, seed, self.seconds])
 
     def env_kwargs(self) -> dict:
@@ -93,7 +94,13 @@ def run_cell(cell: Cell) -> tuple[Cell, list[Episode]]:
 
     kw = cell.env_kwargs()
     n = len(cell.seeds)
-    if cell.policy == TRUE_STATE:
+    oracle = oracle_config(cell.policy)
+    if oracle is not None:
+        from agents.oracle import MPPIOracle
+
+        venv = make_vector_env(cell.env_id, n, kw, obs_mode="sensors" if oracle.state == "ekf" else "state")
+        policy = MPPIOracle(venv, oracle)
+    elif cell.policy == TRUE_STATE:
         from agents.feedback_law import TrueStateFeedback
 
         venv = make_vector_env(cell.env_id, n, kw, obs_mode="state")
@@ -145,7 +152,7 @@ def label(policy: str, metas: dict) -> str:
     if policy in metas:
         name = Path(policy).name
         return f"{name} (privileged)" if metas[policy].get("obs_mode") == "state" else name
-    return f"{policy} (privileged)" if policy == TRUE_STATE else policy
+    return f"{policy} (privileged)" if policy in (TRUE_STATE, ORACLE) else policy
 
 
 def cell_text(eps: list[Episode], o: list[Episode], e: list[Episode]) -> str:

@@ -12,7 +12,8 @@ slip), the sensor-only oracle (the same planner from the EKF's estimate). Ratios
 paired-bootstrap intervals over seeds, the share of episodes in which the oracle beats ``ekf-pid``, and the
 oracle's compute per control step. A sweep of horizon and sample count on Phunopas under slip + lift-off
 (``--sweep-episodes`` seeds, the first of the held-out ones). Writes ``oracle.md``, ``oracle.json`` and
-``oracle.png`` into ``--out``; ``--cache`` keeps every finished cell, so an interrupted run resumes.
+``oracle.png`` into ``--out``. The episodes are ``benchmarks/normalised_score.py``'s cells (the same keys): with one
+``--cache`` file for both, an interrupted run resumes and the normalised score reuses every episode run here.
 """
 
 from __future__ import annotations
@@ -23,7 +24,6 @@ import os
 import shlex
 import sys
 import time
-from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 os.environ.setdefault("MPLBACKEND", "Agg")
@@ -31,101 +31,63 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
-from baselines import conditions  # noqa: E402
-from tqdm import tqdm  # noqa: E402
+from baselines import CONDITIONS  # noqa: E402
+from normalised_score import TRUE_STATE, Cell, run_all  # noqa: E402
 
 from agents.evaluate import paired_bootstrap_ratio  # noqa: E402
-from agents.oracle import OracleConfig  # noqa: E402
+from agents.oracle import ORACLE, SENSOR_ORACLE, OracleConfig, oracle_name  # noqa: E402
 from omni_gym.outputs import write_text_atomic  # noqa: E402
-from omni_gym.parallel import Backend, parallel_map  # noqa: E402
 
 ENV_IDS = ("OmniPathFollow-WilliamsPaper-v0", "OmniPathFollow-Williams-v1", "OmniPathFollow-Phunopas-v0",
            "OmniPathFollow-Mecanum-v0")
-CONDS = ("no slip", "slip", "slip + lift-off")
-LAW, ORACLE, SENSOR_ORACLE = "true-state law", "oracle", "sensor-only oracle"
+CONDS = tuple(CONDITIONS)
+LAW = TRUE_STATE
 SCRIPTED = ("ekf-pid", "ekf-pid-traction")
 # Issue 40's goal cells: where the sensor-only oracle is the bound students are judged against.
 GOAL_CELLS = {("OmniPathFollow-Phunopas-v0", "slip + lift-off"): "ekf-pid-traction",
               ("OmniPathFollow-Mecanum-v0", "slip + lift-off"): "ekf-pid-traction",
               ("OmniPathFollow-Williams-v1", "slip"): "ekf-pid"}
 SWEEP_CELL = ("OmniPathFollow-Phunopas-v0", "slip + lift-off")
-SWEEP = [{"horizon": h, "samples": 32} for h in (0.25, 1.0)] + [{"horizon": 0.5, "samples": k} for k in (8, 128)]
-
-
-@dataclass(frozen=True)
-class Cell:
-    env_id: str
-    cond: str
-    policy: str
-    seeds: tuple[int, ...]
-    seconds: float | None = None
-    oracle: dict | None = None  # OracleConfig fields that differ from the default
-
-    def key(self) -> str:
-        return json.dumps([self.env_id, self.cond, self.policy, self.seeds, self.seconds, self.oracle])
-
-
-def run_cell(cell: Cell) -> dict:
-    """The cell's episodes (all robots of one native vector env) and its wall time [s]."""
-    from agents.batched.policies import make_vector_policy
-    from agents.feedback_law import TrueStateFeedback
-    from agents.oracle import MPPIOracle
-    from agents.vector_rollout import make_vector_env, run_episodes_vector
-
-    kw = dict(conditions(cell.env_id)[cell.cond])
-    if cell.seconds is not None:
-        kw["episode_seconds"] = cell.seconds
-    n = len(cell.seeds)
-    sensors = cell.policy in SCRIPTED or cell.policy == SENSOR_ORACLE
-    venv = make_vector_env(cell.env_id, n, kw, obs_mode="sensors" if sensors else "state")
-    if cell.policy == LAW:
-        policy = TrueStateFeedback(venv)
-    elif cell.policy in (ORACLE, SENSOR_ORACLE):
-        state = "ekf" if cell.policy == SENSOR_ORACLE else "true"
-        policy = MPPIOracle(venv, replace(OracleConfig(state=state), **(cell.oracle or {})))
-    else:
-        policy = make_vector_policy(cell.policy, venv)
-    t0 = time.perf_counter()
-    eps = run_episodes_vector(venv, policy, cell.seeds)
-    wall = time.perf_counter() - t0
-    venv.close()
-    return {"key": cell.key(), "rmse": [e.tracking_rmse for e in eps], "lost": [bool(e.terminated) for e in eps],
-            "steps": int(sum(e.steps for e in eps)), "wall_s": wall, "robots": n}
+SWEEP = [OracleConfig(horizon=h) for h in (0.25, 1.0)] + [OracleConfig(samples=k) for k in (8, 128)]
+TIMING_STEPS = 100  # control steps of one robot timed per oracle (after 10 of warm-up)
 
 
 def cells_for(env_ids, seeds, sweep_seeds, seconds) -> list[Cell]:
+    """normalised_score's cells (same keys: one ``--cache`` file serves both benchmarks)."""
     cells = []
     for e in env_ids:
         for c in CONDS:
             for p in (*SCRIPTED, LAW, ORACLE):
-                cells.append(Cell(e, c, p, seeds, seconds))
+                cells.append(Cell(e, p, c, seeds, seconds))
             if (e, c) in GOAL_CELLS:
-                cells.append(Cell(e, c, SENSOR_ORACLE, seeds, seconds))
+                cells.append(Cell(e, SENSOR_ORACLE, c, seeds, seconds))
     if SWEEP_CELL[0] in env_ids:
-        for over in SWEEP:
-            cells.append(Cell(*SWEEP_CELL, ORACLE, sweep_seeds, seconds, over))
-        for p in (*SCRIPTED, ORACLE):  # the sweep's own reference rows on its seeds
-            cells.append(Cell(*SWEEP_CELL, p, sweep_seeds, seconds))
+        e, c = SWEEP_CELL
+        cells += [Cell(e, oracle_name(cfg), c, sweep_seeds, seconds) for cfg in SWEEP]
     return cells
 
 
-def run_all(cells: list[Cell], workers: int, cache: Path | None) -> dict[str, dict]:
-    stored = json.loads(cache.read_text()) if cache is not None and cache.is_file() else {}
-    todo = [c for c in cells if c.key() not in stored]
-    # Longest first (the oracles), so two workers finish together.
-    todo.sort(key=lambda c: (c.policy not in (ORACLE, SENSOR_ORACLE), -len(c.seeds)))
-    bar = tqdm(total=len(todo), desc="cells", file=sys.stderr, mininterval=0 if not sys.stderr.isatty() else 0.1)
+def step_time(env_id: str, cond: str, config: OracleConfig, seconds: float | None) -> float:
+    """Wall time [ms] per control step of the oracle driving one robot (a plan every ``replan`` steps spread
+    over them), as on a robot: mean over :data:`TIMING_STEPS` steps after 10 of warm-up, seed 10000."""
+    from baselines import conditions
 
-    def done(_i, result) -> None:
-        stored[result["key"]] = result
-        if cache is not None:  # after every cell: an interrupted run keeps what it finished
-            write_text_atomic(cache, json.dumps(stored))
-        bar.update(1)
+    from agents.oracle import MPPIOracle
+    from agents.vector_rollout import make_vector_env
 
-    if todo:
-        parallel_map(run_cell, todo, Backend(jobs=workers), on_done=done)
-    bar.close()
-    return stored
+    kw = dict(conditions(env_id)[cond])
+    if seconds is not None:
+        kw["episode_seconds"] = max(seconds, 1.5)
+    env = make_vector_env(env_id, 1, kw, obs_mode="sensors" if config.state == "ekf" else "state")
+    obs, _ = env.reset(seed=10_000)
+    oracle = MPPIOracle(env, config)
+    oracle.reset(obs)
+    for k in range(10 + TIMING_STEPS):
+        if k == 10:
+            t0 = time.perf_counter()
+        obs, *_ = env.step(oracle.act(obs))
+    env.close()
+    return 1e3 * (time.perf_counter() - t0) / TIMING_STEPS
 
 
 def ratio_text(num, den, rng) -> tuple[str, dict]:
@@ -135,42 +97,34 @@ def ratio_text(num, den, rng) -> tuple[str, dict]:
     return f"{r:.2f} [{ci[0]:.2f}, {ci[1]:.2f}]", {"ratio": r, "ci95": ci}
 
 
-def summarise(cells: list[Cell], stored: dict, env_ids, seeds) -> dict:
-    get = {(c.env_id, c.cond, c.policy, json.dumps(c.oracle), len(c.seeds)): stored[c.key()] for c in cells}
+def summarise(eps: dict, env_ids, seeds, sweep_seeds, seconds) -> dict:
     rng = np.random.default_rng(0)
+    rmse = {k: np.array([e.tracking_rmse for e in v]) for k, v in eps.items()}
+    lost = {k: int(sum(e.terminated for e in v)) for k, v in eps.items()}
     rows = []
     for e in env_ids:
         for c in CONDS:
-            r = {p: get[(e, c, p, "null", len(seeds))] for p in (*SCRIPTED, LAW, ORACLE)}
-            if (e, c) in GOAL_CELLS:
-                r[SENSOR_ORACLE] = get[(e, c, SENSOR_ORACLE, "null", len(seeds))]
-            o = np.asarray(r[ORACLE]["rmse"])
-            row = {"env_id": e, "condition": c, "rmse_mm": {p: 1e3 * float(np.mean(v["rmse"])) for p, v in r.items()},
-                   "lost": {p: int(sum(v["lost"])) for p, v in r.items()},
-                   "oracle_better_than_ekf_pid": float(np.mean(o < np.asarray(r["ekf-pid"]["rmse"]))),
-                   "ms_per_step": {p: 1e3 * r[p]["wall_s"] / r[p]["steps"] for p in r if p in (ORACLE, SENSOR_ORACLE)}}
-            for name, (num, den) in {"oracle / ekf-pid": (ORACLE, "ekf-pid"), "oracle / law": (ORACLE, LAW),
-                                     "oracle / ekf-pid-traction": (ORACLE, "ekf-pid-traction"),
-                                     "sensor-only oracle / ekf-pid": (SENSOR_ORACLE, "ekf-pid"),
-                                     "sensor-only oracle / ekf-pid-traction": (SENSOR_ORACLE, "ekf-pid-traction"),
-                                     "sensor-only oracle / oracle": (SENSOR_ORACLE, ORACLE)}.items():
+            names = [*SCRIPTED, LAW, ORACLE] + ([SENSOR_ORACLE] if (e, c) in GOAL_CELLS else [])
+            r = {p: rmse[(e, p, c)] for p in names}
+            row = {"env_id": e, "condition": c, "rmse_mm": {p: 1e3 * float(v.mean()) for p, v in r.items()},
+                   "lost": {p: lost[(e, p, c)] for p in names},
+                   "oracle_better_than_ekf_pid": float(np.mean(r[ORACLE] < r["ekf-pid"])),
+                   "ms_per_step": step_time(e, c, OracleConfig(), seconds), "text": {}, "ratios": {}}
+            for num, den in ((ORACLE, "ekf-pid"), (ORACLE, LAW), (ORACLE, "ekf-pid-traction"),
+                             (SENSOR_ORACLE, "ekf-pid"), (SENSOR_ORACLE, "ekf-pid-traction"), (SENSOR_ORACLE, ORACLE)):
                 if num in r:
-                    row.setdefault("text", {})[name], row.setdefault("ratios", {})[name] = ratio_text(
-                        r[num]["rmse"], r[den]["rmse"], rng)
+                    row["text"][f"{num} / {den}"], row["ratios"][f"{num} / {den}"] = ratio_text(r[num], r[den], rng)
             rows.append(row)
     sweep = []
-    sweep_cells = [c for c in cells if (c.env_id, c.cond) == SWEEP_CELL and len(c.seeds) != len(seeds)]
-    if sweep_cells:
-        n = len(sweep_cells[0].seeds)
-        ref = {p: get[(*SWEEP_CELL, p, "null", n)] for p in (*SCRIPTED, ORACLE)}
-        default = asdict(OracleConfig())
-        for over in [None, *SWEEP]:
-            res = ref[ORACLE] if over is None else get[(*SWEEP_CELL, ORACLE, json.dumps(over), n)]
-            cfg = {**default, **(over or {})}
-            text, num = ratio_text(res["rmse"], ref["ekf-pid"]["rmse"], rng)
-            sweep.append({"horizon": cfg["horizon"], "samples": cfg["samples"], "rmse_mm": 1e3 * np.mean(res["rmse"]),
-                          "oracle / ekf-pid": text, "ratio": num,
-                          "ms_per_step": 1e3 * res["wall_s"] / res["steps"]})
+    if SWEEP_CELL[0] in env_ids:
+        e, c = SWEEP_CELL
+        n = len(sweep_seeds)
+        ekf = rmse[(e, "ekf-pid", c)][:n]  # the first seeds of the table's cells: the sweep's own
+        for cfg in [OracleConfig(), *SWEEP]:
+            res = rmse[(e, ORACLE, c)][:n] if cfg == OracleConfig() else rmse[(e, oracle_name(cfg), c)]
+            text, num = ratio_text(res, ekf, rng)
+            sweep.append({"horizon": cfg.horizon, "samples": cfg.samples, "rmse_mm": 1e3 * float(res.mean()),
+                          "oracle / ekf-pid": text, "ratio": num, "ms_per_step": step_time(e, c, cfg, seconds)})
     return {"rows": rows, "sweep": sweep}
 
 
@@ -183,9 +137,9 @@ def markdown(summary: dict, command: str, seeds, wall_s: float, sweep_n: int) ->
              f"{cfg.replan} control steps, rollouts = the true-state law plus smooth corrections); sensor-only "
              "oracle: the same planner from the EKF's estimate (it still knows the episode's model and floor, not "
              "which wheels are up). Ratios: of mean RMSE, [95 % paired bootstrap over seeds]. 'better': share of "
-             "episodes in which the oracle's RMSE is below ekf-pid's. Compute: wall time per control step per robot "
-             "(the batch's wall time ÷ the robot-steps it ran; a plan every few steps spread over them; one core of "
-             "a 2-core machine running 2 workers). Lost episodes (tracking error beyond "
+             "episodes in which the oracle's RMSE is below ekf-pid's. Compute: wall time per control step of the "
+             f"oracle driving one robot (as on a robot; mean over {TIMING_STEPS} steps, a plan every "
+             f"{OracleConfig().replan} of them; one core of this 2-core machine). Lost episodes (tracking error beyond "
              "`lost_distance` or a wall) end early; their RMSE is over the steps they ran.", ""]
     lines += ["| id | condition | ekf-pid | ekf-pid-traction | law | oracle | oracle ÷ ekf-pid | oracle ÷ law | "
               "better | sensor-only oracle | sensor-only ÷ ekf-pid(-traction) | lost (ekf-pid / oracle) | "
@@ -194,11 +148,11 @@ def markdown(summary: dict, command: str, seeds, wall_s: float, sweep_n: int) ->
         m, t = r["rmse_mm"], r["text"]
         goal = GOAL_CELLS.get((r["env_id"], r["condition"]))
         sens = f"{m[SENSOR_ORACLE]:.1f}" if SENSOR_ORACLE in m else ""
-        sens_ratio = t.get(f"sensor-only oracle / {goal}", "") + (f" (÷ {goal})" if goal else "")
+        sens_ratio = t.get(f"{SENSOR_ORACLE} / {goal}", "") + (f" (÷ {goal})" if goal else "")
         lines.append(f"| {r['env_id'].removeprefix('OmniPathFollow-')} | {r['condition']} | {m['ekf-pid']:.1f} | "
-                     f"{m['ekf-pid-traction']:.1f} | {m[LAW]:.1f} | {m[ORACLE]:.1f} | {t['oracle / ekf-pid']} | "
-                     f"{t['oracle / law']} | {100 * r['oracle_better_than_ekf_pid']:.0f} % | {sens} | {sens_ratio} | "
-                     f"{r['lost']['ekf-pid']} / {r['lost'][ORACLE]} | {r['ms_per_step'][ORACLE]:.1f} |")
+                     f"{m['ekf-pid-traction']:.1f} | {m[LAW]:.1f} | {m[ORACLE]:.1f} | {t[ORACLE + ' / ekf-pid']} | "
+                     f"{t[ORACLE + ' / ' + LAW]} | {100 * r['oracle_better_than_ekf_pid']:.0f} % | {sens} | "
+                     f"{sens_ratio} | {r['lost']['ekf-pid']} / {r['lost'][ORACLE]} | {r['ms_per_step']:.1f} |")
     if summary["sweep"]:
         lines += ["", f"## Horizon and samples ({SWEEP_CELL[0]}, {SWEEP_CELL[1]}, {sweep_n} episodes)", "",
                   "| horizon [s] | samples | RMSE [mm] | oracle ÷ ekf-pid | ms/step |", "|---|---|---|---|---|"]
@@ -216,8 +170,8 @@ def plot(summary: dict, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(10, 4.5))
     labels = [f"{r['env_id'].removeprefix('OmniPathFollow-')}\n{r['condition']}" for r in rows]
     x = np.arange(len(rows))
-    for k, (name, key) in enumerate([("oracle ÷ ekf-pid", "oracle / ekf-pid"), ("oracle ÷ law", "oracle / law"),
-                                     ("sensor-only oracle ÷ ekf-pid", "sensor-only oracle / ekf-pid")]):
+    for k, (name, key) in enumerate([("oracle ÷ ekf-pid", f"{ORACLE} / ekf-pid"), ("oracle ÷ law", f"{ORACLE} / {LAW}"),
+                                     ("sensor-only oracle ÷ ekf-pid", f"{SENSOR_ORACLE} / ekf-pid")]):
         vals = [r["ratios"].get(key) for r in rows]
         xs = [xi + (k - 1) * 0.27 for xi, v in zip(x, vals, strict=True) if v is not None]
         ys = [v["ratio"] for v in vals if v is not None]
@@ -245,16 +199,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--episode-seconds", type=float, default=None, help="shorter episodes for a quick check")
     ap.add_argument("--out", type=Path, required=True)
     args = ap.parse_args(argv)
-    if args.episodes < 2 or args.sweep_episodes < 2 or args.sweep_episodes == args.episodes or args.workers < 1:
-        ap.error("--episodes and --sweep-episodes must be >= 2 and differ; --workers >= 1")
+    if not 2 <= args.sweep_episodes <= args.episodes or args.workers < 1:
+        ap.error("need 2 <= --sweep-episodes <= --episodes and --workers >= 1")
     seeds = tuple(range(args.seed, args.seed + args.episodes))
-    sweep_seeds = seeds[:args.sweep_episodes] if args.sweep_episodes < args.episodes else tuple(
-        range(args.seed, args.seed + args.sweep_episodes))
+    sweep_seeds = seeds[:args.sweep_episodes]
     cells = cells_for(args.envs, seeds, sweep_seeds, args.episode_seconds)
     command = "python benchmarks/oracle.py " + shlex.join(argv if argv is not None else sys.argv[1:])
     t0 = time.time()
-    stored = run_all(cells, args.workers, args.cache)
-    summary = summarise(cells, stored, args.envs, seeds)
+    eps = run_all(cells, args.workers, args.cache)
+    summary = summarise(eps, args.envs, seeds, sweep_seeds, args.episode_seconds)
     args.out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(args.out / "oracle.md", markdown(summary, command, seeds, time.time() - t0, len(sweep_seeds)))
     write_text_atomic(args.out / "oracle.json", json.dumps({"command": command, **summary}, indent=1) + "\n")
