@@ -87,3 +87,17 @@ def test_bad_settings_are_refused_in_one_line():
     env = make_vector_env(PHUNOPAS, 1, {"episode_seconds": 1.0}, obs_mode="state")
     with pytest.raises(ValueError, match="obs_mode='sensors'"):
         MPPIOracle(env, OracleConfig(state="ekf"))
+
+
+def test_table_names_round_trip_and_name_nothing_else():
+    """The benchmark tables name oracles by their settings (``oracle_name``); ``oracle_config`` must read back the
+    same settings, or a cached cell would be scored as another oracle's."""
+    from agents.oracle import ORACLE, SENSOR_ORACLE, oracle_config, oracle_name
+
+    for cfg in (OracleConfig(), OracleConfig(state="ekf"), OracleConfig(horizon=1.0, samples=64),
+                OracleConfig(noise=0.05, replan=1, state="ekf")):
+        assert oracle_config(oracle_name(cfg)) == cfg
+    assert oracle_name(OracleConfig()) == ORACLE and oracle_name(OracleConfig(state="ekf")) == SENSOR_ORACLE
+    assert oracle_name(OracleConfig(samples=64)) == "mppi oracle [samples=64]"
+    for other in ("ekf-pid", "mppi oracle [bogus=1]", "mppi oracle [samples=64", "mppi oracle [state=ekf]"):
+        assert oracle_config(other) is None
