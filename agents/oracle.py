@@ -38,7 +38,7 @@ from omni_gym.angles import wrap_angle
 from omni_gym.envs.core import apply_actions
 from omni_gym.physics.world import World
 
-STATES = ("true", "ekf")  # where the planner's start state comes from (OracleConfig.state)
+STATES = ("true", "noisy", "ekf")  # where the planner's start state comes from (OracleConfig.state)
 LADDER = np.array([1.0, 1 / 3, 1 / 10, 1 / 30])  # perturbation scales, × OracleConfig.noise
 WALL_COST = 1e3  # m²: a rollout that touches a wall loses to any that does not (tracking costs are < 1 m²·H)
 
@@ -52,7 +52,10 @@ class OracleConfig:
     ``max_speed`` or ``max_yaw_rate``); temperature: λ as a fraction of the cost spread; replan: control steps
     between plans (the plan's corrections are followed in between); heading_lever [m]: weight of the heading
     error; gain [1/s]: the rollout law's k; correlation [s]: the perturbations' correlation time; state:
-    ``"true"`` (privileged: the true pose, velocity and contact mask) or ``"ekf"`` (sensor-only: pose and
+    ``"true"`` (privileged: the true pose, velocity and contact mask), ``"noisy"`` (the true state plus the
+    sensors' noise at every control step: the camera's position and heading noise, the gyro's on ω; what
+    estimation could give at best with these sensors, without their 10 Hz rate, biases or slip) or ``"ekf"``
+    (sensor-only: pose and
     velocity from :class:`agents.batched.estimation.BatchEKF` on the ``sensors`` observation, every wheel
     assumed down; the episode's model and floor are still known, as a calibrated simulator would know them);
     seed: the perturbations' Generator.
@@ -104,6 +107,7 @@ class MPPIOracle:
         w = core.world
         self.planner = World(w.models[0], n_robots=self.N * self.K, dt=w.dt, actuation=w.actuation, arena=w.arena)
         self.rng = np.random.default_rng(config.seed)
+        self.state_rng = np.random.default_rng([config.seed, 1])  # ``noisy``: its own stream
         self.plan = np.zeros((self.N, self.H, 3))
         self.steps = 0  # control steps taken: every robot is planned for together, every ``replan`` steps
         self._clipped = np.zeros((self.N * self.K, 3))
@@ -138,7 +142,15 @@ class MPPIOracle:
         """What the planner starts from: (N, 3) poses [m, m, rad] and (N, 3) velocities ẋ, ẏ [m/s] (world
         frame), ω [rad/s]; the true ones or the EKF's (``OracleConfig.state``)."""
         if self.ekf is None:
-            return self.core.true[:, 0:3].copy(), self.core.true[:, 3:6].copy()
+            pose, vel = self.core.true[:, 0:3].copy(), self.core.true[:, 3:6].copy()
+            if self.config.state == "noisy":
+                sc = self.core.sensor_config
+                scale = self.core.sensor_noise_scale  # per robot (randomize_sensor_noise), 1 by default
+                z = self.state_rng.normal(size=(self.N, 4))
+                pose[:, 0:2] += z[:, 0:2] * (sc.camera_position_std * scale)[:, None]
+                pose[:, 2] = wrap_angle(pose[:, 2] + z[:, 2] * sc.camera_heading_std * scale)
+                vel[:, 2] += z[:, 3] * sc.gyro_noise_std * scale
+            return pose, vel
         pose, twist = self.ekf.pose, self.ekf.body_twist
         c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
         return pose, np.column_stack([c * twist[:, 0] - s * twist[:, 1], s * twist[:, 0] + c * twist[:, 1],
@@ -186,7 +198,7 @@ class MPPIOracle:
         for i in range(N):
             copies = np.arange(i * K, (i + 1) * K)
             planner.copy_robot(core.world, int(i), copies, contacts="hold")
-            if self.ekf is not None:  # the estimate replaces the true state; the lifted wheels are unknown
+            if self.config.state != "true":  # the estimate replaces the true state; the lifted wheels are unknown
                 planner.place(copies, np.tile(pose[i], (K, 1)), np.tile(vel[i], (K, 1)))
                 for k in copies:
                     planner.set_contact(int(k), down)
@@ -234,12 +246,15 @@ class MPPIOracle:
 
 ORACLE = "mppi oracle"  # the default OracleConfig, true state
 SENSOR_ORACLE = "mppi oracle, sensor-only"  # the default OracleConfig, state="ekf"
+NOISY_ORACLE = "mppi oracle, true state + noise"  # the default OracleConfig, state="noisy"
+_NAMES = {"true": ORACLE, "ekf": SENSOR_ORACLE, "noisy": NOISY_ORACLE}
 
 
 def oracle_name(config: OracleConfig) -> str:
-    """The table name of an oracle: :data:`ORACLE` or :data:`SENSOR_ORACLE` for the default settings, with the
-    fields that differ appended (``"mppi oracle [horizon=1, samples=64]"``); :func:`oracle_config` reads it."""
-    base = SENSOR_ORACLE if config.state == "ekf" else ORACLE
+    """The table name of an oracle: :data:`ORACLE`, :data:`NOISY_ORACLE` or :data:`SENSOR_ORACLE` by its state,
+    with the fields that differ from the defaults appended (``"mppi oracle [horizon=1, samples=64]"``);
+    :func:`oracle_config` reads it."""
+    base = _NAMES[config.state]
     default = OracleConfig(state=config.state)
     diff = [f"{k}={getattr(config, k):g}" for k in OracleConfig.__dataclass_fields__
             if k != "state" and getattr(config, k) != getattr(default, k)]
@@ -249,9 +264,10 @@ def oracle_name(config: OracleConfig) -> str:
 def oracle_config(name: str) -> OracleConfig | None:
     """The settings :func:`oracle_name` wrote into ``name``; None if ``name`` names no oracle."""
     base, _, rest = name.partition(" [")
-    if base not in (ORACLE, SENSOR_ORACLE) or (rest and not rest.endswith("]")):
+    states = {v: k for k, v in _NAMES.items()}
+    if base not in states or (rest and not rest.endswith("]")):
         return None
-    kw: dict = {"state": "ekf" if base == SENSOR_ORACLE else "true"}
+    kw: dict = {"state": states[base]}
     fields = OracleConfig.__dataclass_fields__
     for item in filter(None, rest[:-1].split(", ")):
         key, _, value = item.partition("=")

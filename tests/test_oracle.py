@@ -79,6 +79,31 @@ def test_the_sensor_only_oracle_starts_from_the_ekf_estimate():
     assert sensed.mean() < 3.0 * privileged.mean()
 
 
+def test_the_noisy_oracle_plans_from_the_true_state_plus_the_sensors_noise():
+    """``state="noisy"``: each control step's start state is the true pose plus the camera's noise (SensorConfig
+    defaults: σ 5 mm,
+    0.02 rad) and ω plus the gyro's: the differences over 30 steps have those standard deviations (within
+    50 %: 60 draws per axis), and the draws come from the seed."""
+    def run(seed: int) -> np.ndarray:
+        env = make_vector_env(PHUNOPAS, 2, {"surface": "carpet", "episode_seconds": 1.0}, obs_mode="state")
+        obs, _ = env.reset(seed=[7, 8])
+        oracle = MPPIOracle(env, OracleConfig(samples=4, state="noisy", seed=seed))
+        oracle.reset(obs)
+        diffs = []
+        for _ in range(30):
+            pose, vel = oracle.state()
+            core = env.unwrapped.core
+            diffs.append(np.column_stack([pose - core.true[:, 0:3], vel - core.true[:, 3:6]]))
+            obs, *_ = env.step(oracle.act(obs))
+        return np.concatenate(diffs)
+
+    d = run(0)
+    assert np.std(d[:, 0:2]) == pytest.approx(0.005, rel=0.5)
+    assert np.std(d[:, 2]) == pytest.approx(0.02, rel=0.5)
+    assert np.std(d[:, 5]) == pytest.approx(0.005, rel=0.5) and np.all(d[:, 3:5] == 0)
+    assert not np.array_equal(d, run(1))
+
+
 def test_bad_settings_are_refused_in_one_line():
     with pytest.raises(ValueError, match="invalid OracleConfig samples=1"):
         OracleConfig(samples=1)
@@ -94,8 +119,8 @@ def test_table_names_round_trip_and_name_nothing_else():
     same settings, or a cached cell would be scored as another oracle's."""
     from agents.oracle import ORACLE, SENSOR_ORACLE, oracle_config, oracle_name
 
-    for cfg in (OracleConfig(), OracleConfig(state="ekf"), OracleConfig(horizon=1.0, samples=64),
-                OracleConfig(noise=0.05, replan=1, state="ekf")):
+    for cfg in (OracleConfig(), OracleConfig(state="ekf"), OracleConfig(state="noisy"),
+                OracleConfig(horizon=1.0, samples=64), OracleConfig(noise=0.05, replan=1, state="ekf")):
         assert oracle_config(oracle_name(cfg)) == cfg
     assert oracle_name(OracleConfig()) == ORACLE and oracle_name(OracleConfig(state="ekf")) == SENSOR_ORACLE
     assert oracle_name(OracleConfig(samples=64)) == "mppi oracle [samples=64]"
