@@ -192,7 +192,7 @@ def plot(summary: dict, path: Path) -> None:
             ax.bar(xs, ys, 0.27, yerr=err, capsize=2, label=name)
     ax.axhline(1.0, color="k", lw=0.8)
     ax.set_xticks(x, labels, fontsize=7, rotation=45, ha="right")
-    ax.set_ylabel("ratio of mean tracking RMSE (below 1: the oracle tracks better)")
+    ax.set_ylabel("mean tracking RMSE ratio\n(below 1: the oracle tracks better)")
     ax.set_title("The MPPI oracle against ekf-pid and the true-state law (95 % paired-bootstrap intervals)")
     ax.legend(fontsize=8)
     fig.tight_layout()
