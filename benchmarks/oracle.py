@@ -7,7 +7,7 @@ Per drivable id and condition (the three of ``benchmarks/baselines.py``), on the
 paired: every policy runs the same references, floors, lift-off schedules and sensor noise), the mean
 tracking RMSE [mm] of ``ekf-pid``, ``ekf-pid-traction``, the true-state law (k = 2/s), the privileged oracle
 (MPPI with the default :class:`agents.oracle.OracleConfig`: 0.5 s horizon, 32 samples, a plan every 5 control
-steps) and, in the cells of issue 40's goals (Phunopas and Mecanum under slip + lift-off, Williams-v1 under
+steps) and, in the cells of the students' goals (Phunopas and Mecanum under slip + lift-off, Williams-v1 under
 slip), the sensor-only oracle (the same planner from the EKF's estimate). Ratios of mean RMSE with 95 %
 paired-bootstrap intervals over seeds, the share of episodes in which the oracle beats ``ekf-pid``, and the
 oracle's compute per control step. A sweep of horizon and sample count on Phunopas under slip + lift-off
@@ -43,7 +43,7 @@ ENV_IDS = ("OmniPathFollow-WilliamsPaper-v0", "OmniPathFollow-Williams-v1", "Omn
 CONDS = tuple(CONDITIONS)
 LAW = TRUE_STATE
 SCRIPTED = ("ekf-pid", "ekf-pid-traction")
-# Issue 40's goal cells: where the sensor-only oracle is the bound students are judged against.
+# The students' goal cells: where the sensor-only oracle is the bound students are judged against.
 GOAL_CELLS = {("OmniPathFollow-Phunopas-v0", "slip + lift-off"): "ekf-pid-traction",
               ("OmniPathFollow-Mecanum-v0", "slip + lift-off"): "ekf-pid-traction",
               ("OmniPathFollow-Williams-v1", "slip"): "ekf-pid"}
