@@ -78,10 +78,10 @@ class OracleConfig:
                   "noise": self.noise > 0 and math.isfinite(self.noise),
                   "temperature": self.temperature > 0 and math.isfinite(self.temperature),
                   "replan": isinstance(self.replan, int) and self.replan >= 1,
-                  "heading_lever": self.heading_lever >= 0 and math.isfinite(self.heading_lever)}
-        checks["state"] = self.state in STATES
-        checks["gain"] = self.gain >= 0 and math.isfinite(self.gain)
-        checks["correlation"] = self.correlation > 0 and math.isfinite(self.correlation)
+                  "heading_lever": self.heading_lever >= 0 and math.isfinite(self.heading_lever),
+                  "gain": self.gain >= 0 and math.isfinite(self.gain),
+                  "correlation": self.correlation > 0 and math.isfinite(self.correlation),
+                  "state": self.state in STATES}
         bad = [k for k, ok in checks.items() if not ok]
         if bad:
             raise ValueError(f"invalid OracleConfig {bad[0]}={getattr(self, bad[0])!r}: horizon, noise, temperature "
@@ -111,7 +111,6 @@ class MPPIOracle:
         self.plan = np.zeros((self.N, self.H, 3))
         self.steps = 0  # control steps taken: every robot is planned for together, every ``replan`` steps
         self._clipped = np.zeros((self.N * self.K, 3))
-        self.last_costs: np.ndarray | None = None  # (N, K) of the last plan, for diagnostics
         self.ekf = None
         if config.state == "ekf":
             from agents.batched.estimation import BatchEKF
@@ -239,7 +238,6 @@ class MPPIOracle:
         w = np.exp(-(J - lo) / lam)
         w /= w.sum(axis=1, keepdims=True)
         self.plan = np.einsum("nk,nkha->nha", w, seqs)
-        self.last_costs = J
 
 
 # --- names: the oracle as a policy of the benchmark tables ---------------------------------------------------

@@ -798,9 +798,7 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
         return StartModel("nominal", nominal, nominal, [nominal] * K,
                           why="the runs have no wheel odometry: no kinematic calibration")
     try:
-        cal = calibrate(ds.runs, nominal)
-        fold_cals = [calibrate([r for r, f in zip(ds.runs, fold_src, strict=True) if f != k], nominal)
-                     for k in range(K)]
+        cal, fold_cals = _calibrations(ds, fold_src, nominal, tracker=False)
     except ValueError as exc:  # e.g. no convergence on sparse observations
         if start in ("kinematic", "tracker"):
             raise ValueError(f"{ds.path}: {start} start: {exc}") from None
@@ -833,16 +831,22 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
                           "training runs for held-out scores)")
 
 
+def _calibrations(ds: Dataset, fold_src: np.ndarray, nominal: SimModel, tracker: bool) -> tuple:
+    """The kinematic calibration (with the tracked frame when ``tracker``) on all runs of ``ds``, and on each
+    fold's training runs (the runs outside fold k); ValueError as :func:`calibrate`."""
+    whole = calibrate(ds.runs, nominal, tracker=tracker)
+    folds = [calibrate([r for r, f in zip(ds.runs, fold_src, strict=True) if f != k], nominal, tracker=tracker)
+             for k in range(int(fold_src.max()) + 1)]
+    return whole, folds
+
+
 def _tracker_start(ds: Dataset, fold_src: np.ndarray, nominal: SimModel, cal, fold_cals: list) -> StartModel:
     """The ``tracker`` start: the kinematics and the tracked frame (offset, yaw) fitted jointly by dead
     reckoning over whole runs (:func:`calibrate` with ``tracker=True``, what ``omni-gym calibrate --tracker``
     writes), on all runs and on each fold's training runs. Its effects are kept as fitted (the search adds
     others on top); the plain kinematic calibration ``cal``/``fold_cals`` stays the side-by-side baseline."""
-    K = len(fold_cals)
     try:
-        joint = calibrate(ds.runs, nominal, tracker=True)
-        fold_joint = [calibrate([r for r, f in zip(ds.runs, fold_src, strict=True) if f != k], nominal,
-                                tracker=True) for k in range(K)]
+        joint, fold_joint = _calibrations(ds, fold_src, nominal, tracker=True)
     except ValueError as exc:
         raise ValueError(f"{ds.path}: tracker start: {exc}") from None
     return StartModel("tracker", nominal, joint.model, [c.model for c in fold_joint],

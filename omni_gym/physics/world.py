@@ -214,7 +214,8 @@ class World:
 
     # --- copying one robot's state into others (planners: rollouts from the true state) ------------
 
-    _ROBOT_ROWS = ("sp", "wp", "wheels", "contact", "ext_force", "force", "slip", "collided")
+    # Every per-robot state array but the clocks, which copy_robot moves onto this world's tick.
+    _ROBOT_ROWS = tuple(k for k in _STATE_ARRAYS if k not in ("start_tick", "_switch_tick"))
 
     def copy_robot(self, source: World, j: int, robots: np.ndarray | list[int] | None = None,
                    contacts: str = "hold") -> None:

@@ -62,7 +62,8 @@ def markdown(result: dict, figures: list[str]) -> str:
                   for f in flags] + [""]
     lines += _steps_lines(result)
     lines += _identifiability_lines(result.get("identifiability"))
-    lines += _model_json_lines(effect, result.get("effects") or [], (result.get("start") or {}).get("kind"))
+    start = result.get("start") or {}
+    lines += _model_json_lines(effect, result.get("effects") or [], start.get("kind"), start.get("kept_effects") or [])
     if effect in ("unexplained", "none"):
         lines += _next_steps(result)
     if result.get("non_finite"):
@@ -270,8 +271,10 @@ def _fitted_lines(result: dict) -> list[str]:
             "more of the data, slower). Every run in the tables below is such a segment.", ""]
 
 
-def _model_json_lines(effect: str, effects: list[str], start: str | None = None) -> list[str]:
-    """What model.json is for (``start``: result.json's ``start.kind``, the model the search began from)."""
+def _model_json_lines(effect: str, effects: list[str], start: str | None = None,
+                      kept: list[str] | tuple[str, ...] = ()) -> list[str]:
+    """What model.json is for (``start``: result.json's ``start.kind``, the model the search began from;
+    ``kept``: its ``start.kept_effects``, carried into model.json as they are)."""
     base = {"kinematic": "the kinematic calibration of the runs",
             "tracker": "the kinematic calibration of the runs with the tracked frame"}.get(start, "the nominal model")
     if effect == "kinematic_calibration" and not effects:
@@ -283,9 +286,7 @@ def _model_json_lines(effect: str, effects: list[str], start: str | None = None)
                 "explain the gap (see the outcome)")
     else:
         what = f"{base} unchanged (no effect was named)"
-    tracker = [e for e in effects if REGISTRY[e].kind == "tracker"]
-    if start == "tracker" and "tracker_offset" not in tracker:  # the start's tracked frame
-        tracker.insert(0, "tracker_offset")
+    tracker = [e for e in dict.fromkeys([*kept, *effects]) if e in REGISTRY and REGISTRY[e].kind == "tracker"]
     note = ([f"Tracker (measurement) effects ({', '.join(tracker)}) explain how the data were measured, not how "
              "the robot moves: model.json keeps them under its `tracker` key, which simulators and environments "
              "ignore.", ""] if tracker else [])
