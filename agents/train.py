@@ -74,6 +74,7 @@ from agents.options import BACKENDS, check_backend_args, check_hyperparams, chec
 from agents.registry import Registry
 from agents.rollout import make_env, run_episode
 from agents.sb3_policy import VectorSB3Policy, wrap_vector_for
+from agents.validation import VALIDATION_EPISODES, VALIDATION_SEED, episodes_per_cell, validation_cells
 from agents.vector_rollout import make_vector_env
 from agents.weights import export as export_weights
 from agents.wrappers import wrap_env
@@ -81,7 +82,6 @@ from agents.zoo_config import WrapperSpec, bc_init_spec, residual_init, wrapper_
 from omni_gym.envs.config import parse_model
 
 HYPERPARAM_DIR = Path(__file__).resolve().parent / "hyperparams"
-VALIDATION_SEED = 5000  # validation episodes; training envs use small seeds, benchmarks 10 000+
 OWN_KEYS = ("n_timesteps", "policy", "n_envs", "normalize", "env_kwargs", "env_wrapper", "residual_scale", "reward",
             "sensor_noise_range", "residual_init", "init_log_std", "noise_type", "noise_std", "policy_kwargs",
             "learning_rate", "callback")
@@ -329,7 +329,8 @@ def _check_bc(bc_spec, algo: str, spec: WrapperSpec, obs_mode: str | None, where
 
 def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: str | Path,
                env_kwargs: dict | None = None, hyperparams: str | Path | None = None, n_envs: int | None = None,
-               vec_env: str = "native", eval_freq: int = 50_000, eval_episodes: int = 5, checkpoint_freq: int = 0,
+               vec_env: str = "native", eval_freq: int = 50_000, eval_episodes: int = VALIDATION_EPISODES,
+               checkpoint_freq: int = 0,
                tensorboard: str | None = None, progress: bool | None = None, max_minutes: float | None = None,
                command: str | None = None, threads: int = 1) -> dict:
     """Train and save into ``out`` directly (no transaction: :func:`train` gives one); returns the meta
@@ -422,19 +423,26 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
         "vec_env": vec_env, "reward": reward,
         "hyperparams_file": os.path.relpath(where, Path(__file__).resolve().parents[1]) if hyperparams is None
         else str(hyperparams), "hyperparams": raw_hp, "requested_timesteps": n_timesteps,
-        "validation_seeds": [VALIDATION_SEED, VALIDATION_SEED + eval_episodes - 1] if eval_freq > 0 else None,
         "vecnormalize": "vecnormalize.pkl" if norm is not None else None, "model": "model.zip",
         "sb3_model": "model.zip",  # SB3's checkpoint (a pickle) to train further; "model" becomes the weights
         "command": command, "git_commit": git_commit(), "torch_threads": torch.get_num_threads(),
     }
     if bc_summary is not None:
         meta["bc_init"] = bc_summary
-    # Validation: the training conditions without domain randomisation (e.g. the id's defaults).
-    val_kw = {k: v for k, v in kw.items() if not k.startswith("randomize_") and k != "obs_mode"}
-    meta["validation_env_kwargs"] = val_kw
+    # Validation (agents.validation): every training floor, with and without lift-off where the training
+    # randomises it, nominal otherwise; ``eval_episodes`` spread over those cells, the same seeds in each.
+    cells = validation_cells(kw)
+    per_cell = episodes_per_cell(eval_episodes, len(cells))
+    meta["validation_env_kwargs"] = cells[0]
+    meta["validation_cells"] = cells
+    meta["validation_seeds"] = [VALIDATION_SEED, VALIDATION_SEED + per_cell - 1] if eval_freq > 0 else None
+    meta["validation_episodes"] = per_cell * len(cells) if eval_freq > 0 else 0
+
+    def validation_envs() -> list:
+        return [wrap_vector_for(make_vector_env(env_id, per_cell, c, obs_mode=meta["obs_mode"]), meta) for c in cells]
+
     callback = _Training(out, meta, env_id, eval_freq, eval_episodes, checkpoint_freq, n_timesteps, progress,
-                         max_minutes, lambda num: wrap_vector_for(make_vector_env(env_id, num, val_kw,
-                                                                                  obs_mode=meta["obs_mode"]), meta))
+                         max_minutes, validation_envs)
     callbacks = [callback]
     warmup = bc_spec.actor_warmup if bc_spec is not None else init_warmup
     if warmup:
@@ -530,9 +538,9 @@ class _TrainingMixin:
 
     def _validate(self) -> None:
         if self._eval_env is None:  # all validation episodes at once, as robots of one native vector env
-            self._eval_env = self._base_env(self.eval_episodes)
+            self._eval_env = self._base_env()
         vn = self.model.get_vec_normalize_env()
-        row = validation_row_vector(self._eval_env, VectorSB3Policy(self.model, vn, self._eval_env),
+        row = validation_row_vector(self._eval_env, [VectorSB3Policy(self.model, vn, e) for e in self._eval_env],
                                     int(self.num_timesteps), time.time() - self._t0, self._train_reward())
         self.rows.append(row)
         rmse = row["val_tracking_rmse"]
@@ -566,8 +574,8 @@ class _TrainingMixin:
     def close(self) -> None:
         if self._bar is not None:
             self._bar.close()
-        if self._eval_env is not None:
-            self._eval_env.close()
+        for env in self._eval_env or []:
+            env.close()
 
 
 CURVE_COLUMNS = ("timesteps", "wall_s", "val_tracking_rmse", "val_final_error", "val_success", "train_ep_reward")
@@ -583,13 +591,16 @@ def validation_row(env, policy, episodes: int, timesteps: int, wall_s: float, tr
     return _curve_row(eps, timesteps, wall_s, train_reward)
 
 
-def validation_row_vector(venv, policy, timesteps: int, wall_s: float, train_reward: float | None) -> dict:
-    """:func:`validation_row` with the validation episodes run as the robots of one native vector env ``venv``
-    (robot i from seed ``VALIDATION_SEED`` + i; ``policy`` a vector actor): the same episodes within float
-    rounding (the batched EKF, ``tests/test_vector_rollout.py``), in a fraction of the time."""
+def validation_row_vector(venvs, policies, timesteps: int, wall_s: float, train_reward: float | None) -> dict:
+    """:func:`validation_row` over the validation cells (:mod:`agents.validation`), each cell's episodes run
+    as the robots of one native vector env (``venvs[c]``, robot i from seed ``VALIDATION_SEED`` + i; its
+    vector actor ``policies[c]``): within one cell, the single-env episodes within float rounding (the batched
+    EKF, ``tests/test_vector_rollout.py``), in a fraction of the time. The means are over all episodes."""
     from agents.vector_rollout import run_episodes_vector
 
-    eps = run_episodes_vector(venv, policy, [VALIDATION_SEED + i for i in range(int(venv.num_envs))])
+    eps = []
+    for venv, policy in zip(venvs, policies, strict=True):
+        eps += run_episodes_vector(venv, policy, [VALIDATION_SEED + i for i in range(int(venv.num_envs))])
     return _curve_row(eps, timesteps, wall_s, train_reward)
 
 
@@ -702,7 +713,9 @@ def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.
                    help="vectorisation: native (one vector env of all robots; default), dummy or subproc (one "
                         "single env per robot)")
     p.add_argument("--eval-freq", type=int, default=50_000, help="validation every N steps (0: none; default 50000)")
-    p.add_argument("--eval-episodes", type=int, default=5, help="validation episodes (default 5)")
+    p.add_argument("--eval-episodes", type=int, default=None,
+                   help=f"validation episodes, spread over the training floors (default {VALIDATION_EPISODES}; "
+                        "rllib: 5, run one by one)")
     p.add_argument("--checkpoint-freq", type=int, default=0, help="checkpoint every N steps (0: none)")
     p.add_argument("--tensorboard", default=None, help="TensorBoard log directory (needs tensorboard)")
     p.add_argument("--max-minutes", type=float, default=None,
@@ -736,8 +749,10 @@ def command_line(prog: str, args: argparse.Namespace) -> str:
                        ("--num-env-runners", getattr(args, "num_env_runners", None))):
         if value is not None:
             parts += [opt, str(value)]
-    parts += ["--vec-env", args.vec_env, "--eval-freq", str(args.eval_freq), "--eval-episodes",
-              str(args.eval_episodes), "--checkpoint-freq", str(args.checkpoint_freq), "--threads", str(args.threads)]
+    parts += ["--vec-env", args.vec_env, "--eval-freq", str(args.eval_freq)]
+    if args.eval_episodes is not None:
+        parts += ["--eval-episodes", str(args.eval_episodes)]
+    parts += ["--checkpoint-freq", str(args.checkpoint_freq), "--threads", str(args.threads)]
     return " ".join([prog, *(shlex.quote(x) for x in parts[1:])])
 
 
@@ -757,7 +772,8 @@ def run_from_args(args: argparse.Namespace, command: str | None = None) -> dict:
             raise ValueError("--tensorboard needs the tensorboard package (pip install tensorboard)") from None
     command = command or command_line("python -m agents.train", args)
     return train(args.algo, args.env, None if args.timesteps is None else int(args.timesteps), args.seed, args.out,
-                 kwargs, args.hyperparams, args.n_envs, args.vec_env, args.eval_freq, args.eval_episodes,
+                 kwargs, args.hyperparams, args.n_envs, args.vec_env, args.eval_freq,
+                 VALIDATION_EPISODES if args.eval_episodes is None else args.eval_episodes,
                  args.checkpoint_freq, args.tensorboard, args.progress, args.max_minutes, command, args.threads,
                  force=getattr(args, "force", False))
 

@@ -588,10 +588,31 @@ def test_batched_validation_equals_single_environment_validation():
     env, single = build(model, None, kw)
     venv, batched = build_vector(model, 4, None, kw)
     a = validation_row(env, single, 4, 0, 0.0, None)
-    b = validation_row_vector(venv, batched, 0, 0.0, None)
+    b = validation_row_vector([venv], [batched], 0, 0.0, None)
     env.close()
     venv.close()
     assert a["val_tracking_rmse"] == pytest.approx(b["val_tracking_rmse"], abs=1e-6)
     assert a["val_final_error"] == pytest.approx(b["val_final_error"], abs=1e-6)
     assert a["val_success"] == b["val_success"]
     assert a["val_tracking_rmse"] > 1e-4  # the episodes ran (a controller tracks to ~mm, not exactly 0)
+
+
+def test_validation_spreads_its_episodes_over_the_training_floors_and_lift_off(tmp_path):
+    """Model selection reads the validation mean, so the episodes must cover what the agent trains on: a run
+    on two floors with a randomised lift-off rate validates on four cells (each floor, lift-off rate 0 and
+    0.5 /s), the requested episodes spread evenly, the same seeds (5000...) in every cell; the command
+    line's default is 100 episodes (30 picked noise, docs/agents.md)."""
+    from agents.train import build_arg_parser
+    from agents.validation import VALIDATION_EPISODES
+
+    kw = {**SHORT, "randomize_floor": ["grip:initial", "carpet:roller_gap"], "randomize_lift_rate": [0.0, 1.0],
+          "randomize_mass": [0.9, 1.1]}
+    meta = train("ppo", ENV, 64, 0, tmp_path / "m", kw, n_envs=2, eval_freq=64, eval_episodes=6, progress=False)
+    cells = meta["validation_cells"]
+    assert [(c["surface"], c.get("friction"), c["lift_rate"]) for c in cells] == [
+        ("grip", "initial", 0.0), ("grip", "initial", 0.5), ("carpet", "roller_gap", 0.0),
+        ("carpet", "roller_gap", 0.5)]
+    assert all("randomize_mass" not in c and c["episode_seconds"] == 1.0 for c in cells)
+    assert meta["validation_episodes"] == 8 and meta["validation_seeds"] == [5000, 5001]  # ceil(6 / 4) = 2 each
+    assert build_arg_parser().parse_args(["--algo", "ppo", "--env", ENV, "--out", "x"]).eval_episodes is None
+    assert VALIDATION_EPISODES >= 100

@@ -268,7 +268,8 @@ def run_from_args(args: argparse.Namespace, command: str | None = None) -> dict:
     command = command or command_line("python -m agents.rllib.train", args)
     return train(args.env, None if args.timesteps is None else int(args.timesteps), args.seed, args.out, kwargs,
                  args.hyperparams, args.n_envs, args.num_env_runners or 0, args.address, args.eval_freq,
-                 args.eval_episodes, args.checkpoint_freq, args.progress, args.max_minutes, command, args.threads,
+                 5 if args.eval_episodes is None else args.eval_episodes,  # serial: 5 by default
+                 args.checkpoint_freq, args.progress, args.max_minutes, command, args.threads,
                  force=args.force)
 
 
