@@ -5,7 +5,7 @@ STAMP := .venv/.installed
 export SDL_VIDEODRIVER := dummy
 export MPLBACKEND := Agg
 
-.PHONY: venv test test-slow demo lint bench bench-agents train-agents bench-discrepancy clean install-check
+.PHONY: venv test test-slow demo lint bench bench-agents train-agents train-students bench-discrepancy clean install-check
 
 venv: $(STAMP)
 
@@ -72,6 +72,14 @@ train-agents: $(STAMP)
 	      --out runs/$$id-$$agent-sac-s$$seed --eval-freq $$([ $$agent = privileged ] && echo 50000 || echo 25000) \
 	      --eval-episodes 5 --max-minutes $$([ $$agent = privileged ] && echo 80 || echo 60) --no-progress || exit 1; \
 	done; done; done
+
+# The sensor-only students distilled from the MPPI oracle (DAgger, agents/distillation.py; about 17 min per id
+# with the three running at once on 2 cores), then their held-out table.
+train-students: $(STAMP)
+	$(PY) -m agents.distillation --env OmniPathFollow-Phunopas-v0 --out agents/models/dagger-student-phunopas
+	$(PY) -m agents.distillation --env OmniPathFollow-Mecanum-v0 --out agents/models/dagger-student-mecanum
+	$(PY) -m agents.distillation --env OmniPathFollow-Williams-v1 --out agents/models/dagger-student-williams
+	$(PY) benchmarks/students.py --workers 2 --out benchmarks/results
 
 bench-discrepancy: $(STAMP)
 	$(PY) benchmarks/discrepancy_recovery.py --seeds 2 --runs 6 --duration 3 --jobs 2 --out benchmarks/results

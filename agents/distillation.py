@@ -71,7 +71,7 @@ class DAggerSpec:
     the teacher's planner settings (privileged state); ``seed``: every draw."""
 
     robots: int = 64
-    rounds: int = 8
+    rounds: int = 12
     round_steps: int = 600
     beta: float = 0.0
     hidden: int = 128
@@ -300,11 +300,11 @@ def distil(env_id: str, spec: DAggerSpec, out: str | Path, progress: bool | None
 
     torch.set_num_threads(1)
     torch.manual_seed(spec.seed)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
     show = progress if progress is not None else sys.stderr.isatty()
-    train_kw = training_env_kwargs(env_id)
+    train_kw = training_env_kwargs(env_id)  # an id without a training distribution: refused before any write
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
     short = {} if episode_seconds is None else {"episode_seconds": float(episode_seconds)}
     cells = [{**c, **short} for c in validation_cells(train_kw)]
     train_kw = {**train_kw, **short}
@@ -384,7 +384,7 @@ def main(argv: list[str] | None = None) -> int:
                           hidden=args.hidden, epochs=args.epochs, validation_episodes=args.validation_episodes,
                           seed=args.seed)
         meta = distil(args.env, spec, args.out, episode_seconds=args.episode_seconds)
-    except ValueError as exc:
+    except (ValueError, OSError) as exc:  # bad settings or id; an output folder that cannot be written
         print(f"python -m agents.distillation: error: {exc}", file=sys.stderr)
         return 2
     d = meta["distillation"]

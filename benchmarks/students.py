@@ -113,8 +113,8 @@ def markdown(summary: dict, command: str, seeds, wall_s: float, metas: dict) -> 
              "counted).", "",
              "| id | condition | ekf-pid | ekf-pid-traction | sensor-only oracle | oracle | student "
              "| student ÷ ekf-pid | student ÷ ekf-pid-traction | student ÷ sensor-only oracle "
-             "| better than ekf-pid / -traction |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| better than ekf-pid / -traction | oracle ÷ ekf-pid |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in summary["rows"]:
         m = r["rmse_mm"]
         lost = f" ({r['lost']} lost)" if r["lost"] else ""
@@ -122,7 +122,8 @@ def markdown(summary: dict, command: str, seeds, wall_s: float, metas: dict) -> 
                      f"{m['ekf-pid-traction']:.1f} | {m[SENSOR_ORACLE]:.1f} | {m[ORACLE]:.1f} | "
                      f"{m['student']:.1f}{lost} | {r['text']['student / ekf-pid']} | "
                      f"{r['text']['student / ekf-pid-traction']} | {r['text'][f'student / {SENSOR_ORACLE}']} | "
-                     f"{100 * r['better']['ekf-pid']:.0f} % / {100 * r['better']['ekf-pid-traction']:.0f} % |")
+                     f"{100 * r['better']['ekf-pid']:.0f} % / {100 * r['better']['ekf-pid-traction']:.0f} % | "
+                     f"{r['text'][f'{ORACLE} / ekf-pid']} |")
     lines += ["", "## Goals", ""]
     for r in summary["rows"]:
         if "goal" in r:
