@@ -55,6 +55,7 @@ from pathlib import Path
 import numpy as np
 
 from agents.oracle import OracleConfig
+from agents.train import git_commit
 from agents.validation import episodes_per_cell, validation_cells, validation_seeds
 
 TRAIN_SEED = 200_000  # the training env's first seed: apart from validation (5000+) and benchmark seeds
@@ -348,7 +349,8 @@ def distil(env_id: str, spec: DAggerSpec, out: str | Path, progress: bool | None
         "policy": {"class": "MlpPolicy", "kwargs": policy_kwargs(spec.hidden),
                    "observation_space": _box(venv.single_observation_space),
                    "action_space": _box(venv.single_action_space)},
-        "distillation": {"label": LABEL, "spec": spec.as_dict(), "validation_cells": cells,
+        "hyperparams": spec.as_dict(), "git_commit": git_commit(),
+        "distillation": {"label": LABEL, "validation_cells": cells,
                          "validation_seeds": [validator.seeds[0], validator.seeds[-1]],
                          "validation_episodes": validator.episodes,
                          "validation_ekf_pid_rmse_mm": [1e3 * v for v in validator.reference],
@@ -359,7 +361,44 @@ def distil(env_id: str, spec: DAggerSpec, out: str | Path, progress: bool | None
         "command": "python -m agents.distillation " + " ".join(sys.argv[1:]) if __name__ == "__main__" else None,
     }
     write_text_atomic(out / "meta.json", json.dumps(meta, indent=2) + "\n")
+    write_curve(out, meta)
     return meta
+
+
+def write_curve(out: Path, meta: dict) -> None:
+    """``curve.csv`` (one row per DAgger round: samples so far, wall time [s], pooled validation RMSE ÷
+    ekf-pid's, each cell's mean RMSE [mm]) and ``curve.png`` (the ratio against samples, the best round
+    marked) of a student's ``meta.json``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from omni_gym.outputs import write_text_atomic
+
+    d = meta["distillation"]
+    rows = d["rounds"]
+    cells = [", ".join(f"{k}={v}" for k, v in c.items()) for c in d["validation_cells"]]
+    head = ["round", "samples", "wall_s", "val_ratio"] + [f"val_rmse_mm[{c}]" for c in cells]
+    lines = [",".join(f'"{h}"' if "," in h else h for h in head)]
+    for r in rows:
+        lines.append(",".join([str(r["round"]), str(r["samples"]), f"{r['wall_s']:.1f}", f"{r['val_ratio']:.6f}",
+                               *(f"{v:.4f}" for v in r["val_rmse_mm"])]))
+    write_text_atomic(Path(out) / "curve.csv", "\n".join(lines) + "\n")
+    fig, ax = plt.subplots(figsize=(7, 4))
+    x = [r["samples"] for r in rows]
+    ax.plot(x, [r["val_ratio"] for r in rows], "o-", label="all validation episodes")
+    best = next(r for r in rows if r["round"] == d["best_round"])
+    ax.plot([best["samples"]], [best["val_ratio"]], "r*", ms=14, label=f"kept: round {best['round']}")
+    ax.axhline(1.0, color="k", lw=0.8)
+    ax.set_ylim(0, max(1.2, 1.05 * max(r["val_ratio"] for r in rows)))
+    ax.set_xlabel("labelled robot-steps (DAgger data so far; 0: the ekf-pid clone)")
+    ax.set_ylabel("validation tracking RMSE ÷ ekf-pid")
+    ax.set_title(f"{meta['env_id']}: DAgger student, {d['validation_episodes']} validation episodes", fontsize=10)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(Path(out) / "curve.png", dpi=100)
+    plt.close(fig)
 
 
 def _report(row: RoundRow, show: bool) -> None:
