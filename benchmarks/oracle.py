@@ -175,29 +175,38 @@ def markdown(summary: dict, command: str, seeds, wall_s: float, sweep_n: int) ->
     return "\n".join(lines) + "\n"
 
 
-def plot(summary: dict, path: Path) -> None:
+def ratio_bars(rows: list[dict], keys: list[tuple[str, str]], title: str, ylabel: str, path: Path,
+               width: float | None = None) -> None:
+    """A bar per (legend name, ``row["ratios"]`` key) and row (id and condition on the axis), with its 95 %
+    interval; a row without the key has no bar. Written to ``path``."""
     import matplotlib.pyplot as plt
 
-    rows = summary["rows"]
     fig, ax = plt.subplots(figsize=(10, 4.5))
     labels = [f"{r['env_id'].removeprefix('OmniPathFollow-')}\n{r['condition']}" for r in rows]
     x = np.arange(len(rows))
-    for k, (name, key) in enumerate([("oracle ÷ ekf-pid", f"{ORACLE} / ekf-pid"), ("oracle ÷ law", f"{ORACLE} / {LAW}"),
-                                     ("sensor-only oracle ÷ ekf-pid", f"{SENSOR_ORACLE} / ekf-pid")]):
+    w = width or 0.8 / len(keys)
+    for k, (name, key) in enumerate(keys):
         vals = [r["ratios"].get(key) for r in rows]
-        xs = [xi + (k - 1) * 0.27 for xi, v in zip(x, vals, strict=True) if v is not None]
+        xs = [xi + (k - (len(keys) - 1) / 2) * w for xi, v in zip(x, vals, strict=True) if v is not None]
         ys = [v["ratio"] for v in vals if v is not None]
         err = np.array([[v["ratio"] - v["ci95"][0], v["ci95"][1] - v["ratio"]] for v in vals if v is not None]).T
         if ys:
-            ax.bar(xs, ys, 0.27, yerr=err, capsize=2, label=name)
+            ax.bar(xs, ys, w, yerr=err, capsize=2, label=name)
     ax.axhline(1.0, color="k", lw=0.8)
     ax.set_xticks(x, labels, fontsize=7, rotation=45, ha="right")
-    ax.set_ylabel("mean tracking RMSE ratio\n(below 1: the oracle tracks better)")
-    ax.set_title("The MPPI oracle against ekf-pid and the true-state law (95 % paired-bootstrap intervals)")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot(summary: dict, path: Path) -> None:
+    ratio_bars(summary["rows"], [("oracle ÷ ekf-pid", f"{ORACLE} / ekf-pid"), ("oracle ÷ law", f"{ORACLE} / {LAW}"),
+                                 ("sensor-only oracle ÷ ekf-pid", f"{SENSOR_ORACLE} / ekf-pid")],
+               "The MPPI oracle against ekf-pid and the true-state law (95 % paired-bootstrap intervals)",
+               "mean tracking RMSE ratio\n(below 1: the oracle tracks better)", path, width=0.27)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import numpy as np  # noqa: E402
 from baselines import CONDITIONS  # noqa: E402
 from normalised_score import Cell, run_all  # noqa: E402
-from oracle import ratio_text  # noqa: E402
+from oracle import ratio_bars, ratio_text  # noqa: E402
 
 from agents.oracle import ORACLE, SENSOR_ORACLE  # noqa: E402
 from omni_gym.outputs import write_text_atomic  # noqa: E402
@@ -140,28 +140,12 @@ def markdown(summary: dict, command: str, seeds, wall_s: float, metas: dict) -> 
 
 
 def plot(summary: dict, path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    rows = summary["rows"]
-    fig, ax = plt.subplots(figsize=(10, 4.5))
-    labels = [f"{r['env_id'].removeprefix('OmniPathFollow-')}\n{r['condition']}" for r in rows]
-    x = np.arange(len(rows))
-    keys = [("student ÷ ekf-pid", "student / ekf-pid"), ("student ÷ ekf-pid-traction", "student / ekf-pid-traction"),
-            ("student ÷ sensor-only oracle", f"student / {SENSOR_ORACLE}"),
-            ("sensor-only oracle ÷ ekf-pid", f"{SENSOR_ORACLE} / ekf-pid")]
-    w = 0.2
-    for k, (name, key) in enumerate(keys):
-        vals = [r["ratios"][key] for r in rows]
-        err = np.array([[v["ratio"] - v["ci95"][0], v["ci95"][1] - v["ratio"]] for v in vals]).T
-        ax.bar(x + (k - 1.5) * w, [v["ratio"] for v in vals], w, yerr=err, capsize=2, label=name)
-    ax.axhline(1.0, color="k", lw=0.8)
-    ax.set_xticks(x, labels, fontsize=7, rotation=45, ha="right")
-    ax.set_ylabel("mean tracking RMSE ratio\n(below 1: the numerator tracks better)")
-    ax.set_title("DAgger students against the baselines and the sensor-only oracle (95 % paired bootstrap)")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    ratio_bars(summary["rows"], [("student ÷ ekf-pid", "student / ekf-pid"),
+                                 ("student ÷ ekf-pid-traction", "student / ekf-pid-traction"),
+                                 ("student ÷ sensor-only oracle", f"student / {SENSOR_ORACLE}"),
+                                 ("sensor-only oracle ÷ ekf-pid", f"{SENSOR_ORACLE} / ekf-pid")],
+               "DAgger students against the baselines and the sensor-only oracle (95 % paired bootstrap)",
+               "mean tracking RMSE ratio\n(below 1: the numerator tracks better)", path)
 
 
 def main(argv: list[str] | None = None) -> int:
