@@ -55,7 +55,7 @@ from pathlib import Path
 import numpy as np
 
 from agents.oracle import OracleConfig
-from agents.train import git_commit
+from agents.train import git_commit, load_hyperparams
 from agents.validation import episodes_per_cell, validation_cells, validation_seeds
 
 TRAIN_SEED = 200_000  # the training env's first seed: apart from validation (5000+) and benchmark seeds
@@ -66,7 +66,7 @@ LABEL = "DAgger student of the MPPI oracle"
 @dataclass(frozen=True)
 class DAggerSpec:
     """Distillation settings (module docstring). ``robots``: training robots stepped together; ``rounds`` ×
-    ``round_steps`` control steps (0.01 s each); ``beta``: the teacher's driving share decays as beta**round;
+    ``round_steps`` control steps (0.01 s each); ``beta``: the teacher's driving share in round r is beta**(r + 1);
     ``hidden``: width of the student's two tanh layers; ``epochs``, ``batch_size``, ``learning_rate``: the
     fit after each round; ``validation_episodes``: spread evenly over the validation cells; ``oracle``:
     the teacher's planner settings (privileged state); ``seed``: every draw."""
@@ -103,8 +103,6 @@ class DAggerSpec:
 
 def training_env_kwargs(env_id: str) -> dict:
     """The training distribution of ``env_id``'s sensor-only agents (:data:`HYPERPARAMS`' ``env_kwargs``)."""
-    from agents.train import load_hyperparams
-
     kw = dict(load_hyperparams("ppo", env_id, HYPERPARAMS).get("env_kwargs", {}))
     kw.pop("obs_mode", None)
     return kw
@@ -265,8 +263,10 @@ def collect_round(venv, obs: np.ndarray, oracle, policy, beta: float, steps: int
         label = oracle.act(obs)  # the teacher's action at the state the robot is in
         xs.append(np.array(obs, dtype=np.float32))
         ys.append(np.array(label, dtype=np.float32))
-        action = np.where(teacher_drives[:, None], label, student_actions(policy, obs)) if not teacher_drives.all() \
-            else label
+        if teacher_drives.all():
+            action = label
+        else:
+            action = np.where(teacher_drives[:, None], label, student_actions(policy, obs))
         obs, _, terminated, truncated, _ = venv.step(np.asarray(action, dtype=np.float32))
         restart = np.asarray(terminated | truncated, dtype=bool)
         if progress is not None:
