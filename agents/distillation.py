@@ -56,7 +56,7 @@ import numpy as np
 
 from agents.oracle import OracleConfig
 from agents.train import git_commit, load_hyperparams
-from agents.validation import episodes_per_cell, validation_cells, validation_seeds
+from agents.validation import cell_episodes, episodes_per_cell, validation_cells, validation_seeds
 
 TRAIN_SEED = 200_000  # the training env's first seed: apart from validation (5000+) and benchmark seeds
 HYPERPARAMS = "ppo_features_bc_skip"  # the training distribution of the sensor-only agents (env_kwargs)
@@ -215,19 +215,22 @@ class Validator:
 
     def __init__(self, env_id: str, cells: list[dict], episodes: int) -> None:
         from agents.batched.policies import make_vector_policy
-        from agents.vector_rollout import make_vector_env, run_episodes_vector
+        from agents.vector_rollout import make_vector_env
 
         self.env_id, self.cells = env_id, cells
-        per = episodes_per_cell(episodes, len(cells))
-        self.seeds = validation_seeds(per)
-        self.reference = []
-        for kw in cells:
-            venv = make_vector_env(env_id, per, kw)
-            try:
-                eps = run_episodes_vector(venv, make_vector_policy("ekf-pid", venv), self.seeds)
-            finally:
+        self.seeds = validation_seeds(episodes_per_cell(episodes, len(cells)))
+        self.reference = self._cell_rmse(lambda kw: make_vector_env(env_id, len(self.seeds), kw),
+                                         lambda venv: make_vector_policy("ekf-pid", venv))
+
+    def _cell_rmse(self, make_env, make_actor) -> list[float]:
+        """Mean tracking RMSE [m] per cell of the actor ``make_actor(venv)`` in the envs ``make_env(kwargs)``."""
+        venvs = [make_env(kw) for kw in self.cells]
+        try:
+            eps = cell_episodes(venvs, [make_actor(v) for v in venvs])
+        finally:
+            for venv in venvs:
                 venv.close()
-            self.reference.append(float(np.mean([e.tracking_rmse for e in eps])))
+        return [float(np.mean([e.tracking_rmse for e in cell])) for cell in eps]
 
     @property
     def episodes(self) -> int:
@@ -236,16 +239,8 @@ class Validator:
     def score(self, policy) -> tuple[float, list[float]]:
         """(mean RMSE over all episodes ÷ ekf-pid's, the student's mean RMSE per cell [m]); every cell has
         the same episode count, so the pooled mean is the mean of the cells' means."""
-        from agents.vector_rollout import run_episodes_vector
-
-        rmse = []
-        for kw in self.cells:
-            venv = make_features_env(self.env_id, len(self.seeds), kw)
-            try:
-                eps = run_episodes_vector(venv, _StudentActor(policy), self.seeds)
-            finally:
-                venv.close()
-            rmse.append(float(np.mean([e.tracking_rmse for e in eps])))
+        rmse = self._cell_rmse(lambda kw: make_features_env(self.env_id, len(self.seeds), kw),
+                               lambda venv: _StudentActor(policy))
         return float(np.sum(rmse) / np.sum(self.reference)), rmse
 
 

@@ -74,7 +74,14 @@ from agents.options import BACKENDS, check_backend_args, check_hyperparams, chec
 from agents.registry import Registry
 from agents.rollout import make_env, run_episode
 from agents.sb3_policy import VectorSB3Policy, wrap_vector_for
-from agents.validation import VALIDATION_EPISODES, VALIDATION_SEED, episodes_per_cell, validation_cells
+from agents.validation import (
+    VALIDATION_EPISODES,
+    VALIDATION_SEED,
+    cell_episodes,
+    episodes_per_cell,
+    validation_cells,
+    validation_seeds,
+)
 from agents.vector_rollout import make_vector_env
 from agents.weights import export as export_weights
 from agents.wrappers import wrap_env
@@ -441,7 +448,7 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
     def validation_envs() -> list:
         return [wrap_vector_for(make_vector_env(env_id, per_cell, c, obs_mode=meta["obs_mode"]), meta) for c in cells]
 
-    callback = _Training(out, meta, env_id, eval_freq, eval_episodes, checkpoint_freq, n_timesteps, progress,
+    callback = _Training(out, meta, env_id, eval_freq, checkpoint_freq, n_timesteps, progress,
                          max_minutes, validation_envs)
     callbacks = [callback]
     warmup = bc_spec.actor_warmup if bc_spec is not None else init_warmup
@@ -491,11 +498,11 @@ def _Training(*args, **kwargs):
 class _TrainingMixin:
     """Progress bar, periodic validation (tracking RMSE on fixed seeds, best model kept), checkpoints, time limit."""
 
-    def __init__(self, out: Path, meta: dict, env_id: str, eval_freq: int, eval_episodes: int, checkpoint_freq: int,
+    def __init__(self, out: Path, meta: dict, env_id: str, eval_freq: int, checkpoint_freq: int,
                  total: int, progress: bool | None, max_minutes: float | None, base_env) -> None:
         super().__init__()
         self.out, self.meta, self.env_id = out, meta, env_id
-        self.eval_freq, self.eval_episodes, self.checkpoint_freq = eval_freq, eval_episodes, checkpoint_freq
+        self.eval_freq, self.checkpoint_freq = eval_freq, checkpoint_freq  # the episodes: base_env's cells
         self.total, self.max_minutes = total, max_minutes
         self.show = progress if progress is not None else sys.stderr.isatty()
         self.rows: list[dict] = []
@@ -587,7 +594,7 @@ def validation_row(env, policy, episodes: int, timesteps: int, wall_s: float, tr
     ``wall_s`` [s] since training started, the mean validation tracking RMSE and final position error [m],
     the success fraction, and ``train_ep_reward`` (the backend's mean training episode return, or None).
     Every backend validates through this function, so their curves compare."""
-    eps = [run_episode(env, policy, VALIDATION_SEED + i) for i in range(episodes)]
+    eps = [run_episode(env, policy, seed) for seed in validation_seeds(episodes)]
     return _curve_row(eps, timesteps, wall_s, train_reward)
 
 
@@ -596,11 +603,7 @@ def validation_row_vector(venvs, policies, timesteps: int, wall_s: float, train_
     as the robots of one native vector env (``venvs[c]``, robot i from seed ``VALIDATION_SEED`` + i; its
     vector actor ``policies[c]``): within one cell, the single-env episodes within float rounding (the batched
     EKF, ``tests/test_vector_rollout.py``), in a fraction of the time. The means are over all episodes."""
-    from agents.vector_rollout import run_episodes_vector
-
-    eps = []
-    for venv, policy in zip(venvs, policies, strict=True):
-        eps += run_episodes_vector(venv, policy, [VALIDATION_SEED + i for i in range(int(venv.num_envs))])
+    eps = [e for cell in cell_episodes(venvs, policies) for e in cell]
     return _curve_row(eps, timesteps, wall_s, train_reward)
 
 

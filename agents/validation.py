@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import math
 
+from omni_gym.envs.config import parse_floors
+
 VALIDATION_SEED = 5000  # validation episodes; training envs use small seeds, benchmarks 10 000+
 VALIDATION_EPISODES = 100  # default number of validation episodes (spread over the cells)
 LIFT_RATE = 0.5  # [1/s] lift-off rate of the cells with lift-off: the benchmarks' slip + lift-off condition
@@ -26,16 +28,15 @@ def validation_cells(train_kwargs: dict) -> list[dict]:
     0 and :data:`LIFT_RATE`) when ``randomize_lift_rate`` is set.
     """
     base = {k: v for k, v in train_kwargs.items() if not k.startswith("randomize_") and k != "obs_mode"}
-    floors = train_kwargs.get("randomize_floor") or [None]
+    floors = parse_floors(train_kwargs.get("randomize_floor")) or [None]
     lifts = [0.0, LIFT_RATE] if train_kwargs.get("randomize_lift_rate") else [None]
     cells = []
     for floor in floors:
         kw = dict(base)
         if floor is not None:
-            surface, _, friction = str(floor).partition(":")
-            kw["surface"] = surface
-            if friction:
-                kw["friction"] = friction
+            kw["surface"] = floor.surface
+            if floor.friction is not None:
+                kw["friction"] = floor.friction
         for lift in lifts:
             cells.append(kw if lift is None else {**kw, "lift_rate": lift})
     return cells
@@ -49,3 +50,12 @@ def episodes_per_cell(episodes: int, cells: int) -> int:
 def validation_seeds(per_cell: int) -> list[int]:
     """The seeds of one cell's validation episodes (the same in every cell: paired across cells)."""
     return [VALIDATION_SEED + i for i in range(int(per_cell))]
+
+
+def cell_episodes(venvs, policies) -> list[list]:
+    """Each cell's validation episodes (:class:`agents.rollout.Episode`): the robots of native vector env
+    ``venvs[c]`` from :func:`validation_seeds`, driven by the vector actor ``policies[c]``."""
+    from agents.vector_rollout import run_episodes_vector
+
+    return [run_episodes_vector(venv, policy, validation_seeds(int(venv.num_envs)))
+            for venv, policy in zip(venvs, policies, strict=True)]

@@ -47,15 +47,11 @@ BOUND_SLACK = 1.1  # where the sensor-only oracle cannot reach the goal: the stu
 DEFAULT_STUDENTS = "agents/models/dagger-student-*"
 
 
-def student_env(path: str) -> str:
-    meta = json.loads((Path(path) / "meta.json").read_text())
-    return meta["env_id"]
-
-
-def cells_for(students: list[str], seeds, seconds) -> list[Cell]:
+def cells_for(metas: dict, seeds, seconds) -> list[Cell]:
+    """Every policy's cells on each student's id (``metas``: student folder -> its meta.json)."""
     cells = []
-    for s in students:
-        e = student_env(s)
+    for s, meta in metas.items():
+        e = meta["env_id"]
         for c in CONDS:
             cells += [Cell(e, p, c, seeds, seconds) for p in (*BASELINES, SENSOR_ORACLE, ORACLE, s)]
     return cells
@@ -81,11 +77,11 @@ def goal_verdict(row: dict, goal: tuple[str, float, float]) -> dict:
     return {"met": bool(met), "text": text}
 
 
-def summarise(eps: dict, students: list[str]) -> dict:
+def summarise(eps: dict, metas: dict) -> dict:
     rng = np.random.default_rng(0)
     rows = []
-    for s in students:
-        e = student_env(s)
+    for s, meta in metas.items():
+        e = meta["env_id"]
         for c in CONDS:
             r = {p: np.array([x.tracking_rmse for x in eps[(e, p, c)]]) for p in (*BASELINES, SENSOR_ORACLE,
                                                                                   ORACLE, s)}
@@ -167,9 +163,9 @@ def main(argv: list[str] | None = None) -> int:
     seeds = tuple(range(args.seed, args.seed + args.episodes))
     command = "python benchmarks/students.py " + shlex.join(argv if argv is not None else sys.argv[1:])
     t0 = time.time()
-    eps = run_all(cells_for(students, seeds, args.episode_seconds), args.workers, args.cache)
-    summary = summarise(eps, students)
     metas = {s: json.loads((Path(s) / "meta.json").read_text()) for s in students}
+    eps = run_all(cells_for(metas, seeds, args.episode_seconds), args.workers, args.cache)
+    summary = summarise(eps, metas)
     args.out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(args.out / "students.md", markdown(summary, command, seeds, time.time() - t0, metas))
     write_text_atomic(args.out / "students.json", json.dumps({"command": command, **summary}, indent=1) + "\n")

@@ -50,6 +50,7 @@ from omni_gym.rllib import require_ray
 ROOT = Path(__file__).resolve().parents[2]
 CHECKPOINT = "checkpoint"
 FINAL_CHECKPOINT = "final_checkpoint"
+SERIAL_EPISODES = 5  # default validation episodes: RLlib validates one single env at a time
 
 
 @dataclass(frozen=True)
@@ -147,7 +148,7 @@ def _settings(env_id: str, timesteps: int | None, seed: int, env_kwargs: dict | 
 
 def train_into(env_id: str, timesteps: int | None, seed: int, out: str | Path, env_kwargs: dict | None = None,
                hyperparams: str | Path | None = None, n_envs: int | None = None, num_env_runners: int = 0,
-               address: str | None = None, eval_freq: int = 50_000, eval_episodes: int = 5,
+               address: str | None = None, eval_freq: int = 50_000, eval_episodes: int = SERIAL_EPISODES,
                checkpoint_freq: int = 0, progress: bool | None = None, max_minutes: float | None = None,
                command: str | None = None, threads: int = 1) -> dict:
     """Train and save into ``out`` directly (:func:`train` gives the transaction); returns the meta dict.
@@ -268,7 +269,7 @@ def run_from_args(args: argparse.Namespace, command: str | None = None) -> dict:
     command = command or command_line("python -m agents.rllib.train", args)
     return train(args.env, None if args.timesteps is None else int(args.timesteps), args.seed, args.out, kwargs,
                  args.hyperparams, args.n_envs, args.num_env_runners or 0, args.address, args.eval_freq,
-                 5 if args.eval_episodes is None else args.eval_episodes,  # serial: 5 by default
+                 SERIAL_EPISODES if args.eval_episodes is None else args.eval_episodes,
                  args.checkpoint_freq, args.progress, args.max_minutes, command, args.threads,
                  force=args.force)
 

@@ -526,6 +526,12 @@ def _floors(name: str, value) -> tuple[Floor, ...] | None:
     return tuple(out)
 
 
+def parse_floors(value) -> tuple[Floor, ...] | None:
+    """A ``randomize_floor`` value (None or names ``"surface"`` / ``"surface:friction_model"``) as the
+    environment reads it; ValueError naming the bad entry."""
+    return _floors("randomize_floor", value)
+
+
 def _read_model_file(value) -> SimModel:
     """A model JSON file (UTF-8, a byte-order mark allowed) → SimModel; errors name ``model=`` and the file."""
     path = Path(os.fsdecode(value))
