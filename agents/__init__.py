@@ -1,8 +1,8 @@
 """Scripted baselines (EKF + PID) and Stable-Baselines3 agents for the omni-gym environments.
 
 The SB3 parts (training, loading a trained model) need the ``agents`` extra
-(``pip install -c constraints.txt 'omni-gym[agents]'``: torch, stable-baselines3, pyyaml); the scripted
-baselines do not.
+(``pip install -c constraints.txt -e '.[agents]'`` from the checkout's root: torch, stable-baselines3,
+pyyaml); the scripted baselines do not.
 
 Modules import only downward (``tests/test_architecture.py``): :mod:`.algorithms` (the SB3 algorithm
 table) and :mod:`.rollout` (``make_env``, ``run_episode``, the ``Policy`` protocol) at the bottom;
@@ -21,7 +21,7 @@ import importlib.util
 AGENTS_EXTRA = {"torch": "torch", "stable_baselines3": "stable-baselines3", "yaml": "pyyaml"}
 # How to install it: constraints.txt (in the source tree) pins torch's CPU build; without it pip may fetch a
 # multi-gigabyte CUDA build (README, "Install with pip").
-AGENTS_EXTRA_HINT = ("pip install -c constraints.txt 'omni-gym[agents]' (constraints.txt, in the omni-gym source, "
+AGENTS_EXTRA_HINT = ("pip install -c constraints.txt -e '.[agents]' from the omni-gym checkout's root (constraints.txt "
                      "pins torch's CPU build; without it pip may download a multi-gigabyte CUDA build)")
 # Marks this package as omni-gym's: another distribution (the OpenAI Agents SDK, ``openai-agents``) installs a
 # top-level ``agents`` package too, and the command line checks which one Python finds.

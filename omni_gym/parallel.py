@@ -49,7 +49,7 @@ from dataclasses import dataclass
 from multiprocessing import get_context
 from typing import Any
 
-RAY_EXTRA = "omni-gym[rllib]"
+RAY_EXTRA = "pip install -c constraints.txt -e '.[rllib]' (from the omni-gym checkout's root)"
 # Threading libraries whose thread count a task pins to 1 (set before a worker loads them).
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 _NO_SHARED = object()
@@ -540,7 +540,7 @@ def _import_ray() -> Any:
     try:
         import ray
     except ImportError:
-        raise BackendError(f"the Ray backend needs ray: pip install '{RAY_EXTRA}'") from None
+        raise BackendError(f"the Ray backend needs ray: {RAY_EXTRA}") from None
     return ray
 
 

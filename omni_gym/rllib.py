@@ -18,7 +18,7 @@ Each id is registered under its own name. Its creator (:class:`EnvCreator`) buil
 are the environment's; agents/rllib applies the training rewards of ``agents/rewards.py``.
 
 Ray is imported only by :func:`register_envs`: without it, a one-line ``ModuleNotFoundError`` names the
-extra to install (``pip install 'omni-gym[rllib]'``).
+extra to install (``pip install -c constraints.txt -e '.[rllib]'`` from the checkout's root).
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from typing import Any
 
 from omni_gym.envs import all_ids
 
-RLLIB_EXTRA = "pip install -c constraints.txt 'omni-gym[rllib]'"
+RLLIB_EXTRA = "pip install -c constraints.txt -e '.[rllib]' (from the omni-gym checkout's root)"
 
 
 def require_ray(purpose: str) -> None:

@@ -156,7 +156,7 @@ def test_without_rosbags_one_line(sim, tmp_path, capsys, monkeypatch):
     bag = tmp_path / "b"
     write_bag(bag, [(runs[0].t, runs[0].enc, runs[0].pose)], JOINTS, SIGNS)
     monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)  # as if the extra were not installed
-    assert "pip install 'omni-gym[ros]'" in _bad(tmp_path, capsys, bag, "--pose-topic", "/tracker/pose")
+    assert "pip install -e '.[ros]'" in _bad(tmp_path, capsys, bag, "--pose-topic", "/tracker/pose")
 
 
 @pytest.mark.parametrize("command_type", ["joint_state", "array"])

@@ -84,7 +84,7 @@ def test_missing_agents_extra_is_named_in_one_line(module, dist, monkeypatch, ca
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("omni-gym: error: ") and "needs the agents extra" in err[0], err
         # The constraints keep pip from fetching a multi-gigabyte CUDA torch (README, "Install with pip").
-        assert "pip install -c constraints.txt 'omni-gym[agents]'" in err[0] and "CUDA" in err[0]
+        assert "pip install -c constraints.txt -e '.[agents]'" in err[0] and "CUDA" in err[0]
         assert not (tmp_path / "m").exists()
 
 

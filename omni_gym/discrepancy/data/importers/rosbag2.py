@@ -1,7 +1,7 @@
 """Import ROS 2 bags (``omni-gym import rosbag2``): wheel joints + a tracked pose → a dataset.
 
 Reads rosbag2 recordings (SQLite3 ``.db3`` or MCAP storage) with the pure-Python reader ``rosbags`` (the
-optional extra ``omni-gym[ros]``; no ROS installation needed):
+optional extra ``ros``: ``pip install -e '.[ros]'`` from the checkout's root; no ROS installation needed):
 
 * **Wheels**: ``sensor_msgs/msg/JointState`` on ``--joint-topic`` (default ``/joint_states``); ``--joints``
   names one joint per model wheel, in the model's wheel order, a leading ``-`` flipping its sign;
@@ -44,7 +44,8 @@ from omni_gym.discrepancy.data.importers.logs import (
 from omni_gym.io import InputError
 from omni_gym.physics.model import SimModel
 
-MISSING = "omni-gym import rosbag2 needs the optional package 'rosbags': pip install 'omni-gym[ros]'"
+MISSING = ("omni-gym import rosbag2 needs the optional package 'rosbags': pip install -e '.[ros]' (from the omni-gym "
+           "checkout's root)")
 JOINT_STATE = "sensor_msgs/msg/JointState"
 MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
 POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped",
