@@ -539,6 +539,9 @@ def _cmd_import(args: argparse.Namespace) -> int:
 
     # Refuse a bad --out before reading the logs; the importers check again under the lock.
     Output(args.out, "dir", force=args.force, inputs=args.sessions, marker="dataset.json", what="dataset").preflight()
+    from omni_gym.discrepancy.data.importers.options import refuse_foreign_options
+
+    refuse_foreign_options(args)  # an option of another format is refused, never ignored
     if args.format != "optiodom":
         from omni_gym.discrepancy.data.importers.options import import_logs
 

@@ -20,19 +20,34 @@ MAPPING_KEYS = ("model", "units", "window", "max_gap", "columns", "joints", "joi
                 "pose_topic", "frames", "command_topic")
 DEFAULTS = {"joint_topic": "/joint_states", "wheel_field": "position", "max_gap": 0.25}
 
-# Options that belong to one format only: given with another format, they would be silently ignored.
-ONLY = {"columns": "csv", "joints": "rosbag2", "pose_topic": "rosbag2", "frames": "rosbag2", "command_topic": "rosbag2",
-        "mass": "optiodom", "inertia": "optiodom", "time_base": "optiodom"}
+# Options that belong to some formats only (docs/formats.md): given with another format they would be silently
+# ignored, so they are refused (:func:`refuse_foreign_options`).
+_LOGS = ("csv", "rosbag2")
+ONLY: dict[str, tuple[str, ...]] = {
+    "columns": ("csv",),
+    **dict.fromkeys(("joints", "joint_topic", "wheel_field", "pose_topic", "frames", "command_topic"), ("rosbag2",)),
+    **dict.fromkeys(("model", "mapping", "units", "window", "max_gap"), _LOGS),
+    **dict.fromkeys(("mass", "inertia", "time_base"), ("optiodom",)),
+}
+
+
+def refuse_foreign_options(args: Namespace) -> None:
+    """InputError (one line) for an option given on the command line that ``import FORMAT`` does not read.
+
+    Call before the defaults are filled in (an option not given is None)."""
+    fmt = args.format
+    for key, owners in ONLY.items():
+        if getattr(args, key, None) is not None and fmt not in owners:
+            where = " and ".join(f"'import {o}'" for o in owners)
+            raise InputError(f"--{key.replace('_', '-')} applies to {where}, not 'import {fmt}'")
 
 
 def import_logs(args: Namespace) -> list[str]:
     """Run ``omni-gym import csv|rosbag2`` from parsed options; returns the lines to print (what was written
     and every assumption, also in the dataset's description)."""
     fmt = args.format
+    refuse_foreign_options(args)
     _apply_mapping(args)
-    for key, owner in ONLY.items():
-        if getattr(args, key, None) is not None and owner != fmt:
-            raise InputError(f"--{key.replace('_', '-')} applies to 'import {owner}', not 'import {fmt}'")
     if not args.model:
         raise InputError(f"import {fmt}: --model is required (a preset name or a model JSON file: the nominal model "
                          "of the robot that wrote the log)")
@@ -72,6 +87,9 @@ def _apply_mapping(args: Namespace) -> None:
         except ValueError as exc:
             raise InputError(f"{args.mapping}: {exc}") from None
         for key, value in mapping.items():
+            if args.format not in ONLY.get(key, _LOGS):
+                raise InputError(f"{args.mapping}: {key} applies to 'import {' and '.join(ONLY[key])}', not "
+                                 f"'import {args.format}'")
             ok = (isinstance(value, list) and all(isinstance(v, str) for v in value) if key == "window"
                   else isinstance(value, (int, float)) and not isinstance(value, bool) if key == "max_gap"
                   else isinstance(value, str))
