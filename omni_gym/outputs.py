@@ -25,6 +25,7 @@ import math
 import os
 import re
 import shutil
+import stat
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,6 +44,42 @@ class OutputError(ValueError):
 def is_temporary(path: str | Path) -> bool:
     """True when ``path`` is (inside) a temporary sibling of an unfinished omni-gym write."""
     return any(_TEMP_NAME.match(part) for part in Path(path).parts)
+
+
+# A name inside an output folder (a run's NAME of runs/NAME.csv) is at most this many UTF-8 bytes, so that
+# NAME plus a suffix such as ".csv" stays within the 255 bytes most file systems allow for one name.
+MAX_NAME_BYTES = 200
+
+
+def check_file_name(name, what: str = "run name", where: str = "") -> str:
+    """``name`` if it is a plain file name to write inside an output folder; OutputError (one line naming
+    ``where`` and the name, escaped) otherwise.
+
+    The one check of every name that untrusted input (``--window NAME=…``, a mapping file, a log's file name)
+    turns into a path: refused are the empty name, path separators (``/``, ``\\``, so no absolute path and
+    no ``..`` component), ``.`` and ``..``, a leading ``.`` (a hidden file, which readers skip, and the shape
+    of the outputs' temporary siblings), control characters (newlines, escape sequences, NUL) and names over
+    :data:`MAX_NAME_BYTES` bytes.
+    """
+    prefix = f"{where}: " if where else ""
+    if not isinstance(name, str) or not name:
+        raise OutputError(f"{prefix}{what} {name!r}: empty or not a string; give a plain file name")
+    shown = ascii(name) if len(name) <= 80 else ascii(name[:77]) + "..."
+    if "/" in name or "\\" in name:
+        raise OutputError(f"{prefix}{what} {shown} contains a path separator; a {what} is a plain file name "
+                          "written inside --out")
+    if name.startswith("."):
+        raise OutputError(f"{prefix}{what} {shown} starts with '.' ('.', '..' and hidden names are refused); "
+                          "give a plain file name")
+    if any(ord(c) < 32 or 127 <= ord(c) < 160 or c in "\u2028\u2029" for c in name):
+        raise OutputError(f"{prefix}{what} {shown} contains control characters; give a plain file name")
+    try:
+        size = len(name.encode("utf-8"))
+    except UnicodeEncodeError:  # a lone surrogate (undecodable bytes of a file name)
+        raise OutputError(f"{prefix}{what} {shown} is not valid Unicode; give a plain file name") from None
+    if size > MAX_NAME_BYTES:
+        raise OutputError(f"{prefix}{what} {shown} is {size} bytes long (at most {MAX_NAME_BYTES})")
+    return name
 
 
 # -- atomic files ---------------------------------------------------------------------------------
@@ -238,6 +275,7 @@ class Output:
             raise OutputError(f"{self.target}: nothing was written (no {self.path.name})")
         old = None
         if os.path.lexists(self.target):
+            _check_replaceable(self.target, self.what)  # again: it may have changed while the work ran
             if self.kind == "file" and not self.target.is_dir():
                 os.replace(self.path, self.target)  # atomic for a file: no moment without it
             else:
@@ -284,6 +322,7 @@ class Output:
         """Refuse an existing target unless ``force``; never replace something of another kind."""
         t = self.target
         if os.path.lexists(t):
+            _check_replaceable(t, self.what)
             if self.kind == "dir" and not t.is_dir():
                 raise OutputError(f"{t}: exists and is not a folder; the {self.what} must be a folder "
                                   "(remove it or choose another --out)")
@@ -300,6 +339,8 @@ class Output:
                 raise OutputError(f"{t}: exists ({t.stat().st_size} bytes would be lost): use --force to replace it, "
                                   "or choose another --out")
         for c in self.companions:
+            if os.path.lexists(c):
+                _check_replaceable(c, "file")
             if os.path.lexists(c) and not self.force:
                 raise OutputError(f"{c}: exists and would be replaced: use --force, or choose another --out")
 
@@ -381,6 +422,24 @@ class Output:
                     os.rename(entry, self.target)
                 else:
                     _remove(entry)
+
+
+def _check_replaceable(path: Path, what: str) -> None:
+    """Refuse an existing ``path`` that is neither a regular file nor a folder (after symbolic links): a
+    device, a pipe, a socket or a broken link is never replaced, not even with ``--force`` (the rename
+    would put a plain file in place of ``/dev/full`` or a FIFO another program reads)."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as exc:
+        raise OutputError(f"{path}: exists but cannot be examined ({exc.strerror or exc}; a broken link?); "
+                          f"refusing to replace it with the {what}, even with --force") from None
+    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        kind = ("a character device" if stat.S_ISCHR(mode) else "a block device" if stat.S_ISBLK(mode)
+                else "a named pipe (FIFO)" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode)
+                else "not a regular file")
+        link = " (through a symbolic link)" if os.path.islink(path) else ""
+        raise OutputError(f"{path}: is {kind}{link}, not a file or folder omni-gym writes; refusing to replace "
+                          "it, even with --force (choose another --out)")
 
 
 def _resolved(path: Path) -> Path:

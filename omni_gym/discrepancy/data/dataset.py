@@ -227,6 +227,8 @@ def write_dataset(folder: str | Path, model_json: dict, description: str, runs: 
     """Write a dataset folder (runs first, dataset.json last). For a complete-or-absent dataset write
     into the temporary folder of an :class:`omni_gym.outputs.Output` (as ``omni-gym synth`` does)."""
     folder = Path(folder)
+    for run in runs:  # every name before anything is written: never a path out of runs/
+        outputs.check_file_name(run.name, "run name", str(folder))
     (folder / "runs").mkdir(parents=True, exist_ok=True)
     for run in runs:
         n = run.cmd.shape[1]

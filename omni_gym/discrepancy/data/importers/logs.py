@@ -33,7 +33,7 @@ from omni_gym.bounds import FILES
 from omni_gym.discrepancy.data.dataset import Run, write_dataset
 from omni_gym.discrepancy.data.units import check_run_units
 from omni_gym.io import InputError, first_not_increasing
-from omni_gym.outputs import Output
+from omni_gym.outputs import Output, check_file_name
 
 # --- units ---------------------------------------------------------------------------------------------
 
@@ -162,7 +162,8 @@ def parse_windows(specs: list[str] | None, option: str = "--window") -> list[Win
             raise InputError(f"{option} {spec!r}: expected START:END in seconds (e.g. 0:60)") from None
         if not sep or not (math.isfinite(start) and start >= 0 and end > start):
             raise InputError(f"{option} {spec!r}: expected START:END in seconds with 0 <= START < END")
-        out.append(Window(start, end, name or f"run{k:03d}"))
+        out.append(Window(start, end, check_file_name(name, "run name", f"{option} {spec!r}") if name
+                          else f"run{k:03d}"))
     return out
 
 
@@ -254,7 +255,7 @@ def write_imported(out: str | Path, inputs: list[Path], force: bool, build: Call
     synth``): ``build()`` reads the logs under the output's lock and returns (model JSON, description, runs)."""
     with Output(Path(out), "dir", force=force, inputs=inputs, marker="dataset.json", what="dataset") as tx:
         model_json, description, runs = build()
-        names = [r.name for r in runs]
+        names = [check_file_name(r.name, "run name", str(out)) for r in runs]
         dup = next((n for n in names if names.count(n) > 1), None)
         if dup is not None:
             raise InputError(f"two runs are named {dup!r}; give each window or file its own name")

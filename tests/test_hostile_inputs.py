@@ -1,0 +1,136 @@
+"""Hostile inputs found by a probe (issue 51): each is refused with one line, before anything is written, and
+nothing is written outside ``--out`` (run names), replaced where it is not ours (``--force``), or imported."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pytest
+
+from omni_gym.cli import main
+from omni_gym.outputs import OutputError, check_file_name
+
+MODEL = "williams2002"
+COLUMNS = "t=t,x=x,y=y,theta=theta,enc1=enc1,enc2=enc2,enc3=enc3"
+
+
+def _one_line(err: str) -> str:
+    """The one error line the command line prints (and nothing else on stderr)."""
+    assert err.count("\n") == 1 and err.startswith("omni-gym: error: ") and "Traceback" not in err, err
+    return err
+
+
+def _tree(root: Path) -> set[str]:
+    return {str(p.relative_to(root)) for p in root.rglob("*")}
+
+
+@pytest.fixture(scope="module")
+def robot_csv(tmp_path_factory) -> Path:
+    """A run of the Williams robot as a CSV log (a dataset run file has every column import csv needs)."""
+    folder = tmp_path_factory.mktemp("log")
+    assert main(["synth", "--model", MODEL, "--hidden", "none", "--runs", "1", "--duration", "2", "--out",
+                 str(folder / "ds")]) == 0
+    log = folder / "robot.csv"
+    log.write_bytes((folder / "ds" / "runs" / "run000.csv").read_bytes())
+    return log
+
+
+# -- 1. run names are plain file names ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["/abs/dir/NAME", "../up", "a/../../b", "..", ".", ".hidden", "sub\\x", "a\nb",
+                                  "esc\x1b[31m", "nul\x00", "x" * 300])
+def test_window_names_that_are_paths_are_refused(robot_csv, tmp_path, capsys, name):
+    work = tmp_path / "work"
+    work.mkdir()
+    if name.startswith("/"):
+        name = str(work / "abs" / "NAME")
+    before = _tree(tmp_path)
+    rc = main(["import", "csv", str(robot_csv), "--model", MODEL, "--columns", COLUMNS, "--window", f"{name}=0:1",
+               "--out", str(work / "ds")])
+    err = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "run name" in err and "--window" in err
+    assert "\x1b" not in err and "\x00" not in err  # the name is echoed escaped
+    assert _tree(tmp_path) == before  # nothing written anywhere (the default name would have been the log's)
+
+
+def test_mapping_window_names_are_refused(robot_csv, tmp_path, capsys):
+    mapping = tmp_path / "robot.json"
+    mapping.write_text(json.dumps({"model": MODEL, "columns": COLUMNS, "window": ["ok=0:1", "../../evil=1:2"]}))
+    before = _tree(tmp_path)
+    rc = main(["import", "csv", str(robot_csv), "--mapping", str(mapping), "--out", str(tmp_path / "ds")])
+    err = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "'../../evil'" in err
+    assert _tree(tmp_path) == before
+
+
+def test_plain_window_names_still_work(robot_csv, tmp_path):
+    out = tmp_path / "ds"
+    assert main(["import", "csv", str(robot_csv), "--model", MODEL, "--columns", COLUMNS, "--window", "a..b=0:1",
+                 "--window", "zwei=1:2", "--out", str(out)]) == 0
+    assert sorted(p.name for p in (out / "runs").iterdir()) == ["a..b.csv", "zwei.csv"]
+
+
+def test_write_dataset_refuses_a_path_as_run_name(tmp_path):
+    """The last guard, for every writer of datasets (importers, synth): the names are checked before any file."""
+    import numpy as np
+
+    from omni_gym.discrepancy.data.dataset import Run, write_dataset
+
+    t = np.array([0.0, 0.1])
+    runs = [Run(name="good", t=t, cmd=np.zeros((2, 3)), pose=np.zeros((2, 3))),
+            Run(name="../../escaped", t=t, cmd=np.zeros((2, 3)), pose=np.zeros((2, 3)))]
+    with pytest.raises(OutputError, match="path separator"):
+        write_dataset(tmp_path / "ds", {}, "", runs)
+    assert _tree(tmp_path) == set()
+
+
+def test_check_file_name():
+    assert check_file_name("run-01 (left) ü") == "run-01 (left) ü"
+    for bad in ("", None, "a/b", "a\\b", "..", ".x", "a\tb", "a\x7f", "a\x85b", "é" * 101):
+        with pytest.raises(OutputError):
+            check_file_name(bad)
+
+
+# -- 2. --force replaces only regular files and folders ------------------------------------------------------
+
+
+def _special(tmp_path: Path, kind: str) -> Path:
+    """A FIFO (as /dev/full would be: not a file omni-gym writes), or a symbolic link to one."""
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    if kind == "fifo":
+        return fifo
+    link = tmp_path / "link"
+    link.symlink_to(fifo)
+    return link
+
+
+@pytest.mark.parametrize("kind", ["fifo", "link to fifo"])
+def test_force_does_not_replace_a_fifo(tmp_path, capsys, kind):
+    target = _special(tmp_path, kind)
+    cmds = tmp_path / "cmd.csv"
+    cmds.write_text("t,w1,w2,w3\n0,1,1,1\n0.1,1,1,1\n")
+    rc = main(["simulate", "--model", MODEL, "--commands", str(cmds), "--out", str(target), "--force"])
+    err = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "named pipe" in err and "even with --force" in err
+    assert (tmp_path / "fifo").is_fifo() and os.path.islink(target) == (kind != "fifo")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted({"cmd.csv", "fifo", target.name})  # no leftovers
+
+
+def test_calibrate_force_does_not_replace_a_fifo(robot_csv, tmp_path, capsys):
+    target = _special(tmp_path, "fifo")
+    rc = main(["calibrate", str(robot_csv.parent / "ds"), "--out", str(target), "--force"])
+    err = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "named pipe" in err and target.is_fifo()
+
+
+def test_force_still_replaces_a_file(tmp_path):
+    cmds = tmp_path / "cmd.csv"
+    cmds.write_text("t,w1,w2,w3\n0,1,1,1\n0.1,1,1,1\n")
+    out = tmp_path / "traj.csv"
+    out.write_text("old\n")
+    assert main(["simulate", "--model", MODEL, "--commands", str(cmds), "--out", str(out), "--force"]) == 0
+    assert out.read_text().startswith("t,x,y,theta")
