@@ -24,6 +24,12 @@ negative, and their distributions are skewed (a few lost episodes dominate): a S
 (mean ± t·s/√n) then reaches below zero, a bound no error can have. The percentile interval lies
 inside [min, max] of the data, so it is never negative.
 
+Plant in the loop (``plant=``, ``omni-gym evaluate --plant``): the environment draws the same references
+and scores the same way, but its wheel commands drive a plant (:mod:`omni_gym.physics.plant`) instead
+of its own world: the second generator with a model file's hidden effects, or a user's robot. The
+environment's sensor models measure a simulated plant's motion with the same seeds, so a plant equal to
+the environment's model gives the environment's own figures, bit for bit.
+
 Scripted policies (:data:`agents.policies.POLICY_NAMES`) run with ``obs_mode="sensors"`` and
 ``action_mode="twist"``; asking for other modes in ``env_kwargs`` is an error.
 """
@@ -33,7 +39,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 
 import numpy as np
 
@@ -181,7 +187,7 @@ def check_policy_name(policy: str) -> None:
 
 
 def evaluate(policy: str, env_id: str, episodes: int, seed: int = DEFAULT_SEED, env_kwargs: dict | None = None,
-             progress: bool | None = None, model_options=None) -> dict:
+             progress: bool | None = None, model_options=None, plant: Callable | None = None) -> dict:
     """Run ``episodes`` episodes of ``policy`` on seeds seed, seed+1, …; return the summary dict.
 
     Args:
@@ -197,6 +203,8 @@ def evaluate(policy: str, env_id: str, episodes: int, seed: int = DEFAULT_SEED, 
         progress: True: a tqdm bar on stderr; False: nothing; None: the bar when stderr is a terminal,
             else a line every :data:`PROGRESS_EVERY_S` seconds (:func:`progress_lines`).
         model_options: :class:`agents.sb3_policy.ModelOptions` (algorithm, wrapper, ... of a plain SB3 zip).
+        plant: a factory ``plant(core) -> Plant`` called once with the environment's ``TaskCore``: the episodes
+            then drive that plant (:mod:`omni_gym.physics.plant`) instead of the environment's world.
 
     Returns a JSON-serialisable dict: ``policy``, ``env_id``, ``env_kwargs``, ``episodes``, ``seeds``
     ([first, last]), per metric and ``episode_return`` {mean, std, ci95}, ``success_rate`` {mean, successes, ci95},
@@ -212,6 +220,9 @@ def evaluate(policy: str, env_id: str, episodes: int, seed: int = DEFAULT_SEED, 
 
     env, pol = loader.load(policy, env_id, env_kwargs, model_options)  # the env the policy needs
     try:
+        if plant is not None:
+            core = env.unwrapped.core
+            core.attach_plant(plant(core))
         bar = progress is True or (progress is None and sys.stderr.isatty())
         what = f"{policy} on {env_id}"
         seeds: Iterable[int] = range(episodes)
@@ -229,7 +240,11 @@ def evaluate(policy: str, env_id: str, episodes: int, seed: int = DEFAULT_SEED, 
 def format_table(result: dict) -> str:
     """A small text table of the summary (mean and 95 % CI per metric)."""
     kw = f", {result['env_kwargs']}" if result["env_kwargs"] else ""
-    lines = [f"{result['policy']} on {result['env_id']}, {result['episodes']} episodes, seeds "
+    plant = result.get("plant")
+    where = "" if plant is None else (f", driving the {plant['kind']} plant"
+                                      + (f" of {plant['model']}" if plant.get("model") else "")
+                                      + (f" with {plant['extra']}" if plant.get("extra") else ""))
+    lines = [f"{result['policy']} on {result['env_id']}{where}, {result['episodes']} episodes, seeds "
              f"{result['seeds'][0]}–{result['seeds'][1]}{kw}",
              f"{'metric':<26}{'mean':>10}   95% CI (bootstrap percentile: errors are never negative)"]
     units = {"tracking_rmse": "m", "final_position_error": "m", "final_heading_error": "rad"}

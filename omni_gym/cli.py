@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 
 import numpy as np
@@ -75,6 +76,16 @@ def build_parser() -> argparse.ArgumentParser:
                          "score: 100*(RMSE_open - RMSE_policy)/(RMSE_open - RMSE_ekfpid), 0 = open-loop, 100 = "
                          "ekf-pid (agents/normalised_score.py)")
     ev.add_argument("--env-kwargs", default=None, help="gym.make keywords as a JSON object")
+    ev.add_argument("--plant", choices=PLANTS, default=None,
+                    help="drive a plant instead of the environment's own world, on the same references and seeds: "
+                         "'second-generator' (the separately written event integrator, closed loop) or 'simulator' "
+                         "(omni-gym's world through the plant protocol); docs/formats.md, 'Plants'")
+    ev.add_argument("--plant-model", default=None, metavar="MODEL.json",
+                    help="the plant's model file (the robot's truth, hidden effects included; default: the "
+                         "environment's own model)")
+    ev.add_argument("--plant-extra", default=None, metavar="JSON",
+                    help="second-generator only: effects outside the library on top of --plant-model, e.g. "
+                         "'{\"drag\": 2.0}' or '{\"slope\": {\"angle\": 0.03, \"direction\": 0.5}}'")
     ev.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     ev.add_argument("--algo", default=None, help="plain SB3 .zip: its algorithm (ppo, sac, td3)")
     ev.add_argument("--wrapper", default=None,
@@ -377,9 +388,16 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
                 check_policy_name(args.against)
             except ValueError as exc:
                 raise ValueError(f"--against: {exc}") from None
-        result = evaluate(args.policy, args.env, args.episodes, args.seed, kwargs, model_options=options)
+        plant = _plant_factory(args)
+        result = evaluate(args.policy, args.env, args.episodes, args.seed, kwargs, model_options=options, plant=plant)
         other = None if args.against is None else evaluate(args.against, args.env, args.episodes, args.seed, kwargs,
-                                                           model_options=ModelOptions(trust_pickle=args.trust_pickle))
+                                                           model_options=ModelOptions(trust_pickle=args.trust_pickle),
+                                                           plant=plant)
+        if plant is not None:
+            for res in (result, other):
+                if res is not None:
+                    res["plant"] = {"kind": args.plant, "model": _record_path(args.plant_model),
+                                    "extra": _plant_extra(args)}
         anchors = _score_anchors(args, kwargs, result, other) if args.score else None
     except ImportError as exc:  # a missing extra: one line naming it (agents.require_agents_extra)
         raise ValueError(str(exc)) from None
@@ -402,6 +420,57 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
                 blocks.append(f"{res['policy']}: {sc.text()}")
     print(json.dumps(out) if args.json else "\n\n".join(blocks))
     return 0
+
+
+PLANTS = ("second-generator", "simulator")
+
+
+def _record_path(path: str | None) -> str | None:
+    """A path as a result records it: its file name only (no machine's folders in a record)."""
+    return None if path is None else os.path.basename(path)
+
+
+def _plant_extra(args: argparse.Namespace) -> dict | None:
+    """``--plant-extra`` as an object (effects outside the library), checked to be one."""
+    if args.plant_extra is None:
+        return None
+    if args.plant != "second-generator":
+        raise ValueError("--plant-extra: only the second-generator plant takes effects outside the library")
+    from omni_gym.io import parse_json
+
+    extra = parse_json(args.plant_extra, "--plant-extra")
+    if not isinstance(extra, dict):
+        raise ValueError(f"--plant-extra: expected a JSON object {{effect: params}}, got {type(extra).__name__}")
+    return extra
+
+
+def _plant_factory(args: argparse.Namespace):
+    """``plant(core) -> Plant`` from ``--plant``, ``--plant-model`` and ``--plant-extra`` (None: no plant). The
+    model file and extra effects are read and checked here, before any episode runs."""
+    if args.plant is None:
+        for name in ("plant_model", "plant_extra"):
+            if getattr(args, name) is not None:
+                raise ValueError(f"--{name.replace('_', '-')} needs --plant")
+        return None
+    from omni_gym.envs.config import parse_model
+
+    model = None if args.plant_model is None else parse_model(args.plant_model)
+    extra = _plant_extra(args)
+    if args.plant == "simulator":
+        return lambda core: core.simulator_plant(model)
+    from omni_gym.analysis.closed_loop import SecondGeneratorPlant
+    from omni_gym.analysis.event_integrator import check_effects
+
+    if extra is not None and model is not None:
+        check_effects(extra, model)
+
+    def second_generator(core):
+        truth = model if model is not None else core.base_model
+        if extra is not None:
+            check_effects(extra, truth)
+        return SecondGeneratorPlant(truth, extra)
+
+    return second_generator
 
 
 def _score_anchors(args: argparse.Namespace, kwargs: dict, *done: dict | None) -> tuple[dict, dict]:

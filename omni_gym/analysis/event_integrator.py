@@ -17,7 +17,9 @@ velocity, the heading, the yaw rate, the wheel angles φ_i and, with ``motor_lag
     v_W = u_i·e_i − r_i w_i cos γ_i,  v_T = u_i·f_i + r_i w_i sin γ_i
     F_i = −N_i [μ_W(v_W) e_i + μ_T(v_T) f_i],  μ(v) = μ_max (2/π) atan(k v)
 
-(c, c_rot: the ``drag`` effect outside the library, 0 otherwise). The tracked pose is the geometric
+(c, c_rot: the ``drag`` effect outside the library, 0 otherwise; the ``slope`` effect, also outside the
+library, adds the downhill acceleration g·sin α·(cos β, sin β) to dV/dt and carries the weight's normal
+share cos α on the wheels). The tracked pose is the geometric
 centre's: (X, Y) − R(θ)·com.
 
 Choices where the documents leave room (each one a place where this integrator may differ from the
@@ -74,7 +76,7 @@ from omni_gym.physics.model import SimModel
 TRACKER_EFFECTS = ("tracker_offset", "time_offset")
 PHYSICS_EFFECTS = ("com_offset", "wheel_radius", "wheel_geometry", "motor_lag", "kinetic_friction",
                    "roller_gap", "wheel_liftoff", "mecanum_lateral")
-EXTRA_EFFECTS = ("drag",)
+EXTRA_EFFECTS = ("drag", "slope")
 
 
 @dataclass(frozen=True)
@@ -109,6 +111,8 @@ class Plant:
     drag: float = 0.0
     drag_rot: float = 0.0
     lift: tuple[float, float] | None = None  # (lift_rate, recover_rate) [1/s] of wheel_liftoff
+    slope: tuple[float, float] = (0.0, 0.0)  # downhill acceleration g·sin α (cos β, sin β) [m/s²], world frame
+    normal_scale: float = 1.0  # cos α: the share of the weight the tilted floor carries
 
     @property
     def n(self) -> int:
@@ -116,7 +120,7 @@ class Plant:
 
     def loads(self, lifted: np.ndarray) -> np.ndarray:
         """(n,) normal loads [N] with the wheels of ``lifted`` (n,) bool off the floor."""
-        weight = self.mass * self.gravity
+        weight = self.mass * self.gravity * self.normal_scale
         contact = ~np.asarray(lifted, dtype=bool)
         loads = np.zeros(self.n)
         if not contact.any():
@@ -178,6 +182,17 @@ def drag_params(value) -> tuple[float, float]:
     return _scalar({"c": value}, "c", "drag", 0.0, 1e3), 0.0
 
 
+def slope_params(value) -> tuple[float, float]:
+    """(α [rad], β [rad]) of the ``slope`` effect {"angle": α, "direction": β}: the floor tilted by α (at most
+    0.2 rad, 11°) so that downhill points along the world direction β."""
+    if not isinstance(value, dict):
+        raise ValueError(f"effect 'slope': parameters must be an object {{angle, direction}}, got {value!r}")
+    unknown = set(value) - {"angle", "direction"}
+    if unknown:
+        raise ValueError(f"effect 'slope': unknown parameter {sorted(unknown)[0]!r} (allowed: angle, direction)")
+    return _scalar(value, "angle", "slope", 0.0, 0.2), _scalar(value, "direction", "slope", -10.0, 10.0)
+
+
 def check_effects(effects: dict, model: SimModel) -> None:
     """Raise a one-line ValueError naming the first effect or parameter that does not fit ``model``."""
     if not isinstance(effects, dict):
@@ -190,6 +205,9 @@ def check_effects(effects: dict, model: SimModel) -> None:
             raise ValueError(f"unknown effect {name!r} (known: {', '.join(known)})")
         if name == "drag":
             drag_params(params)
+            continue
+        if name == "slope":
+            slope_params(params)
             continue
         if not isinstance(params, dict):
             raise ValueError(f"effect {name!r}: parameters must be an object, got {params!r}")
@@ -256,6 +274,7 @@ def build_plant(model: SimModel, extra: dict | None = None) -> Plant:
     phases = np.zeros(n)
     kinetic = tau = lift = None
     c = c_rot = 0.0
+    slope, normal_scale = (0.0, 0.0), 1.0
     if "com_offset" in effects:
         com = np.array(effects["com_offset"]["com"], dtype=float)
     if "wheel_radius" in effects:
@@ -285,12 +304,17 @@ def build_plant(model: SimModel, extra: dict | None = None) -> Plant:
         lift = (float(p["lift_rate"]), float(p["recover_rate"]))
     if "drag" in effects:
         c, c_rot = drag_params(effects["drag"])
+    if "slope" in effects:
+        alpha, beta = slope_params(effects["slope"])
+        g_along = float(model.gravity) * math.sin(alpha)
+        slope, normal_scale = (g_along * math.cos(beta), g_along * math.sin(beta)), math.cos(alpha)
     gap_half = (1.0 - fraction) * pitch / 2.0
     return Plant(mass=float(robot.mass), inertia=float(robot.inertia), gravity=float(model.gravity), com=com,
                  positions=positions, drives=drives, gammas=gammas, radii=radii,
                  mu_w=float(surface.mu_drive), mu_t=float(surface.mu_transverse), mu_gap=mu_gap,
                  k=float(surface.k), gap=gap and gap_half > 0.0, pitch=pitch, gap_half=gap_half,
-                 phases=phases, kinetic=kinetic, tau=tau, drag=c, drag_rot=c_rot, lift=lift)
+                 phases=phases, kinetic=kinetic, tau=tau, drag=c, drag_rot=c_rot, lift=lift, slope=slope,
+                 normal_scale=normal_scale)
 
 
 def draw_lift_schedule(plant: Plant, duration: float, rng: np.random.Generator) -> list[tuple[float, np.ndarray]]:
@@ -390,8 +414,8 @@ class _Rhs:
         fys = -self.loads * (mw * ey + mt * fy)
         dy = np.empty_like(y)
         dy[0], dy[1], dy[2] = vx, vy, om
-        dy[3] = (fxs.sum() - p.drag * vx) / p.mass
-        dy[4] = (fys.sum() - p.drag * vy) / p.mass
+        dy[3] = (fxs.sum() - p.drag * vx) / p.mass + p.slope[0]
+        dy[4] = (fys.sum() - p.drag * vy) / p.mass + p.slope[1]
         dy[5] = (np.sum(rho_x * fys - rho_y * fxs) - p.drag_rot * om) / p.inertia
         dy[6:6 + n] = w
         if p.tau is not None:
@@ -478,52 +502,14 @@ def integrate(plant: Plant, times: np.ndarray, commands: np.ndarray, sample_time
         row = int(np.searchsorted(times, a, side="right") - 1)
         cmd = commands[row]
         loads = plant.loads(lifted)
-        t = a
-        while t < b:
-            on_gap = _on_gap_of(plant, regions)
-            rhs = _Rhs(plant, cmd, loads, on_gap)
-            events = []
-            owners = []
-            if plant.gap:
-                for i in range(n):
-                    lo = _boundary(plant, int(regions[i])) - plant.phases[i]
-                    hi = _boundary(plant, int(regions[i]) + 1) - plant.phases[i]
-                    ev_lo = _angle_event(6 + i, lo, -1.0)
-                    ev_hi = _angle_event(6 + i, hi, +1.0)
-                    events += [ev_lo, ev_hi]
-                    owners += [(i, -1, lo), (i, +1, hi)]
-            try:
-                sol = solve_ivp(rhs, (t, b), state, method=method, rtol=rtol, atol=atol, dense_output=True,
-                                events=events or None)
-            except ValueError:
-                # The event root search brackets on the step's interpolant; should it disagree in sign
-                # with the step's end values (seen with LSODA's interpolant), Radau's collocation
-                # polynomial passes through them.
-                sol = solve_ivp(rhs, (t, b), state, method="Radau", rtol=rtol, atol=atol, dense_output=True,
-                                events=events or None)
-                counts["radau_retries"] = counts.get("radau_retries", 0) + 1
-            if sol.status < 0:
-                raise RuntimeError(f"solve_ivp failed at t = {t:.6f} s: {sol.message}")
-            counts["pieces"] += 1
-            t_end = float(sol.t[-1])
+
+        def keep(sol, t, t_end, b=b):
             mask = (~filled) & (samples >= t) & ((samples <= t_end) if t_end >= b else (samples < t_end))
             if mask.any():
                 out[mask] = sol.sol(samples[mask]).T
-                filled |= mask
-            state = sol.y[:, -1].copy()
-            if sol.status == 1:  # an event: step the wheel's region, snap its angle onto the boundary
-                hit = [k for k, te in enumerate(sol.t_events) if len(te)]
-                k = min(hit, key=lambda q: sol.t_events[q][0])
-                i, step, angle = owners[k]
-                _cross(plant, regions, state, i, step, angle)
-                counts["gap_switches"] += 1
-                # Wheels at the same angle (a turn in place with equal phases) cross together.
-                for i2, step2, angle2 in owners:
-                    speed = state[6 + n + i2] if plant.tau is not None else cmd[i2]
-                    if i2 != i and abs(state[6 + i2] - angle2) < SIMULTANEOUS and step2 * speed > 0:
-                        _cross(plant, regions, state, i2, step2, angle2)
-                        counts["gap_switches"] += 1
-            t = t_end
+                filled[mask] = True
+
+        state = run_piece(plant, state, regions, cmd, loads, a, b, counts, method, rtol, atol, keep)
     if not filled.all():  # samples exactly at the last cut
         out[~filled] = state
     th = out[:, 2]
@@ -535,6 +521,62 @@ def integrate(plant: Plant, times: np.ndarray, commands: np.ndarray, sample_time
     rx, ry = -(c * cx - s * cy), -(s * cx + c * cy)
     vel = np.column_stack([out[:, 3] - om * ry, out[:, 4] + om * rx, om])
     return Trajectory(t=samples, pose=pose, velocity=vel, angles=out[:, 6:6 + n].copy(), events=counts)
+
+
+def run_piece(plant: Plant, state: np.ndarray, regions: np.ndarray, cmd: np.ndarray, loads: np.ndarray, a: float,
+              b: float, counts: dict, method: str = "LSODA", rtol: float = 1e-8, atol: float = 1e-10,
+              keep=None) -> np.ndarray:
+    """Integrate one piece [a, b] of fixed commands ``cmd`` and loads from ``state``; return the state at b.
+
+    ``regions`` (n,) is stepped in place at every roller/rigid event; ``counts`` gathers the pieces and
+    switches; ``keep(sol, t, t_end)``, if given, sees every solver segment (dense output on [t, t_end]).
+    """
+    n = plant.n
+    t = a
+    while t < b:
+        on_gap = _on_gap_of(plant, regions)
+        rhs = _Rhs(plant, cmd, loads, on_gap)
+        events = []
+        owners = []
+        if plant.gap:
+            for i in range(n):
+                lo = _boundary(plant, int(regions[i])) - plant.phases[i]
+                hi = _boundary(plant, int(regions[i]) + 1) - plant.phases[i]
+                ev_lo = _angle_event(6 + i, lo, -1.0)
+                ev_hi = _angle_event(6 + i, hi, +1.0)
+                events += [ev_lo, ev_hi]
+                owners += [(i, -1, lo), (i, +1, hi)]
+        try:
+            sol = solve_ivp(rhs, (t, b), state, method=method, rtol=rtol, atol=atol, dense_output=True,
+                            events=events or None)
+        except ValueError:
+            # The event root search brackets on the step's interpolant; should it disagree in sign
+            # with the step's end values (seen with LSODA's interpolant), Radau's collocation
+            # polynomial passes through them.
+            sol = solve_ivp(rhs, (t, b), state, method="Radau", rtol=rtol, atol=atol, dense_output=True,
+                            events=events or None)
+            counts["radau_retries"] = counts.get("radau_retries", 0) + 1
+        if sol.status < 0:
+            raise RuntimeError(f"solve_ivp failed at t = {t:.6f} s: {sol.message}")
+        counts["pieces"] += 1
+        t_end = float(sol.t[-1])
+        if keep is not None:
+            keep(sol, t, t_end)
+        state = sol.y[:, -1].copy()
+        if sol.status == 1:  # an event: step the wheel's region, snap its angle onto the boundary
+            hit = [k for k, te in enumerate(sol.t_events) if len(te)]
+            k = min(hit, key=lambda q: sol.t_events[q][0])
+            i, step, angle = owners[k]
+            _cross(plant, regions, state, i, step, angle)
+            counts["gap_switches"] += 1
+            # Wheels at the same angle (a turn in place with equal phases) cross together.
+            for i2, step2, angle2 in owners:
+                speed = state[6 + n + i2] if plant.tau is not None else cmd[i2]
+                if i2 != i and abs(state[6 + i2] - angle2) < SIMULTANEOUS and step2 * speed > 0:
+                    _cross(plant, regions, state, i2, step2, angle2)
+                    counts["gap_switches"] += 1
+        t = t_end
+    return state
 
 
 SIMULTANEOUS = 1e-9  # rad: wheels this close to their boundary at another wheel's event cross with it

@@ -43,7 +43,8 @@ from omni_gym.envs.reward import RewardInputs, check_reward, evaluate, tracking_
 from omni_gym.physics.kinematics import WheelKinematics, effective_kinematics
 from omni_gym.physics.layout import SP_CX, SP_CY, WH_CMD
 from omni_gym.physics.liftoff import ContactProcess, contact_cases
-from omni_gym.physics.model import Actuation
+from omni_gym.physics.model import Actuation, SimModel
+from omni_gym.physics.plant import Plant, PlantState, SimulatorPlant, check_plant_state
 from omni_gym.physics.world import Arena, World
 from omni_gym.sensor_bank import SensorBank
 
@@ -260,6 +261,27 @@ def _brief(value) -> str:
     return text if len(text) <= 80 else text[:77] + "..."
 
 
+def put_reading(bank: SensorBank, reading) -> None:
+    """Write a real robot's :class:`~omni_gym.physics.plant.SensorReading` into robot 0's row of ``bank``."""
+    angles = np.asarray(reading.wheel_angles, dtype=float)
+    accel = np.asarray(reading.accel, dtype=float)
+    if angles.shape != bank.wheel_angles.shape[1:] or accel.shape != (2,):
+        raise ValueError(f"plant reading: wheel_angles must have shape {bank.wheel_angles.shape[1:]} and accel (2,), "
+                         f"got {angles.shape} and {accel.shape}")
+    values = [angles, accel, [reading.gyro, reading.compass]]
+    if reading.fix is not None:
+        values.append(np.asarray(reading.fix, dtype=float).reshape(3))
+    if not all(np.all(np.isfinite(v)) for v in values):
+        raise ValueError("plant reading: a sensor value is NaN or infinite")
+    bank.wheel_angles[0] = angles
+    bank.gyro[0] = float(reading.gyro)
+    bank.compass[0] = float(reading.compass)
+    bank.accel[0] = accel
+    bank.has_fix[0] = reading.fix is not None
+    if reading.fix is not None:
+        bank.fix[0] = np.asarray(reading.fix, dtype=float).reshape(3)
+
+
 def as_actions(actions, shape: tuple[int, ...]) -> np.ndarray:
     """``actions`` as a float64 array of exactly ``shape``; ValueError for other shapes or non-real values.
 
@@ -339,6 +361,49 @@ class TaskCore:
         self.models = [self.base_model] * n_robots
         self._contact_cases = contact_cases(self.n_wheels)  # shared by every robot's contact process: read-only
         self._contact_cases.setflags(write=False)
+        self.plant: Plant | None = None  # attach_plant: a plant in place of the world (one robot)
+        self._plant_state: PlantState | None = None
+
+    # --- a plant in place of the world -------------------------------------------------------
+
+    def attach_plant(self, plant: Plant | None) -> None:
+        """Drive ``plant`` (:mod:`omni_gym.physics.plant`) instead of this core's own world (None: the world
+        again). Everything else stays: the reference, the observation, the reward and the scoring. Takes
+        effect from the next reset; one robot only."""
+        if plant is not None:
+            if self.B != 1:
+                raise ValueError(f"a plant drives one robot; this core has {self.B}")
+            if not isinstance(plant, Plant):
+                raise ValueError(f"plant must have n_wheels, reset(pose, seed) and step(wheel_speeds, duration), "
+                                 f"got {type(plant).__name__}")
+            if int(plant.n_wheels) != self.n_wheels:
+                raise ValueError(f"the plant has {plant.n_wheels} wheels, the environment's robot "
+                                 f"{self.n_wheels}")
+            self._plant_body = np.zeros((1, 6))  # the plant's motion as a body row with the com at the centre
+            self._plant_origins = np.zeros((1, 2))
+            self._plant_sp = self.world.sp.copy()
+            self._plant_sp[:, SP_CX] = 0.0
+            self._plant_sp[:, SP_CY] = 0.0
+            self._plant_angles = np.zeros((1, self.n_wheels))
+        self.plant = plant
+        self._plant_state = None
+
+    def simulator_plant(self, model: SimModel | None = None) -> SimulatorPlant:
+        """A :class:`~omni_gym.physics.plant.SimulatorPlant` with this environment's substep, actuation and arena:
+        of its own model and lift-off rates (None: the environment's own world, no domain randomisation), or of
+        ``model`` (its ``wheel_liftoff`` effect, if any, sets the rates)."""
+        cfg = self.cfg
+        rates = cfg.contact_rates() if model is None else None
+        return SimulatorPlant(self.base_model if model is None else model, cfg.physics_dt,
+                              Actuation(kind=cfg.actuation), Arena(cfg.arena_half_size, cfg.walls, cfg.obstacles),
+                              lift_rates=rates)
+
+    def _take_plant_state(self, state: object, where: str) -> None:
+        st = check_plant_state(state, self.n_wheels, where)
+        self._plant_state = st
+        self._plant_body[0, 0:3] = st.pose
+        self._plant_body[0, 3:6] = st.velocity
+        self._plant_angles[0] = st.wheel_angles
 
     # --- reset -------------------------------------------------------------------------------
 
@@ -367,12 +432,15 @@ class TaskCore:
         elif self.world.contact_processes[j] is not None:
             self.world.set_contact_process(j, None)
         self.world.reset(poses=pose[0:1], robots=[j])
+        if self.plant is not None:  # the plant's own hidden randomness is seeded as the world's contacts are
+            self._take_plant_state(self.plant.reset(pose[0].copy(), int(contact_seed)), "plant.reset")
         self.step_count[j] = 0
         self.prev_action[j] = 0.0
         if cfg.obs_mode == "sensors":
             bank = self.sensors
             bank.reset(j, np.random.default_rng(sensor_seed), self.sensor_config, self.sensor_noise_scale[j])
-            self.prev_encoders[j] = np.floor(self.world.wheel_angle[j] / bank.quantum[j]) * bank.quantum[j]
+            angles = self.world.wheel_angle if self.plant is None else self._plant_angles
+            self.prev_encoders[j] = np.floor(angles[j] / bank.quantum[j]) * bank.quantum[j]
             self.last_fix[j] = 0.0
             self.fix_age[j] = 1.0
 
@@ -391,7 +459,13 @@ class TaskCore:
             raise ValueError(f"action contains NaN or infinity: {_brief(raw.tolist())}")
         if self._sensors_mode:
             self.prev_true[:] = self.true  # for the accelerometer (body_acceleration)
-        self.world.substeps(self.cfg.substeps)
+        if self.plant is not None:
+            if self._plant_state is None:
+                raise RuntimeError("a plant was attached after the last reset: reset before stepping")
+            commands = self.world.wheels[0, :, WH_CMD].copy()
+            self._take_plant_state(self.plant.step(commands, self.cfg.control_dt), "plant.step")
+        else:
+            self.world.substeps(self.cfg.substeps)
         self.step_count += 1
         self.prev_action[:] = self._clipped
 
@@ -404,9 +478,13 @@ class TaskCore:
         is deterministic and leaves the other robots' values unchanged.
         """
         world = self.world
-        self._observe_state(world.body_states(), world.origins, world.sp, self.ref_pose, self.ref_vel, self.step_count,
-                      self.look, self.prev_action, self.scales, self._state_offsets, self._state_obs, self.err,
-                      self.true, self.reward)
+        if self.plant is None:
+            body, origins, sp = world.body_states(), world.origins, world.sp
+        else:  # the plant reports the geometric centre's motion: a body row with the com at the centre
+            body, origins, sp = self._plant_body, self._plant_origins, self._plant_sp
+        self._observe_state(body, origins, sp, self.ref_pose, self.ref_vel, self.step_count, self.look,
+                            self.prev_action, self.scales, self._state_offsets, self._state_obs, self.err, self.true,
+                            self.reward)
         if self._custom_reward is not None:  # the kernel's built-in reward replaced by the user's
             evaluate(self._custom_reward, self._reward_inputs(), self.reward)
         if self._sensors_mode:
@@ -433,8 +511,12 @@ class TaskCore:
         true = self.true
         body_acceleration(robots, true, self.prev_true, self.step_count, dt, self._acc_body)
         bank = self.sensors
-        bank.measure(self.step_count * dt, dt, self.world.wheel_angle, true[:, 0:3], true[:, 5], self._acc_body,
-                     robots)
+        reading = None if self._plant_state is None else self._plant_state.reading
+        if reading is not None:  # a real robot's own sensors replace the sensor models
+            put_reading(bank, reading)
+        else:
+            angles = self.world.wheel_angle if self.plant is None else self._plant_angles
+            bank.measure(self.step_count * dt, dt, angles, true[:, 0:3], true[:, 5], self._acc_body, robots)
         encode_sensor_obs(robots, bank.wheel_angles, bank.gyro, bank.compass, bank.accel, bank.fix, bank.has_fix,
                           self.step_count, dt, self.prev_encoders, self.last_fix, self.fix_age, self.ref_pose,
                           self.ref_vel, self.look, self.prev_action, self._sensor_scales, self._sensor_offsets,
@@ -443,6 +525,13 @@ class TaskCore:
     def rewards(self) -> np.ndarray:
         """Per-robot reward for the last control period (see the module constants), after :meth:`observe`."""
         return self.reward.copy()
+
+    def contact(self, j: int) -> np.ndarray:
+        """Robot j's wheels on the floor (the plant's, when one is attached and reports them)."""
+        st = self._plant_state
+        if self.plant is not None and st is not None and st.contact is not None:
+            return np.asarray(st.contact, dtype=bool).copy()
+        return self.world.contact[j].copy()
 
     def terminated(self) -> np.ndarray:
         return (self.err[:, 0] > self.cfg.lost_distance) | self.world.collided
@@ -488,7 +577,7 @@ class TaskCore:
             "tracking_error": e,
             "heading_error": e_theta,
             "slip": world.slip[j].copy(),
-            "contact": world.contact[j].copy(),
+            "contact": self.contact(j),
             "collided": bool(world.collided[j]),
             "is_success": e <= self.cfg.success_distance and abs(e_theta) <= self.cfg.success_heading,
         }
