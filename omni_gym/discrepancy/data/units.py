@@ -14,11 +14,15 @@ cannot raise it, while a run in millimetres raises every moving window by a fact
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from omni_gym.bounds import LOGS, PLAUSIBLE_SPEED, PLAUSIBLE_YAW_RATE
 from omni_gym.io import InputError
+
+if TYPE_CHECKING:  # the dataset module imports this one
+    from omni_gym.discrepancy.data.dataset import Run
 
 BASELINE = 1.0  # s: shortest time between the two poses of one rate (the whole run if shorter)
 
@@ -116,3 +120,82 @@ def check_travel_scale(where: str, motion: np.ndarray, settings: str) -> None:
             raise InputError(f"{where}: the tracked {what} ({tracked:.3g} {unit}) is {ratio:.3g} times the wheel "
                              f"odometry's ({wheels:.3g} {unit}; {settings}); expected a ratio {bound.within()}: "
                              f"{cause}")
+
+
+# --- Unit mistakes at import: the tracked motion against the wheels' (every importer) ----------------------
+# A unit read wrongly scales the tracked motion against the wheel odometry by the unit's factor. The ratio r =
+# tracked / wheels is about 1 without slip (0.95 to 1.13 on the shipped OptiOdom sessions) and slip only
+# shortens the tracked motion; a ratio within MATCH of a factor below is that factor's mistake (MATCH 1.25 covers
+# the shipped sessions' spread with margin and stays far from the next factor: 6.28, 9.55, 10 are 1.05-1.5
+# apart, so the message names the candidates that match, never one at random).
+MATCH = 1.25
+# (factor r, what it means): poses read r times too large (x, y: translation only; theta: rotation only) or
+# the wheels read r times too small (translation and rotation alike).
+LENGTH_MISTAKES = ((1000.0, "x, y in millimetres read as metres"), (100.0, "x, y in centimetres read as metres"),
+                   (10.0, "x, y in millimetres read as centimetres"), (1e-3, "x, y in metres read as millimetres"),
+                   (1e-2, "x, y in metres read as centimetres"), (0.1, "x, y in centimetres read as millimetres"))
+THETA_MISTAKES = ((180.0 / np.pi, "theta in degrees read as radians"), (np.pi / 180.0, "theta in radians read as "
+                                                                                       "degrees"))
+WHEEL_MISTAKES = ((60.0 / (2.0 * np.pi), "wheel angles or speeds in rad (rad/s) read as rpm"),
+                  (2.0 * np.pi / 60.0, "wheel speeds in rpm read as rad/s"),
+                  (180.0 / np.pi, "wheel angles in radians read as degrees"),
+                  (np.pi / 180.0, "wheel angles in degrees read as radians"),
+                  (2.0 * np.pi, "wheel angles in revolutions read as radians"),
+                  (1.0 / (2.0 * np.pi), "wheel angles in radians read as revolutions"))
+
+
+def _matches(ratio: float, table) -> list[str]:
+    return [what for factor, what in table if ratio > 0 and abs(np.log(ratio / factor)) < np.log(MATCH)]
+
+
+def wheel_travel_of(run: Run) -> np.ndarray:
+    """(K, n) wheel angles [rad] of ``run``: its ``enc`` columns, or the integral of its held commands."""
+    if run.enc is not None:
+        return np.asarray(run.enc, dtype=float)
+    steps = run.cmd[:-1] * np.diff(run.t)[:, None]
+    return np.vstack([np.zeros((1, run.cmd.shape[1])), np.cumsum(steps, axis=0)])
+
+
+def check_import_units(where: str, runs: list[Run], wheel_matrix: np.ndarray, hint: str = "check --units") -> None:
+    """Refuse an import whose tracked motion and wheel odometry disagree by a unit's factor (both directions:
+    poses too large or too small, wheels too large or too small), naming the likely unit mistake.
+
+    The one plausibility check after unit conversion for every importer (``logs.write_imported``: csv, rosbag2,
+    optiodom). ``wheel_matrix`` (n, 3): the nominal model's (:func:`travel`); motion summed over ``runs``. A
+    translation ratio outside the travel-ratio bound (``omni_gym.bounds.LOGS``) is refused whatever its cause, a
+    rotation ratio outside it on a unit's factor; inside the bound, a run is refused where translation and rotation
+    agree on one wheel unit's factor (wheels in rpm read as rad/s give 0.105 on both; slip shortens translation
+    and rotation by different amounts, a unit by the same).
+    """
+    motion = np.zeros(4)
+    for run in runs:
+        motion += travel(run.t, run.pose, wheel_travel_of(run), wheel_matrix)
+    bound = LOGS["travel ratio (tracked / wheels)"]
+    # Translation: measured once either side moved (metres read as millimetres leave the tracker almost still);
+    # outside the bound it is refused whatever the cause, as the OptiOdom import does.
+    r_t = None
+    if max(motion[0], motion[1]) >= MIN_MOTION[0]:
+        r_t = motion[0] / motion[1] if motion[1] > 0 else np.inf
+    # Rotation: slip alone can turn a robot whose wheels give almost no rotation (the Williams robot's slip turns
+    # it 0.5 rad in 3 s while its wheels' net rotation stays under 1 mrad), so it is read only where the wheels
+    # themselves turned at least a tenth of the least motion (0.05 rad), and refused only on a unit's factor.
+    r_r = None
+    if motion[2] >= MIN_MOTION[1] or motion[3] >= MIN_MOTION[1]:
+        r_r = motion[2] / motion[3] if motion[3] >= 0.1 * MIN_MOTION[1] else None
+    wheel_t = _matches(r_t, WHEEL_MISTAKES) if r_t is not None else []
+    wheel = [w for w in wheel_t if w in _matches(r_r, WHEEL_MISTAKES)] if r_r is not None else []
+    if wheel:  # translation and rotation off by one wheel factor: the wheels (x, y or theta move one only)
+        causes = wheel
+    else:
+        causes = []
+        if r_t is not None and not bound.contains(r_t):
+            causes = wheel_t + _matches(r_t, LENGTH_MISTAKES) or ["a unit of x, y or the wheels, or the model's wheel "
+                                                                  "radius"]
+        if r_r is not None and not bound.contains(r_r):
+            causes += _matches(r_r, THETA_MISTAKES) + _matches(r_r, WHEEL_MISTAKES)
+    if not causes:
+        return
+    shown = "; ".join(f"tracked {what} {r:.3g} times the wheel odometry's" for what, r in
+                      (("translation", r_t), ("rotation", r_r)) if r is not None)
+    cause = f"likely {' or '.join(causes)}"
+    raise InputError(f"{where}: {shown} (expected about 1 without slip, {bound.within()}): {cause}; {hint}")

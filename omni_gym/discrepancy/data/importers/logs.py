@@ -31,9 +31,10 @@ import numpy as np
 
 from omni_gym.bounds import FILES
 from omni_gym.discrepancy.data.dataset import Run, write_dataset
-from omni_gym.discrepancy.data.units import check_run_units
+from omni_gym.discrepancy.data.units import check_import_units, check_run_units
 from omni_gym.io import InputError, first_not_increasing
 from omni_gym.outputs import Output, check_file_name
+from omni_gym.physics.model import SimModel
 
 # --- units ---------------------------------------------------------------------------------------------
 
@@ -249,14 +250,19 @@ def wheel_radius_of(model_json: dict) -> float:
     return float(model_json["wheel_radius"])
 
 
-def write_imported(out: str | Path, inputs: list[Path], force: bool, build: Callable[[], tuple[dict, str, list[Run]]]
-                   ) -> None:
+def write_imported(out: str | Path, inputs: list[Path], force: bool, build: Callable[[], tuple[dict, str, list[Run]]],
+                   hint: str = "check --units") -> None:
     """Write the dataset folder ``out`` complete or absent (:class:`omni_gym.outputs.Output`, as ``omni-gym
-    synth``): ``build()`` reads the logs under the output's lock and returns (model JSON, description, runs)."""
+    synth``): ``build()`` reads the logs under the output's lock and returns (model JSON, description, runs).
+    The runs' tracked motion is checked against their wheels' for a unit mistake
+    (:func:`~omni_gym.discrepancy.data.units.check_import_units`; ``hint`` ends the message)."""
     with Output(Path(out), "dir", force=force, inputs=inputs, marker="dataset.json", what="dataset") as tx:
         model_json, description, runs = build()
         names = [check_file_name(r.name, "run name", str(out)) for r in runs]
         dup = next((n for n in names if names.count(n) > 1), None)
         if dup is not None:
             raise InputError(f"two runs are named {dup!r}; give each window or file its own name")
+        where = str(inputs[0]) if len(inputs) == 1 else f"{len(inputs)} inputs ({inputs[0]}, …)"
+        wheel_matrix = SimModel.from_json(model_json, where="nominal model").robot.wheel_matrix()
+        check_import_units(where, runs, wheel_matrix, hint)  # every importer: unit mistakes, both directions
         write_dataset(tx.path, model_json, description, runs)

@@ -796,7 +796,7 @@ def import_optiodom(folders: list[str | Path], out: str | Path, force: bool = Fa
         timing = sessions.describe_time_base()
         return model.to_json(), f"{desc} {timing[0].upper()}{timing[1:]}.", runs
 
-    write_imported(out, folders, force, build)
+    write_imported(out, folders, force, build, hint="check the metadata's ngear, encRes and Di")
     sessions, model = read["sessions"], read["model"]
     metas, runs = sessions.metas, sessions.runs
     return ImportSummary(sessions=tuple(m.session for m in metas), runs=len(runs),
