@@ -27,7 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from agents.loaders import find_loader
+from agents.rollout import check_env_id
 from agents.wrappers import CLIP, EKFFeatures, FeedForwardTwist
+from omni_gym.io import read_json
 
 PARITY_OBSERVATIONS = 1000
 PARITY_TOL = 1e-5  # float32 networks: onnxruntime and torch sum in different orders (about 1e-7 apart)
@@ -251,8 +253,9 @@ def export(spec: str, out: str | Path, env_id: str | None = None, env_kwargs: di
 def _recorded_env(spec: str) -> str | None:
     """The environment id a model directory records (``meta.json``'s ``env_id``), else None."""
     f = Path(spec) / "meta.json"
-    try:
-        meta = json.loads(f.read_text())
-    except (OSError, ValueError):
+    if not f.is_file():
         return None
-    return meta.get("env_id") if isinstance(meta, dict) else None
+    meta = read_json(f)  # bounded (size, nesting): a bad file is one line naming it
+    env_id = meta.get("env_id") if isinstance(meta, dict) else None
+    # never "MODULE:ID" (making it would import MODULE), whatever --trust-pickle says
+    return None if env_id is None else check_env_id(env_id, f"{f}: key 'env_id'")

@@ -11,7 +11,6 @@ Per-episode metrics come from the ground truth in ``info`` (the policies never s
 
 from __future__ import annotations
 
-import importlib
 import math
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -130,6 +129,32 @@ def run_episode(env, policy: Policy, seed: int, record: bool = False) -> Episode
     return ep
 
 
+def check_env_id(env_id, where: str | None = None, registered: bool = True) -> str:
+    """``env_id`` if it is an omni-gym id, bare (``OmniPathFollow-Phunopas-v0``) or with gym's module prefix
+    ``omni_gym:``; ValueError (one line, starting with ``where`` if given) otherwise. ``registered``: the id must
+    also be one of :func:`omni_gym.envs.all_ids` (or a renamed one, whose own error names the new id).
+
+    ``gym.make("MODULE:ID")`` imports MODULE, so an id read from a model folder (``meta.json``, an RL Zoo
+    ``args.yml``) would import whatever module the folder names, without ``--trust-pickle``. No other module is
+    ever imported, trusted model or not: the environment must be an omni-gym one, which omni_gym registers.
+    """
+    from omni_gym.envs import RENAMED, all_ids
+    from omni_gym.io import excerpt
+
+    at = f"{where}: " if where else ""
+    if not isinstance(env_id, str) or not env_id:
+        raise ValueError(f"{at}an environment id must be a non-empty string, got {excerpt(repr(env_id))}")
+    module, colon, bare = env_id.rpartition(":")
+    if colon and module != "omni_gym":
+        raise ValueError(f"{at}environment id {excerpt(ascii(env_id))} names a module to import "
+                         f"({excerpt(ascii(module))}); omni-gym imports none: give a registered id "
+                         f"({', '.join(all_ids())})")
+    if registered and bare not in all_ids() and bare not in RENAMED:
+        raise ValueError(f"{at}unknown environment id {excerpt(ascii(env_id))}; omni-gym ids: "
+                         f"{', '.join(all_ids())}")
+    return env_id
+
+
 def make_env(env_id: str, env_kwargs: dict | None = None, obs_mode: str = "sensors"):
     """``gym.make(env_id, obs_mode=obs_mode, action_mode="twist", **env_kwargs)`` with clear ValueErrors.
 
@@ -148,10 +173,9 @@ def make_env(env_id: str, env_kwargs: dict | None = None, obs_mode: str = "senso
         if kwargs.get(key, need) != need:
             raise ValueError(f"this policy runs with {key}={need!r}; got {key}={kwargs[key]!r} in env_kwargs")
         kwargs[key] = need
-    module, _, bare_id = env_id.rpartition(":")  # "omni_gym:ID" imports the module, as gym.make does
+    check_env_id(env_id, registered=False)  # never "MODULE:ID" of another module: gym.make would import it
+    bare_id = env_id.rpartition(":")[2]
     try:
-        if module:
-            importlib.import_module(module)
         spec = gym.spec(bare_id)
     except (gym.error.Error, ImportError) as exc:
         raise ValueError(f"unknown environment id {env_id!r} ({exc}); omni-gym ids: {', '.join(all_ids())}") from None

@@ -37,7 +37,7 @@ import numpy as np
 
 from agents import require_agents_extra
 from agents.algorithms import ALGORITHMS, algorithm_class
-from agents.rollout import TrainedPolicy, make_env
+from agents.rollout import TrainedPolicy, check_env_id, make_env
 from agents.weights import FORMAT, ObsNormaliser, inside, load_policy, refuse_pickle
 from agents.wrappers import WRAPPERS, wrap_env
 from agents.zoo_config import wrapper_spec
@@ -133,6 +133,8 @@ def read_meta(path: str | Path) -> dict:
         if key not in meta:
             raise ValueError(f"{f}: missing key {key!r}")
     _check_algo(meta["algo"], f"{f}: key 'algo'")
+    if meta.get("env_id") is not None:  # never "MODULE:ID": making it would import MODULE
+        check_env_id(meta["env_id"], f"{f}: key 'env_id'")
     return meta
 
 
@@ -183,6 +185,8 @@ def _resolve_zoo(d: Path, options: ModelOptions) -> ModelSource:
     args = _zoo_yaml(params / ZOO_ALGO_FILE)
     config = _zoo_yaml(params / ZOO_CONFIG)
     algo = _check_algo(args.get("algo"), f"{params / ZOO_ALGO_FILE}: key 'algo'")
+    if args.get("env") is not None:  # never "MODULE:ID": making it would import MODULE
+        check_env_id(args["env"], f"{params / ZOO_ALGO_FILE}: key 'env'")
     spec = wrapper_spec(config, str(params / ZOO_CONFIG))
     env_kwargs = config.get("env_kwargs") or {}
     meta = {"algo": algo, "env_id": args.get("env"), "wrapper": spec.name, "residual_scale": spec.residual_scale,

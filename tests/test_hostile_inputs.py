@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -134,3 +135,76 @@ def test_force_still_replaces_a_file(tmp_path):
     out.write_text("old\n")
     assert main(["simulate", "--model", MODEL, "--commands", str(cmds), "--out", str(out), "--force"]) == 0
     assert out.read_text().startswith("t,x,y,theta")
+
+
+# -- 3. a model folder's env_id never imports a module ---------------------------------------------------------
+
+ENV = "OmniPathFollow-Phunopas-v0"
+COMMITTED = Path(__file__).resolve().parents[1] / "agents" / "models" / "ppo-residual"
+
+
+@pytest.fixture
+def evil_module(tmp_path, monkeypatch):
+    """A module on sys.path whose import writes a marker file: (module name, marker)."""
+    marker = tmp_path / "imported"
+    name = f"evil_env_module_{os.getpid()}"
+    (tmp_path / f"{name}.py").write_text(f"open({str(marker)!r}, 'w').close()\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    return name, marker
+
+
+def _model_with(tmp_path: Path, **meta_changes) -> Path:
+    import shutil
+
+    d = tmp_path / "model"
+    shutil.copytree(COMMITTED, d)
+    meta = json.loads((d / "meta.json").read_text())
+    meta.update(meta_changes)
+    (d / "meta.json").write_text(json.dumps(meta))
+    return d
+
+
+@pytest.mark.parametrize("command", ["export", "evaluate", "evaluate-trusted"])
+def test_env_id_import_path_is_refused(tmp_path, capsys, evil_module, command):
+    name, marker = evil_module
+    model = _model_with(tmp_path, env_id=f"{name}:{ENV}")
+    if command == "export":
+        argv = ["export", str(model), "--out", str(tmp_path / "x")]
+    else:
+        argv = ["evaluate", "--policy", str(model), "--env", ENV, "--episodes", "1", "--env-kwargs",
+                '{"episode_seconds": 0.5}'] + (["--trust-pickle"] if command.endswith("trusted") else [])
+    rc = main(argv)
+    err = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "meta.json: key 'env_id'" in err and "names a module to import" in err
+    assert not marker.exists() and name not in sys.modules
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("value", [["OmniGoToPose-v0"], "CartPole-v1", ""])
+def test_env_id_must_be_a_registered_string(tmp_path, capsys, value):
+    model = _model_with(tmp_path, env_id=value)
+    rc = main(["export", str(model), "--out", str(tmp_path / "x")])
+    err = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "key 'env_id'" in err
+
+
+def test_check_env_id():
+    from agents.rollout import check_env_id
+
+    assert check_env_id(ENV) == ENV and check_env_id(f"omni_gym:{ENV}") == f"omni_gym:{ENV}"
+    with pytest.raises(ValueError, match="names a module"):
+        check_env_id(f"os:{ENV}", "here")
+    with pytest.raises(ValueError, match="unknown environment id"):
+        check_env_id("Nope-v0")
+    assert check_env_id("CartPole-v1", registered=False) == "CartPole-v1"  # make_env's own message follows
+
+
+# -- 4. deep JSON, garbage gzip, a zstd bag: one line ------------------------------------------------------------
+
+
+def test_export_deep_meta_json(tmp_path, capsys):
+    model = _model_with(tmp_path)
+    (model / "meta.json").write_text("[" * 100_000 + "]" * 100_000)
+    rc = main(["export", str(model), "--out", str(tmp_path / "x")])
+    err = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "meta.json" in err and "nested" in err

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.rollout import TrainedPolicy
+from agents.rollout import TrainedPolicy, check_env_id
 from agents.weights import inside, refuse_pickle
 from omni_gym.io import InputError, excerpt, read_json
 
@@ -77,6 +77,8 @@ def resolve(path: str | Path) -> RLlibSource:
     ckpt = inside(p, meta["model"], str(p / META), "model")
     if not (ckpt / CHECKPOINT_MARKER).is_file():
         raise ValueError(f"{p / META}: key 'model': {ckpt} is not an RLlib checkpoint (no {CHECKPOINT_MARKER})")
+    if meta.get("env_id") is not None:  # never "MODULE:ID": making it would import MODULE
+        check_env_id(meta["env_id"], f"{p / META}: key 'env_id'")
     return RLlibSource(ckpt, meta.get("obs_mode", "state"), meta.get("wrapper", "none"), meta.get("env_id"),
                        str(p / META))
 
