@@ -153,8 +153,9 @@ FILES: dict[str, Bound] = {b.name: b for b in (
     Bound("w1 … wn", -1e4, 1e4, "rad/s", "commanded wheel speed: about 95,000 rpm, the top speed of the "
           "fastest small motors unloaded; a wheel turns no faster than its motor"),
     Bound("x, y", -1e4, 1e4, "m", "tracked position: 10 km, beyond any tracked area"),
-    Bound("theta", -1e5, 1e5, "rad", "tracked heading, wrapped or not: a robot turning at 20 rad/s for "
-          "one hour reaches 7.2·10⁴ rad"),
+    Bound("theta", -1e4, 1e4, "rad", "tracked heading, wrapped or not: 1600 turns. Trackers wrap it at ±π or "
+          "unwrap it from the start of a run; 10⁴ rad takes a robot turning one way at 2.8 rad/s for the longest run "
+          "(one hour), so a larger value (99999 rad) is a corrupt cell or another unit"),
     Bound("enc1 … encn", -1e8, 1e8, "rad", "wheel angle: the largest wheel speed for one hour "
           "(3.6·10⁷ rad) with margin"),
     Bound("gyro", -1e3, 1e3, "rad/s", "yaw rate: 30x the range of common MEMS gyros (±2000 °/s = 35 rad/s)"),
@@ -211,7 +212,10 @@ CLI: dict[str, Bound] = {b.name: b for b in (
     Bound("--runs × --duration", 0.0, 2 * RUN_SECONDS, "s", "synth: total simulated time; two hours take "
           "under a minute and about 0.4 GB (measured: 10 × 360 s in 25 s, 0.2 GB, on the shared 2-core "
           "machine), while gap already needs 1–2 min per 50 s of runs"),
-    Bound("--noise", 0.0, 10.0, "m", "synth: tracker noise σ; 10 m is worse than consumer GPS (about 3 m)"),
+    Bound("--noise", 0.0, 1.0, "m", "synth: tracker noise σ. Trackers of wheeled robots: motion capture 0.1-1 mm, "
+          "UWB about 0.1 m; above 1 m the noise exceeds the robots' size and a run's travel (a 10 s run at 0.3 m/s "
+          "covers 3 m), so the mm-to-cm effects gap looks for cannot show (5 m is consumer-GPS noise, no tracker for "
+          "this)"),
     Bound("--hidden viscous_drag c / mass", 0.0, 1e3, "1/s", "synth: the drag force −c·v is applied "
           "explicitly at the 0.5 ms step, stable while c·dt/m < 2; 1000 /s keeps c·dt/m ≤ 0.5"),
 )}

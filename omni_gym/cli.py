@@ -356,6 +356,9 @@ def _simulate_into(args: argparse.Namespace, out) -> int:
               "(the body's physics only); `omni-gym score DATASET --model MODEL` applies it when comparing "
               "with tracked runs", file=sys.stderr)
     times, commands = read_commands(args.commands, model.n_wheels)
+    from omni_gym.discrepancy.data.units import check_wheel_commands
+
+    check_wheel_commands(args.commands, commands, model.robot.wheel_radius)  # rim speed bound (bounds.py)
     substeps = CLI_BOUNDS["run duration / --dt"]
     if not substeps.contains(round(times[-1] / dt)):
         raise ValueError(f"--dt {dt:g} s: the commands in {args.commands} last {times[-1]:g} s, "

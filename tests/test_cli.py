@@ -231,9 +231,10 @@ def test_out_of_bound_model_is_refused_naming_file_and_key(tmp_path, capsys, cas
 
 
 def test_model_at_its_bounds_is_accepted(tmp_path):
-    """Bounds are inclusive as documented: the extreme values themselves still simulate finitely."""
+    """Bounds are inclusive as documented: the extreme values themselves still simulate finitely. The smallest
+    wheel (1 mm) takes the largest command (1e4 rad/s): 10 m/s at the rim, inside the plausible rim speed."""
     def extremes(d):
-        d.update(mass=1e-3, inertia=1e-7, gravity=100.0, rollers=100, roller_fraction=1.0)
+        d.update(mass=1e-3, inertia=1e-7, gravity=100.0, rollers=100, roller_fraction=1.0, wheel_radius=1e-3)
         d["surface"].update(mu_drive=10.0, k=1e4)
         d["effects"] = {"wheel_liftoff": {"lift_rate": 0, "recover_rate": 1e3}}
 
@@ -287,7 +288,7 @@ def test_negative_seed_is_refused_naming_the_option(tmp_path, capsys, monkeypatc
     ("--duration", "1e308", "--duration must be a number in [0.2, 3600] s"),
     ("--duration", "inf", "--duration must be a number in [0.2, 3600] s"),
     ("--runs", "0", "--runs must be an integer in [1, 1000]"),
-    ("--noise", "nan", "--noise must be a number in [0, 10] m"),
+    ("--noise", "nan", "--noise must be a number in [0, 1] m"),
     ("--hidden", 'motor_lag:{"tau": 1e308}', "--hidden motor_lag: effect 'motor_lag': tau must be a number in [0, 10]"),
     ("--hidden", 'viscous_drag:{"c": 1e308}', "--hidden viscous_drag: c / mass must be a number in [0, 1000] 1/s"),
 ])

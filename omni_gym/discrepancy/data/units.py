@@ -62,7 +62,14 @@ def check_run_units(path: Path, t: np.ndarray, cmd: np.ndarray, pose: np.ndarray
         raise InputError(f"{path}: theta turns at {yaw:.3g} rad/s (median over {BASELINE:g} s), faster than any "
                          f"wheeled robot (> {PLAUSIBLE_YAW_RATE:g} rad/s): theta looks like degrees; the format wants "
                          "radians")
-    rim = float(np.max(np.abs(cmd))) * wheel_radius if cmd.size else 0.0
+    check_wheel_commands(path, cmd, wheel_radius)
+
+
+def check_wheel_commands(path: Path | str, cmd: np.ndarray, wheel_radius: float) -> None:
+    """Raise InputError naming ``path`` if a commanded wheel speed ``cmd`` [rad/s] moves the rim (``wheel_radius``
+    [m]) faster than :data:`~omni_gym.bounds.PLAUSIBLE_SPEED` (3000 rad/s on a 3 cm wheel: 90 m/s); ``omni-gym
+    simulate`` and every dataset run."""
+    rim = float(np.max(np.abs(cmd))) * wheel_radius if np.size(cmd) else 0.0
     if rim > PLAUSIBLE_SPEED:
         raise InputError(f"{path}: commanded wheel speeds reach {rim:.3g} m/s at the rim (r = {wheel_radius:g} m), "
                          f"faster than any wheeled robot (> {PLAUSIBLE_SPEED:g} m/s): w1 … wn look like rpm or "
