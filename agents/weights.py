@@ -17,13 +17,14 @@ it; nothing in the files names code to import beyond the fixed tables of :mod:`a
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from agents.policy_spec import declarative, to_sb3
-from omni_gym.io import InputError, check_readable, excerpt
+from omni_gym.io import InputError, check_readable, excerpt, printable
 
 FORMAT = "weights-1"
 WEIGHTS = "policy.pt"
@@ -96,8 +97,19 @@ class ObsNormaliser:
         return cls(arrays["mean"], arrays["var"], clip, eps)
 
 
+_ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")  # terminal styling (torch writes bold text into its messages)
+
+
 def _short(exc) -> str:
-    s = " ".join(str(exc).split())
+    """A library's message on one line of at most 120 characters, without terminal styling and with other
+    control characters escaped. torch's refusal of a pickled object is a page of advice (re-run with
+    weights_only=False: exactly what must not be done with an untrusted file); only its reason is kept,
+    ``Unsupported global: GLOBAL io.open was not an allowed global by default``."""
+    text = _ANSI.sub("", str(exc))
+    reason = re.search(r"WeightsUnpickler error:\s*(.*?)(?:\. Please use|\n\n|$)", text, re.S)
+    if reason:
+        text = f"a pickled object, refused: {reason.group(1)}"
+    s = printable(" ".join(text.split()))
     return s if len(s) <= 120 else s[:117] + "..."
 
 

@@ -683,7 +683,10 @@ def main(argv: list[str] | None = None) -> int:
     except INPUT_ERRORS as exc:
         if restore.interrupted:  # an error on the interrupt's way out, not bad input
             return _interrupted()
-        message = " ".join(str(exc).split())  # one line, whatever the source
+        from omni_gym.io import printable
+
+        # one line, whatever the source; control characters (an escape sequence in a file's name or content) escaped
+        message = printable(" ".join(str(exc).split()))
         print(f"omni-gym: error: {message}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:

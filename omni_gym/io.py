@@ -16,6 +16,7 @@ import json
 import os
 import re
 import stat
+import zlib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -72,6 +73,23 @@ def excerpt(value, limit: int = EXCERPT) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+def _escape(ch: str) -> str:
+    code = ord(ch)
+    return {"\n": "\\n", "\r": "\\r", "\t": "\\t"}.get(ch) or (f"\\x{code:02x}" if code < 256 else f"\\u{code:04x}")
+
+
+# Characters a terminal acts on instead of showing: C0 and C1 controls, DEL, line and paragraph separators,
+# and the bidirectional overrides that reorder what follows them.
+_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u2028\u2029\u202a-\u202e\u2066-\u2069]")
+
+
+def printable(text) -> str:
+    """``text`` with every control character escaped as ``repr`` writes it (``\\n``, ``\\x1b``, ``\\u202e``),
+    everything else kept: for echoing an untrusted string (a bag's frame id, a column name) in a message
+    or on the terminal, where an escape sequence or a newline would otherwise act or forge a line."""
+    return _CONTROL.sub(lambda m: _escape(m.group()), str(text))
+
+
 def _mb(n: int) -> str:
     return f"{n / 2**20:.3g} MB"
 
@@ -116,7 +134,7 @@ def read_bytes(path: str | Path, limit: int | None = None, what: str = "input") 
         try:
             with gzip.GzipFile(fileobj=io.BytesIO(raw)) as gz:
                 raw = gz.read(limit + 1)
-        except (OSError, EOFError) as exc:  # not gzip, truncated, corrupt
+        except (OSError, EOFError, zlib.error) as exc:  # not gzip (BadGzipFile), truncated (EOFError), corrupt (zlib)
             raise InputError(f"{path}: not a readable gzip file ({excerpt(exc)})") from None
         if len(raw) > limit:
             raise InputError(f"{path}: decompresses to more than the {_mb(limit)} limit for {what} "

@@ -208,3 +208,109 @@ def test_export_deep_meta_json(tmp_path, capsys):
     rc = main(["export", str(model), "--out", str(tmp_path / "x")])
     err = _one_line(capsys.readouterr().err)
     assert rc == 2 and "meta.json" in err and "nested" in err
+
+
+OPTIODOM = Path(__file__).resolve().parents[1] / "data" / "optiodom-omni3" / "circular" / "221220201730"
+
+
+@pytest.mark.parametrize("content", [b"\x1f\x8b\x08\x00\x00\x00\x00\x00\x00\x03garbage",  # zlib.error
+                                     b"not gzip at all",  # gzip.BadGzipFile
+                                     None])  # truncated: EOFError
+def test_optiodom_garbage_gz_is_one_line(tmp_path, capsys, content):
+    import gzip
+    import shutil
+
+    session = tmp_path / OPTIODOM.name
+    shutil.copytree(OPTIODOM, session)
+    run = next(session.glob("*_run-01.csv"))
+    if content is None:
+        content = gzip.compress(run.read_bytes())[:200]
+    run.unlink()
+    run.with_name(run.name + ".gz").write_bytes(content)
+    rc = main(["import", "optiodom", str(session), "--out", str(tmp_path / "ds")])
+    err = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "run-01.csv.gz" in err
+    assert not (tmp_path / "ds").exists()
+
+
+def _bag(tmp_path: Path, **kwargs) -> Path:
+    pytest.importorskip("rosbags")
+    from omni_gym.discrepancy.synthetic.bags import write_bag
+    from omni_gym.discrepancy.synthetic.synth import synthesize
+    from omni_gym.physics.model import load_model
+
+    runs, _ = synthesize(load_model(MODEL), "none", runs=1, noise=0.0, seed=5, duration=1.0)
+    bag = tmp_path / "bag"
+    write_bag(bag, [(runs[0].t, runs[0].enc, runs[0].pose)], ["wl", "wr", "wb"], [1.0, -1.0, 1.0], **kwargs)
+    return bag
+
+
+BAG_ARGS = ["--model", MODEL, "--joints", "wl,-wr,wb", "--pose-topic", "/tracker/pose"]
+
+
+@pytest.mark.parametrize("mode", ["MESSAGE", "FILE"])
+def test_bag_claiming_zstd_is_one_line(tmp_path, capsys, mode):
+    bag = _bag(tmp_path)
+    meta = bag / "metadata.yaml"
+    meta.write_text(meta.read_text().replace("compression_format: ''", "compression_format: zstd")
+                    .replace("compression_mode: ''", f"compression_mode: {mode}"))
+    rc = main(["import", "rosbag2", str(bag), *BAG_ARGS, "--out", str(tmp_path / "ds")])
+    err = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "cannot read the bag" in err
+
+
+# -- 5. messages: untrusted strings escaped, no warning before the error, library pages folded --------------------
+
+EVIL_FRAME = "w\x1b[31mRED\nforged line"
+
+
+def test_bag_frame_id_is_escaped(tmp_path, capsys):
+    bag = _bag(tmp_path, frame=EVIL_FRAME)
+    rc = main(["import", "rosbag2", str(bag), *BAG_ARGS, "--frames", "world:base_link", "--out", str(tmp_path / "x")])
+    err = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "\x1b" not in err and "w\\x1b[31mRED\\nforged line" in err
+    # accepted (no --frames): the description names the frame, printed and recorded, escaped
+    assert main(["import", "rosbag2", str(bag), *BAG_ARGS, "--out", str(tmp_path / "ds")]) == 0
+    out = capsys.readouterr().out
+    assert "\x1b" not in out and "w\\x1b[31mRED\\nforged line" in out and out.count("\n") == 2
+
+
+def test_control_characters_in_any_message_are_escaped(tmp_path, capsys):
+    rc = main(["simulate", "--model", MODEL, "--commands", str(tmp_path / "a\x1b]0;title\x07.csv"), "--out",
+               str(tmp_path / "t.csv")])
+    err = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "\x1b" not in err and "\x07" not in err and "a\\x1b]0;title\\x07.csv" in err
+
+
+def test_no_runtime_warning_before_the_error(robot_csv, tmp_path, capsys):
+    import warnings
+
+    lines = robot_csv.read_text().splitlines()
+    cells = lines[4].split(",")
+    cells[4] = "1e308"  # enc1: the mean speed to its neighbours overflows
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join([*lines[:4], ",".join(cells), *lines[5:]]) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # printed by the command line: an exception here
+        rc = main(["import", "csv", str(bad), "--model", MODEL, "--columns", COLUMNS, "--out", str(tmp_path / "ds")])
+    err = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "bad.csv" in err
+
+
+def test_torch_refusal_is_folded_to_its_reason(tmp_path, capsys):
+    import torch
+
+    model = _model_with(tmp_path)
+    torch.save({"x": _Payload(str(tmp_path / "ran"))}, model / "policy.pt")
+    rc = main(["evaluate", "--policy", str(model), "--env", ENV, "--episodes", "1"])
+    err = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "Unsupported global" in err and "\x1b" not in err and "weights_only" not in err
+    assert len(err) < 300 and not (tmp_path / "ran").exists()
+
+
+class _Payload:
+    def __init__(self, path: str) -> None:
+        self.path = path
+
+    def __reduce__(self):
+        return (open, (self.path, "w"))

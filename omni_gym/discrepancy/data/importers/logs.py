@@ -209,12 +209,19 @@ def make_run(name: str, wheels: WheelLog, pose: PoseLog, wheel_radius: float, wi
         else:
             enc = None
     elif wheels.kind == "position":
-        cmd[:-1] = np.diff(v, axis=0) / dt[:, None]
-        enc = v - v[0]
+        with np.errstate(over="ignore", invalid="ignore"):  # absurd values: refused below, not warned about
+            cmd[:-1] = np.diff(v, axis=0) / dt[:, None]
+            enc = v - v[0]
     else:
-        mean = 0.5 * (v[1:] + v[:-1])
-        cmd[:-1] = mean
-        enc[1:] = np.cumsum(mean * dt[:, None], axis=0)
+        with np.errstate(over="ignore", invalid="ignore"):
+            mean = 0.5 * (v[1:] + v[:-1])
+            cmd[:-1] = mean
+            enc[1:] = np.cumsum(mean * dt[:, None], axis=0)
+    for what, values in (("wheel speed", cmd), ("wheel angle", enc)):
+        bad = np.nonzero(~np.all(np.isfinite(values), axis=1))[0] if values is not None else []
+        if len(bad):
+            raise InputError(f"{where}: at t = {t[bad[0]] - t[0]:.6g} s: the {what} overflows (not a finite number; "
+                             "absurd wheel values or times too close together)")
     th = unwrap_heading(pose.pose[:, 2])
     rows = np.column_stack([np.interp(t, pose.t, pose.pose[:, 0]), np.interp(t, pose.t, pose.pose[:, 1]),
                             np.interp(t, pose.t, th)])

@@ -26,6 +26,8 @@ naming the bag and the topic (and the joint or message where it applies).
 from __future__ import annotations
 
 import math
+import struct
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,7 +43,7 @@ from omni_gym.discrepancy.data.importers.logs import (
     make_run,
     write_imported,
 )
-from omni_gym.io import InputError
+from omni_gym.io import InputError, excerpt, printable
 from omni_gym.physics.model import SimModel
 
 MISSING = ("omni-gym import rosbag2 needs the optional package 'rosbags': pip install -e '.[ros]' (from the omni-gym "
@@ -122,6 +124,18 @@ def _reader(bag: Path):
     return AnyReader([folder], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
 
 
+# Where a damaged bag's errors come from: rosbags itself, and what it reads with (SQLite3, MCAP, YAML, and the
+# zstd of a compressed bag: zstandard, backports.zstd or Python 3.14's compression.zstd).
+_READER_MODULES = ("rosbags", "zstandard", "backports", "compression", "zstd", "lz4", "sqlite3", "mcap", "ruamel",
+                   "yaml", "zlib", "struct")
+
+
+def _is_reader_error(exc: BaseException) -> bool:
+    """True for an error of reading a damaged or unsupported bag (not a bug of this module)."""
+    return (isinstance(exc, (EOFError, struct.error, zlib.error, UnicodeDecodeError))
+            or type(exc).__module__.split(".")[0] in _READER_MODULES)
+
+
 def _stamp_ns(header) -> int:
     return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
@@ -135,7 +149,7 @@ def _connections(reader, bag: Path, topic: str, types: tuple[str, ...]):
     conns = [c for c in reader.connections if c.topic == topic]
     if not conns:
         have = ", ".join(sorted({f"{c.topic} ({c.msgtype.rsplit('/', 1)[-1]})" for c in reader.connections}))
-        raise InputError(f"{bag}: no topic {topic} (the bag has: {have or 'no topics'})")
+        raise InputError(f"{bag}: no topic {topic} (the bag has: {printable(have) or 'no topics'})")
     bad = [c.msgtype for c in conns if c.msgtype not in types]
     if bad:
         raise InputError(f"{bag}: topic {topic} is {bad[0]}; expected {' or '.join(types)}")
@@ -160,9 +174,10 @@ def read_bag(bag: str | Path, bmap: BagMap, units: Units
     except InputError:
         raise
     except Exception as exc:  # the reader's own errors (a damaged bag, an unknown storage): one line
-        if not type(exc).__module__.startswith("rosbags"):
+        if not _is_reader_error(exc):
             raise
-        raise InputError(f"{bag}: cannot read the bag ({' '.join(str(exc).split())})") from None
+        raise InputError(f"{bag}: cannot read the bag ({type(exc).__name__}: {excerpt(ascii(str(exc)), 200)})"
+                         ) from None
     t_ns, values = wheel
     where_w = f"{bag}: {bmap.joint_topic}"
     where_p = f"{bag}: {bmap.pose_topic}"
@@ -228,7 +243,7 @@ def _read_joints(reader, bag: Path, bmap: BagMap, topic: str | None = None, fiel
         rows.append([float(field[names.index(j)]) for j in wanted])
     if not rows:
         missing = next((j for j in wanted if j not in seen_names), wanted[0])
-        have = ", ".join(sorted(seen_names)) or "none"
+        have = printable(", ".join(sorted(seen_names))) or "none"  # names from the bag: escaped
         raise InputError(f"{bag}: {topic}: no message has joint {missing!r} (joints in the bag: {have})")
     values = np.asarray(rows)
     bad = np.nonzero(~np.all(np.isfinite(values), axis=1))[0]
@@ -271,10 +286,10 @@ def _read_pose(reader, bag: Path, bmap: BagMap) -> tuple[tuple[np.ndarray, np.nd
     if not rows:
         if is_tf:
             raise InputError(f"{bag}: {bmap.pose_topic}: no transform {bmap.frames[0]}:{bmap.frames[1]} (the topic "
-                             f"has: {', '.join(sorted(pairs)) or 'none'})")
+                             f"has: {printable(', '.join(sorted(pairs))) or 'none'})")
         raise InputError(f"{bag}: {bmap.pose_topic}: no messages")
     if bmap.frames is not None and not is_tf and bmap.frames[0] not in {f.lstrip("/") for f in frames}:
-        raise InputError(f"{bag}: {bmap.pose_topic}: poses are in frame {', '.join(sorted(frames))}, not "
+        raise InputError(f"{bag}: {bmap.pose_topic}: poses are in frame {printable(', '.join(sorted(frames)))}, not "
                          f"{bmap.frames[0]} (--frames)")
     pose = np.asarray(rows)
     if not np.all(np.isfinite(pose)):
@@ -286,10 +301,11 @@ def describe(bags: list[Path], bmap: BagMap, units: Units, frame: str, model_nam
     """The dataset description: the source and every assumption of the import."""
     what = ("wheel angles; the held command is the mean speed between samples" if bmap.wheel_field == "position"
             else "wheel speeds; the held command is the mean of two samples (trapezoid)")
-    return (f"imported by omni-gym import rosbag2 from {', '.join(b.name for b in bags)}: {bmap.describe()} "
-            f"({what}); pose frame {frame or '(empty)'}; times are header stamps; units {units.describe()}; "
-            f"the pose is interpolated linearly to the wheel sample times (rows between pose samples more than "
-            f"{max_gap:g} s apart are unobserved); nominal model {model_name}.")
+    # printable: the frame (and names) come from the bag and the description is printed: escape sequences escaped
+    return printable(f"imported by omni-gym import rosbag2 from {', '.join(b.name for b in bags)}: {bmap.describe()} "
+                     f"({what}); pose frame {frame or '(empty)'}; times are header stamps; units {units.describe()}; "
+                     f"the pose is interpolated linearly to the wheel sample times (rows between pose samples more "
+                     f"than {max_gap:g} s apart are unobserved); nominal model {model_name}.")
 
 
 def import_rosbag2(bags: list[str | Path], out: str | Path, model: SimModel, bmap: BagMap, units: Units,
