@@ -351,6 +351,33 @@ def calibrate(runs: list[Run], nominal: SimModel | Geometry, lever: float | None
         model=model, start=g0, tracker=frame(x))
 
 
+# A fitted value this close (relative to the bound) to its search bound is "at the bound": least squares
+# stops on an active bound within about 1e-10; the real calibrations stay 3-6 % from nominal, far inside.
+AT_BOUND = 1e-3
+
+
+def values_at_bounds(cal: KinematicCalibration) -> list[str]:
+    """The fitted values of ``cal`` that sit at their search bound (:data:`AT_BOUND`), each as text
+    (``D3 = 40.00 mm at its lower bound (nominal 60.00 / 1.5)``); [] when none does. A value at its bound
+    is where the optimiser was stopped, not an answer: the kinematic model cannot explain the runs."""
+    g0 = cal.start
+    nominal = np.concatenate([g0.diameters, [g0.size]])
+    names = [f"D{i + 1}" for i in range(len(g0.diameters))] + [cal.size_name]
+    out = []
+    for name, value, nom in zip(names, np.concatenate([cal.diameters, [cal.L]]), nominal, strict=True):
+        for bound, side, how in ((nom * _LO, "lower", "/ 1.5"), (nom * _HI, "upper", "× 1.5")):
+            if abs(value - bound) <= AT_BOUND * abs(bound):
+                out.append(f"{name} = {1e3 * value:.2f} mm at its {side} bound (nominal {1e3 * nom:.2f} {how})")
+    if cal.tracker is not None:
+        reach = g0.reach
+        for name, value in zip(("offset x", "offset y"), cal.tracker["offset"], strict=True):
+            if abs(abs(value) - reach) <= AT_BOUND * reach:
+                out.append(f"tracker {name} = {1e3 * value:.2f} mm at its bound ±{1e3 * reach:.2f} (the wheels' reach)")
+        if abs(abs(cal.tracker["yaw"]) - _TRACKER_YAW) <= AT_BOUND * _TRACKER_YAW:
+            out.append(f"tracker yaw = {1e3 * cal.tracker['yaw']:.1f} mrad at its bound ±{1e3 * _TRACKER_YAW:.0f}")
+    return out
+
+
 def calibrated_model(nominal: SimModel, diameters: np.ndarray, L: float, tracker: dict | None = None) -> SimModel:
     """``nominal`` with the wheel diameters ``diameters`` (n,) [m] and the length ``L`` [m] (omni wheels: the
     centre-to-wheel distance; mecanum wheels: l1 + l2, see :func:`nominal_geometry`), and the tracked frame
