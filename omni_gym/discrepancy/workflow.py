@@ -1004,12 +1004,14 @@ def _steps_json(steps: list[Step], uncertainties: list[dict], final: Step | None
     """The staircase: per named effect its parameters and the held-out gap beyond noise before and after
     it; then the answer that ended the search (``none``/``unexplained``, with why), if one did."""
     out = []
-    before = _excess(sse0, n_comp, noise_var)
+    before = first = _excess(sse0, n_comp, noise_var)
     for i, (s, u) in enumerate(zip(steps, uncertainties, strict=True), start=1):
         after = _excess(s.fit.heldout, n_comp, noise_var)
+        # gap_share: the share of the initial gap beyond noise this step removed (the report's outcome heading)
+        share = (before - after) / first if first > 0 else None
         out.append({"step": i, "effect": s.effect, "status": "partial" if s.partial else "named",
                     "why": s.decision.why, "params": s.fit.params_all,
-                    "gap_before": before, "gap_after": after, "params_5_95": u["params_5_95"],
+                    "gap_before": before, "gap_after": after, "gap_share": share, "params_5_95": u["params_5_95"],
                     "ranking": _short_ranking(s)})
         before = after
     if final is not None:

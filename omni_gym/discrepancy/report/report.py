@@ -44,15 +44,25 @@ def markdown(result: dict, figures: list[str]) -> str:
     the numbers, gap before/after, ranking, localisation, outliers, uncertainty, plots."""
     g = result["gap"]
     effect = result["effect"]
-    lines = [f"# Model-discrepancy report: `{effect}`", "",
+    kept = _kept_steps(result)
+    named = [effect] + [k["effect"] for k in kept if k["effect"] != effect]
+    title = " + ".join(f"`{e}`" for e in named) if effect in [k["effect"] for k in kept] else f"`{effect}`"
+    lines = [f"# Model-discrepancy report: {title}", "",
              f"Dataset `{result['dataset']['path']}`: {result['dataset']['runs']} runs. "
              f"{result['dataset']['description']}", ""]
     lines += _fitted_lines(result)
-    lines += [f"**Outcome: `{effect}`**: {result['why']}.", ""]
-    if result.get("params"):
+    lines += [f"**Outcome: {_outcome(result, kept)}**: {result['why']}.", ""]
+    statuses = (result.get("identifiability") or {}).get("per_effect_status") or {}
+    if kept:  # every kept effect's fitted parameters, in the order the search named them
+        lines += ["Fitted parameters:", ""]
+        for k in kept:
+            params = _param_lines(k["effect"], k.get("params") or {}, statuses.get(k["effect"]))
+            lines += [f"`{k['effect']}`:", *params] if params else [f"`{k['effect']}`: no fitted parameters"]
+        lines += [""]
+        lines += _not_measured_lines(result.get("identifiability"))
+    elif result.get("params"):
         first = (result.get("effects") or [effect])[0]
-        status = ((result.get("identifiability") or {}).get("per_effect_status") or {}).get(first)
-        lines += ["Fitted parameters:", ""] + _param_lines(effect, result["params"], status) + [""]
+        lines += ["Fitted parameters:", ""] + _param_lines(first, result["params"], statuses.get(first)) + [""]
         lines += _not_measured_lines(result.get("identifiability"))
     flags = result.get("plausibility", {}).get("flags", [])
     if flags:
@@ -97,8 +107,11 @@ def markdown(result: dict, figures: list[str]) -> str:
     lines += ["", "Score: Σ_runs n_r·ln(held-out SSE_r / n_r) + p·ln(N) (per-run Gaussian likelihood, BIC penalty; "
               f"the nominal model scores {_num0(result.get('score_nominal'))}). Held-out RMS: geometric mean over "
               "runs. Stability: share of bootstrap resamples of the runs in which the candidate has the best held-out "
-              "likelihood. ⚠: a fitted value outside its plausible range:"]
-    lines += [f"* {r['effect']}: " + "; ".join(r["implausible"]) for r in result["ranking"] if r.get("implausible")]
+              "likelihood."]
+    implausible = [f"* {r['effect']}: " + "; ".join(r["implausible"]) for r in result["ranking"]
+                   if r.get("implausible")]
+    if implausible:  # the legend of ⚠ only with the rows it marks, never a heading without its content
+        lines += ["", "⚠ marks a fitted value outside its plausible range:", ""] + implausible
     lines += [""] + [f"Not tried, does not apply to this robot: `{k}` ({why})." for k, why in
                      result.get("not_applicable", {}).items()]
     lines += [""] if result.get("not_applicable") else []
@@ -115,6 +128,39 @@ def markdown(result: dict, figures: list[str]) -> str:
     if figures:
         lines += ["", "## Plots", ""] + [f"![{f}]({f})" for f in figures]
     return "\n".join(lines) + "\n"
+
+
+def _kept_steps(result: dict) -> list[dict]:
+    """The steps of the search whose effect the reported model keeps (``result["effects"]``), in order."""
+    effects = result.get("effects") or []
+    return [st for st in result.get("steps", []) if st.get("status") != "end" and st.get("effect") in effects]
+
+
+def _gap_shares(kept: list[dict]) -> list[float | None]:
+    """Share of the initial gap beyond noise (the first kept step's ``gap_before``) each kept step removed:
+    (gap before − gap after) / initial gap; None where a gap is missing."""
+    first = kept[0].get("gap_before") if kept else None
+    out: list[float | None] = []
+    for st in kept:
+        if "gap_share" in st:  # the result's own (workflow._steps_json); older results: computed alike
+            out.append(st["gap_share"])
+            continue
+        a, b = st.get("gap_before"), st.get("gap_after")
+        out.append(None if first is None or a is None or b is None or first <= 0 else (a - b) / first)
+    return out
+
+
+def _outcome(result: dict, kept: list[dict]) -> str:
+    """The outcome heading: the answer, and every kept effect with the share of the gap it removed."""
+    effect = result["effect"]
+    if not kept:
+        return f"`{effect}`"
+    parts = [f"`{st['effect']}` " + (f"removed {_pct(share)} of the gap beyond noise" if share is not None else
+                                     "(its share of the gap could not be computed)")
+             for st, share in zip(kept, _gap_shares(kept), strict=True)]
+    if effect in [st["effect"] for st in kept]:
+        return " + ".join(f"`{st['effect']}`" for st in kept) + f" ({'; '.join(parts)})"
+    return f"`{effect}` (after keeping {'; '.join(parts)})"
 
 
 def _heldout_lines(result: dict) -> list[str]:
