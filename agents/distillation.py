@@ -57,6 +57,7 @@ import numpy as np
 from agents.oracle import OracleConfig
 from agents.train import git_commit, load_hyperparams
 from agents.validation import cell_episodes, episodes_per_cell, validation_cells, validation_seeds
+from omni_gym.record_paths import record_args
 
 TRAIN_SEED = 200_000  # the training env's first seed: apart from validation (5000+) and benchmark seeds
 HYPERPARAMS = "ppo_features_bc_skip"  # the training distribution of the sensor-only agents (env_kwargs)
@@ -337,6 +338,7 @@ def distil(env_id: str, spec: DAggerSpec, out: str | Path, progress: bool | None
         venv.close()
     policy.load_state_dict(best[2])
     torch.save({k: v.detach().clone() for k, v in policy.state_dict().items()}, out / WEIGHTS)
+    recorded = record_args(sys.argv[1:])
     meta = {
         "backend": "sb3", "algo": "ppo", "env_id": env_id, "train_env_kwargs": train_kw, "wrapper": "ekf-features",
         "residual_scale": 0.0, "obs_mode": "sensors", "seed": spec.seed, "n_envs": spec.robots,
@@ -353,7 +355,7 @@ def distil(env_id: str, spec: DAggerSpec, out: str | Path, progress: bool | None
                          "best_val_ratio": best[0]},
         "timesteps": spec.rounds * spec.round_steps * spec.robots,
         "wall_time_s": round(time.time() - t0, 1),
-        "command": "python -m agents.distillation " + " ".join(sys.argv[1:]) if __name__ == "__main__" else None,
+        "command": "python -m agents.distillation " + " ".join(recorded) if __name__ == "__main__" else None,
     }
     write_text_atomic(out / "meta.json", json.dumps(meta, indent=2) + "\n")
     write_curve(out, meta)

@@ -756,7 +756,9 @@ def command_line(prog: str, args: argparse.Namespace) -> str:
     if args.eval_episodes is not None:
         parts += ["--eval-episodes", str(args.eval_episodes)]
     parts += ["--checkpoint-freq", str(args.checkpoint_freq), "--threads", str(args.threads)]
-    return " ".join([prog, *(shlex.quote(x) for x in parts[1:])])
+    from omni_gym.record_paths import record_args  # a machine's absolute paths are not recorded
+
+    return " ".join([prog, *(shlex.quote(x) for x in record_args(parts[1:]))])
 
 
 def run_from_args(args: argparse.Namespace, command: str | None = None) -> dict:

@@ -57,6 +57,7 @@ from agents.evaluate import BOOTSTRAP_RESAMPLES, METRICS, paired_bootstrap_ratio
 from agents.policies import POLICY_NAMES, make_policy  # noqa: E402
 from agents.rollout import Episode, make_env, run_episode  # noqa: E402
 from omni_gym.parallel import SERIAL, Backend, add_ray_option, backend_from_options, parallel_map  # noqa: E402
+from omni_gym.record_paths import record_args
 
 GOAL_ENV = "OmniPathFollow-Phunopas-v0"  # the goal and the confirmation run are defined on this id
 MECANUM_ENV = "OmniPathFollow-Mecanum-v0"
@@ -328,7 +329,7 @@ def main(argv: list[str] | None = None) -> int:
     env_ids = [e for e in ENV_IDS if e in (args.envs or ENV_IDS)]  # fixed order: Phunopas first
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    command = "python benchmarks/baselines.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    command = "python benchmarks/baselines.py " + " ".join(shlex.quote(a) for a in record_args(argv or sys.argv[1:]))
     t0 = time.time()
     try:
         backend = backend_from_options(max(1, args.workers), args.ray)

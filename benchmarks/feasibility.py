@@ -28,6 +28,7 @@ from agents.traction import MODES, TractionLimiter, reference_demand  # noqa: E4
 from omni_gym.envs import ENV_IDS  # noqa: E402
 from omni_gym.envs.config import make_config  # noqa: E402
 from omni_gym.outputs import write_text_atomic  # noqa: E402
+from omni_gym.record_paths import record_args
 
 COLUMNS = ("peak_speed", "peak_accel", "peak_yaw_rate", "peak_yaw_accel", "utilisation", "steady_utilisation")
 
@@ -60,7 +61,7 @@ def main(argv: list[str] | None = None) -> None:
     lines = [
         "# Feasibility of the default references (Williams et al. 2002, Sec. IV-B)",
         "",
-        f"Produced by: `.venv/bin/python benchmarks/feasibility.py {shlex.join(sys.argv[1:])}`",
+        f"Produced by: `.venv/bin/python benchmarks/feasibility.py {shlex.join(record_args(sys.argv[1:]))}`",
         "",
         f"Default reference of each path-following id on seeds 0–{args.seeds - 1}, as open-loop body twists at the",
         "control rate. Each cell: median over seeds / max over seeds of the per-episode peak. *utilisation*: the",

@@ -39,6 +39,7 @@ from agents.evaluate import summarize  # noqa: E402
 from agents.feedback_law import TrueStateFeedback  # noqa: E402
 from agents.vector_rollout import make_vector_env, run_episodes_vector  # noqa: E402
 from omni_gym.outputs import write_text_atomic  # noqa: E402
+from omni_gym.record_paths import record_args
 
 ENV_IDS = ("OmniPathFollow-Phunopas-v0", "OmniPathFollow-Williams-v1")
 
@@ -63,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.episodes < 2 or any(not (0.0 < g < 100.0) for g in args.gains):
         ap.error("--episodes must be ≥ 2 and every gain in (0, 100) 1/s")
-    command = "python benchmarks/headroom.py " + shlex.join(argv if argv is not None else sys.argv[1:])
+    command = "python benchmarks/headroom.py " + shlex.join(record_args(argv if argv is not None else sys.argv[1:]))
     seeds = list(range(args.seed, args.seed + args.episodes))
     rng = np.random.default_rng(0)
     start = time.perf_counter()

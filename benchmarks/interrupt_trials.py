@@ -25,6 +25,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from omni_gym.record_paths import record_args
+
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_S = 2.0  # s: every interrupted run must end within 2 s (the reliability target, docs/scaling.md)
 HANG_S = 60.0  # a trial still running this long after SIGINT counts as a hang (and is killed)
@@ -179,7 +181,8 @@ def main(argv: list[str] | None = None) -> int:
             trials.append(t)
             print(f"trial {i + 1}/{args.trials}: delay {delay:.2f} s, {t.target}: status {t.status}, "
                   f"ended in {t.end_s:.2f} s{'' if t.clean else '  NOT CLEAN'}", flush=True)
-    command = "python benchmarks/interrupt_trials.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    recorded = record_args(argv if argv is not None else sys.argv[1:])
+    command = "python benchmarks/interrupt_trials.py " + " ".join(recorded)
     text = report(trials, time.monotonic() - t_start, command.strip())
     print(text)
     if args.out:

@@ -34,6 +34,7 @@ from matplotlib.ticker import FuncFormatter  # noqa: E402
 from scipy import stats  # noqa: E402
 
 from omni_gym.outputs import write_bytes_atomic, write_text_atomic  # noqa: E402
+from omni_gym.record_paths import record_args
 
 GRID_POINTS = 50
 FLOOR = 1e-3  # m: lower end of the drawn bands (log axis)
@@ -175,7 +176,8 @@ def main(argv: list[str] | None = None) -> int:
     groups = group(runs)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    command = "python benchmarks/learning_curves.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    recorded = record_args(argv or sys.argv[1:])
+    command = "python benchmarks/learning_curves.py " + " ".join(shlex.quote(a) for a in recorded)
     plot(out / "learning_curves.png", groups)
     write_text_atomic(out / "learning_curves.md", markdown(command, groups))
     print(f"{len(runs)} runs in {len(groups)} groups → {out / 'learning_curves.md'}")

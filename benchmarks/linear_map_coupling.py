@@ -31,6 +31,7 @@ from real_optiodom import ROBOTS  # noqa: E402  (the benchmark's own split of se
 from omni_gym.discrepancy.data.importers.optiodom import nominal_model, read_sessions  # noqa: E402
 from omni_gym.discrepancy.fit.kinematic_calibration import calibrate  # noqa: E402
 from omni_gym.discrepancy.fit.linear_map import fit_linear_map  # noqa: E402
+from omni_gym.record_paths import record_args  # noqa: E402
 
 
 def frame_map(cal) -> np.ndarray:
@@ -82,8 +83,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     t0 = time.monotonic()
     body = [line for name in args.robots for line in robot_lines(name)]
+    recorded = record_args(argv if argv is not None else sys.argv[1:])
     command = "python benchmarks/linear_map_coupling.py" + ("" if argv is None and len(sys.argv) == 1 else " " +
-                                                             " ".join(argv if argv is not None else sys.argv[1:]))
+                                                             " ".join(recorded))
     text = "\n".join(["# What the linear map captures beyond the calibration with its tracked frame", "",
                       f"`{command}` ({time.monotonic() - t0:.0f} s on 2 cores).", "", *body])
     print(text)

@@ -32,6 +32,7 @@ import numpy as np  # noqa: E402
 from omni_gym.analysis.max_force import max_force_curve, static_loads  # noqa: E402
 from omni_gym.physics.friction import SURFACES  # noqa: E402
 from omni_gym.physics.robot import williams2002  # noqa: E402
+from omni_gym.record_paths import record_args
 
 PERIOD = 2 * math.pi / 3  # rad, symmetry period of a regular three-wheeled robot
 TABLE_POINTS = 13  # every 10°
@@ -115,7 +116,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--quick", action="store_true", help=f"{QUICK_POINTS} plot points, not {PLOT_POINTS} (tests)")
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
-    command = shlex.join([".venv/bin/python", "benchmarks/max_force.py", *sys.argv[1:]])
+    command = shlex.join([".venv/bin/python", "benchmarks/max_force.py", *record_args(sys.argv[1:])])
 
     table_thetas = np.linspace(0.0, PERIOD, TABLE_POINTS)
     points = QUICK_POINTS if args.quick else PLOT_POINTS

@@ -48,6 +48,7 @@ from agents.policies import POLICY_NAMES  # noqa: E402
 from agents.rollout import Episode  # noqa: E402
 from omni_gym.outputs import write_text_atomic  # noqa: E402
 from omni_gym.parallel import backend_from_options, parallel_map  # noqa: E402
+from omni_gym.record_paths import record_args
 
 MECANUM = "OmniPathFollow-Mecanum-v0"
 ENV_IDS = ("OmniPathFollow-WilliamsPaper-v0", "OmniPathFollow-Williams-v1", "OmniPathFollow-Phunopas-v0", MECANUM)
@@ -225,7 +226,8 @@ def main(argv: list[str] | None = None) -> int:
                     *(m for m in models if metas[m]["env_id"] == e)] for e in env_ids}
     seeds = tuple(range(args.seed, args.seed + args.episodes))
     cells = [Cell(e, p, c, seeds, args.episode_seconds) for e in env_ids for c in CONDITIONS for p in policies[e]]
-    command = "python benchmarks/normalised_score.py " + shlex.join(argv if argv is not None else sys.argv[1:])
+    recorded = record_args(argv if argv is not None else sys.argv[1:])
+    command = "python benchmarks/normalised_score.py " + shlex.join(recorded)
     t0 = time.time()
     try:
         eps = run_all(cells, args.workers, None if args.cache is None else Path(args.cache))

@@ -61,6 +61,7 @@ from scipy import stats  # noqa: E402
 from agents.evaluate import BOOTSTRAP_RESAMPLES  # noqa: E402
 from agents.pid import PIDGains  # noqa: E402
 from omni_gym.outputs import write_bytes_atomic, write_text_atomic  # noqa: E402
+from omni_gym.record_paths import record_args  # noqa: E402
 
 MODEL = ROOT / "benchmarks" / "inputs" / "omni4_calibrated_model.json"
 NOMINAL, CALIBRATED = "nominal", "calibrated"
@@ -254,7 +255,8 @@ def main(argv: list[str] | None = None) -> int:
         p_grid, i_grid, n_tune, n_eval, seconds = QUICK_P, QUICK_I, 4, 6, 4.0
     else:
         p_grid, i_grid, n_tune, n_eval, seconds = P_GRID, I_GRID, args.tune_episodes, args.episodes, None
-    command = "python benchmarks/omni4_end_to_end.py " + shlex.join(argv if argv is not None else sys.argv[1:])
+    recorded = record_args(argv if argv is not None else sys.argv[1:])
+    command = "python benchmarks/omni4_end_to_end.py " + shlex.join(recorded)
     pmap = _pmap(args.workers)
     t0 = time.time()
     tune_seeds = list(range(TUNE_SEED, TUNE_SEED + n_tune))

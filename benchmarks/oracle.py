@@ -37,6 +37,7 @@ from normalised_score import TRUE_STATE, Cell, run_all  # noqa: E402
 from agents.evaluate import paired_bootstrap_ratio  # noqa: E402
 from agents.oracle import NOISY_ORACLE, ORACLE, SENSOR_ORACLE, OracleConfig, oracle_name  # noqa: E402
 from omni_gym.outputs import write_text_atomic  # noqa: E402
+from omni_gym.record_paths import record_args
 
 ENV_IDS = ("OmniPathFollow-WilliamsPaper-v0", "OmniPathFollow-Williams-v1", "OmniPathFollow-Phunopas-v0",
            "OmniPathFollow-Mecanum-v0")
@@ -225,7 +226,7 @@ def main(argv: list[str] | None = None) -> int:
     seeds = tuple(range(args.seed, args.seed + args.episodes))
     sweep_seeds = seeds[:args.sweep_episodes]
     cells = cells_for(args.envs, seeds, sweep_seeds, args.episode_seconds)
-    command = "python benchmarks/oracle.py " + shlex.join(argv if argv is not None else sys.argv[1:])
+    command = "python benchmarks/oracle.py " + shlex.join(record_args(argv if argv is not None else sys.argv[1:]))
     t0 = time.time()
     eps = run_all(cells, args.workers, args.cache)
     summary = summarise(eps, args.envs, seeds, sweep_seeds, args.episode_seconds)

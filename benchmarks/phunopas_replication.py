@@ -53,6 +53,7 @@ from agents.ekf import EKFConfig, OmniEKF  # noqa: E402
 from agents.evaluate import METRICS, mean_ci  # noqa: E402
 from agents.policies import OpenLoopPolicy, make_policy  # noqa: E402
 from agents.rollout import make_env, run_episode  # noqa: E402
+from omni_gym.record_paths import record_args
 from omni_gym.trajectories import Quintic  # noqa: E402
 
 ENV_ID = "OmniGoToPose-v0"
@@ -220,7 +221,8 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--episodes must be >= 2 (confidence intervals need two episodes)")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    command = ("python benchmarks/phunopas_replication.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:])))
+    recorded = record_args(argv or sys.argv[1:])
+    command = ("python benchmarks/phunopas_replication.py " + " ".join(shlex.quote(a) for a in recorded))
     eps = run(args.episodes, args.seed)
     write_markdown(out / "phunopas_replication.md", command.strip(), eps, args.episodes, args.seed)
     plots(out, eps)

@@ -34,6 +34,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from omni_gym.outputs import write_text_atomic  # noqa: E402
+from omni_gym.record_paths import record_args
 
 
 def read_run(path: Path) -> tuple[str, dict, np.ndarray]:
@@ -49,7 +50,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", nargs="+", required=True, help="training run directories (meta.json, curve.csv)")
     ap.add_argument("--out", default="benchmarks/results", help="output directory")
     args = ap.parse_args(argv)
-    command = "python benchmarks/privileged_diagnosis.py " + shlex.join(argv if argv is not None else sys.argv[1:])
+    recorded = record_args(argv if argv is not None else sys.argv[1:])
+    command = "python benchmarks/privileged_diagnosis.py " + shlex.join(recorded)
     runs = []
     for r in sorted(args.runs):
         p = Path(r)

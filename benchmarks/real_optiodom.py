@@ -56,6 +56,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from omni_gym.discrepancy.data.dataset import Run  # noqa: E402
+from omni_gym.record_paths import record_args
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -308,7 +309,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.jobs < 1:
         ap.error(f"--jobs must be at least 1, got {args.jobs}")
     args.out.mkdir(parents=True, exist_ok=True)
-    command = " ".join(["python benchmarks/real_optiodom.py", *(sys.argv[1:] if argv is None else argv)])
+    command = " ".join(["python benchmarks/real_optiodom.py", *record_args(sys.argv[1:] if argv is None else argv)])
     t0 = time.monotonic()
     records = []
     with tempfile.TemporaryDirectory(prefix="omni-gym-real-optiodom-") as tmp:

@@ -75,6 +75,7 @@ from agents.policies import POLICY_NAMES  # noqa: E402
 from agents.rollout import Episode  # noqa: E402
 from omni_gym.outputs import write_text_atomic  # noqa: E402
 from omni_gym.parallel import Backend, add_ray_option, backend_from_options, parallel_map  # noqa: E402
+from omni_gym.record_paths import record_args
 
 PHUNOPAS = "OmniPathFollow-Phunopas-v0"
 WILLIAMS = "OmniPathFollow-Williams-v1"
@@ -542,7 +543,8 @@ def main(argv: list[str] | None = None) -> int:
     sets = [SETS[s] for s in SETS if s in args.sets]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    command = "python benchmarks/rl_vs_baselines.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    recorded = record_args(argv or sys.argv[1:])
+    command = "python benchmarks/rl_vs_baselines.py " + " ".join(shlex.quote(a) for a in recorded)
     overrides = {} if args.episode_seconds is None else {"episode_seconds": args.episode_seconds}
     t0 = time.time()
     batches = make_batches(env_ids, policies, sets, args.episodes, args.seed, overrides)

@@ -36,6 +36,7 @@ from oracle import ratio_bars, ratio_text  # noqa: E402
 
 from agents.oracle import ORACLE, SENSOR_ORACLE  # noqa: E402
 from omni_gym.outputs import write_text_atomic  # noqa: E402
+from omni_gym.record_paths import record_args
 
 CONDS = tuple(CONDITIONS)
 BASELINES = ("ekf-pid", "ekf-pid-traction")
@@ -161,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.episodes < 2 or args.workers < 1:
         ap.error("need --episodes >= 2 and --workers >= 1")
     seeds = tuple(range(args.seed, args.seed + args.episodes))
-    command = "python benchmarks/students.py " + shlex.join(argv if argv is not None else sys.argv[1:])
+    command = "python benchmarks/students.py " + shlex.join(record_args(argv if argv is not None else sys.argv[1:]))
     t0 = time.time()
     metas = {s: json.loads((Path(s) / "meta.json").read_text()) for s in students}
     eps = run_all(cells_for(metas, seeds, args.episode_seconds), args.workers, args.cache)

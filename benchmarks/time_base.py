@@ -36,6 +36,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from real_optiodom import ROBOTS, omni_gym  # noqa: E402  (the benchmark's split of sessions; the command line)
 
+from omni_gym.record_paths import record_args  # noqa: E402
+
 BASES = ("file", "tracker")
 
 
@@ -118,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
             rows += mine
             calibrations[name] = cal
     command = "python benchmarks/time_base.py" + ("" if argv is None and len(sys.argv) == 1 else " " +
-                                                   " ".join(argv if argv is not None else sys.argv[1:]))
+                                                   " ".join(record_args(argv if argv is not None else sys.argv[1:])))
     text = table(rows, calibrations, command, time.monotonic() - t0)
     print(text)
     if args.out:
