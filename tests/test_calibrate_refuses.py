@@ -1,4 +1,4 @@
-"""``omni-gym calibrate`` refuses what is not an answer (issue 51): fitted values at the optimiser's bounds,
+"""``omni-gym calibrate`` refuses what is not an answer: fitted values at the optimiser's bounds,
 a frozen encoder, a dead-reckoning residual far above noise and modelling. Each refusal is one line naming
 what is wrong, points to ``omni-gym gap``, exits 2 and writes nothing."""
 

@@ -120,3 +120,14 @@ def test_the_layout_names_every_module():
     modules = [p for base in ("omni_gym", "agents") for p in (ROOT / base).rglob("*.py") if p.stem != "__init__"]
     missing = sorted(str(p.relative_to(ROOT)) for p in modules if p.stem not in words)
     assert missing == [], f"README's Layout does not name {missing}"
+
+
+def test_the_readme_stays_short_with_its_sections():
+    """At most 300 lines (detail lives in docs/, e.g. docs/results.md), with what a new user looks for: what it is,
+    install, the two commands, the environments table, the command line and the headline results."""
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) <= 300
+    headings = [line for line in text.splitlines() if line.startswith("## ")]
+    for section in ("## Quick start", "## Install", "## Environments", "## Command line", "## Headline results"):
+        assert section in headings, section
+    assert "omni-gym gap" in text and "gym.make" in text

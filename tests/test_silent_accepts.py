@@ -1,4 +1,4 @@
-"""Inputs a new user found accepted without a word (issue 51) are refused in one line, by a bound with its
+"""Inputs once accepted without a word are refused in one line, by a bound with its
 reason in ``omni_gym/bounds.py``: a heading of 99999 rad, wheel commands of 3000 rad/s, 5 m of synthetic
 tracker noise, a NaN row in an OptiOdom log."""
 
