@@ -31,23 +31,30 @@ import gymnasium as gym
 ENTRY = "omni_gym.envs.omni_env:OmniPathEnv"
 VECTOR_ENTRY = "omni_gym.envs.vector:OmniPathVectorEnv"
 LIFT_OFF = {"lift_rate": 0.5, "recover_rate": 5.0}
+# References within the wheels' reach (omni_gym.envs.references.draw_task_reference): the share of the friction set
+# a reference may ask for. The preset ids' references already ask at most 0.74-0.96 of it (benchmarks/results/
+# feasibility.md), so 1 changes none of them; WilliamsPaper-v0 keeps the paper's task as it is (it asks 1.2-1.4).
+WITHIN_REACH = {"ref_traction": 1.0}
 
 ENV_IDS = {
     "OmniPathFollow-WilliamsPaper-v0": ({"robot": "williams2002", "surface": "carpet", "friction": "roller_gap",
                                     "episode_seconds": 20.0}, 2000),
     "OmniPathFollow-Williams-v1": ({"robot": "williams2002", "surface": "carpet", "friction": "roller_gap",
-                                    "episode_seconds": 20.0, "ref_turn": "before"}, 2000),
+                                    "episode_seconds": 20.0, "ref_turn": "before", **WITHIN_REACH}, 2000),
     "OmniPathFollow-Phunopas-v0": ({"robot": "phunopas2018", "surface": "carpet", "friction": "roller_gap",
-                                    "episode_seconds": 20.0, **LIFT_OFF}, 2000),
+                                    "episode_seconds": 20.0, **LIFT_OFF, **WITHIN_REACH}, 2000),
     "OmniPathFollow-Mecanum-v0": ({"robot": "optiodom_omni4", "surface": "carpet", "friction": "initial",
-                                   "episode_seconds": 20.0, **LIFT_OFF}, 2000),
+                                   "episode_seconds": 20.0, **LIFT_OFF, **WITHIN_REACH}, 2000),
     "OmniGoToPose-v0": ({"robot": "phunopas2018", "surface": "carpet", "friction": "roller_gap", "task": "goto",
-                         "trajectory": "goto", "episode_seconds": 8.0, **LIFT_OFF}, 800),
+                         "trajectory": "goto", "episode_seconds": 8.0, **LIFT_OFF, **WITHIN_REACH}, 800),
 }
 
-# "My robot": everything physical from model= (required; omni_gym.envs.config.check_custom).
+# "My robot": everything physical from model= (required; omni_gym.envs.config.check_custom). Its references stay
+# within CUSTOM_TRACTION of what the model's wheels can transmit on its floor, and turn in place before each
+# translation: a robot of unknown traction gets a task it can do (docs/environments.md, "Tasks within reach").
 CUSTOM_ID = "OmniPathFollow-Custom-v0"
-CUSTOM = ({"episode_seconds": 20.0}, 2000)
+CUSTOM_TRACTION = 0.15  # of the headroom above the rolling resistance (benchmarks/results/feasible_tasks.md)
+CUSTOM = ({"episode_seconds": 20.0, "ref_turn": "before", "ref_traction": CUSTOM_TRACTION}, 2000)
 CUSTOM_ENTRY = "omni_gym.envs.omni_env:OmniCustomEnv"
 CUSTOM_VECTOR_ENTRY = "omni_gym.envs.vector:OmniCustomVectorEnv"
 

@@ -168,6 +168,14 @@ class EnvConfig:
         doc="`waypoints` only: the heading turns while translating (`during`) or in place before each translation "
             "(`before`)",
     )
+    ref_traction: float = option(
+        0.0, "number", lo=0.0, hi=1.0,
+        doc="the share r of the wheels' friction set (`omni_gym.physics.traction`, \"moving\" mode, the model's floor) "
+            "left after the motion's rolling resistance u_s that a reference's accelerations may use: one that asks "
+            "more than u_s + r·(1 − u_s) runs slower until it fits (up to 8×); 0 draws references as they are, "
+            "feasible or not (`info[\"reference_traction\"]` reports the share u they ask either way)",
+        reason="a share of a set: above 1 the wheels cannot transmit what the reference asks, even without feedback",
+    )
     obs_mode: str = option(
         "state", "choice", choices=OBS_MODES,
         doc="observation: privileged `state` or what a real robot has (`sensors`)",

@@ -38,13 +38,14 @@ from omni_gym.envs.observations import (  # noqa: F401  (LOOKAHEAD_SECONDS, ACC_
     sensor_offsets,
     state_offsets,
 )
-from omni_gym.envs.references import draw_reference
+from omni_gym.envs.references import draw_task_reference
 from omni_gym.envs.reward import RewardInputs, check_reward, evaluate, tracking_reward
 from omni_gym.physics.kinematics import WheelKinematics, effective_kinematics
 from omni_gym.physics.layout import SP_CX, SP_CY, WH_CMD
 from omni_gym.physics.liftoff import ContactProcess, contact_cases
 from omni_gym.physics.model import Actuation, SimModel
 from omni_gym.physics.plant import Plant, PlantState, SimulatorPlant, check_plant_state
+from omni_gym.physics.traction import TractionLimiter
 from omni_gym.physics.world import Arena, World
 from omni_gym.sensor_bank import SensorBank
 
@@ -261,6 +262,16 @@ def _brief(value) -> str:
     return text if len(text) <= 80 else text[:77] + "..."
 
 
+def traction_limiter(model: SimModel) -> TractionLimiter | None:
+    """The friction set references are fitted to and measured against: the model's robot, floor and centre of
+    mass, "moving" mode (the rollers turn: the drive boxes around the rolling resistance), all wheels down;
+    None where the wheels cannot transmit every planar wrench (no set to measure in)."""
+    try:
+        return TractionLimiter(model.robot, model.surface, mode="moving", com=model.com, gravity=model.gravity)
+    except ValueError:
+        return None
+
+
 def put_reading(bank: SensorBank, reading) -> None:
     """Write a real robot's :class:`~omni_gym.physics.plant.SensorReading` into robot 0's row of ``bank``."""
     angles = np.asarray(reading.wheel_angles, dtype=float)
@@ -361,6 +372,9 @@ class TaskCore:
         self.models = [self.base_model] * n_robots
         self._contact_cases = contact_cases(self.n_wheels)  # shared by every robot's contact process: read-only
         self._contact_cases.setflags(write=False)
+        self.limiter = traction_limiter(self.base_model)
+        self.ref_stretch = np.ones(n_robots)  # how much slower than drawn each reference runs (ref_traction)
+        self.ref_use = np.full(n_robots, np.nan)  # the share of the friction set it asks for (NaN: no limiter)
         self.plant: Plant | None = None  # attach_plant: a plant in place of the world (one robot)
         self._plant_state: PlantState | None = None
 
@@ -411,9 +425,12 @@ class TaskCore:
         """New episode for robot j; every draw (model, path, contacts, sensors) comes from ``rng``."""
         cfg = self.cfg
         draws = draw_model_factors(cfg, rng)
-        pose, vel = draw_reference(cfg, rng, self.n_samples)
+        ref = draw_task_reference(cfg, rng, self.n_samples, self.limiter)
+        pose = ref.pose
         self.ref_pose[j] = pose
-        self.ref_vel[j] = vel
+        self.ref_vel[j] = ref.velocity
+        self.ref_stretch[j] = ref.stretch
+        self.ref_use[j] = np.nan if ref.use is None else ref.use.peak
         contact_seed, sensor_seed = rng.integers(0, 2**63 - 1, size=2)
         self.sensor_noise_scale[j] = sensor_noise_scale(cfg, rng)  # draws only if randomize_sensor_noise is set
         # The floor is the last draw (only if randomize_floor is set): every other draw of a seed stays as
@@ -558,6 +575,7 @@ class TaskCore:
             "contact": self.world.contact[robots].copy(),
             "collided": self.world.collided[robots].copy(),
             "is_success": (err[..., 0] <= cfg.success_distance) & (np.abs(err[..., 1]) <= cfg.success_heading),
+            "reference_traction": self.ref_use[robots].copy(),
         }
         if cfg.randomize_floor is not None:
             out["floor"] = np.array([self.floor(j) for j in range(self.B)], dtype=object)[robots]
@@ -580,6 +598,7 @@ class TaskCore:
             "contact": self.contact(j),
             "collided": bool(world.collided[j]),
             "is_success": e <= self.cfg.success_distance and abs(e_theta) <= self.cfg.success_heading,
+            "reference_traction": float(self.ref_use[j]),
         }
         if self.cfg.randomize_floor is not None:
             info["floor"] = self.floor(j)

@@ -18,12 +18,15 @@ along the path: ``forward`` (default: the body +y axis, the robots' front, point
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numba
 import numpy as np
 
 from omni_gym.angles import wrap_angle
 from omni_gym.envs.config import EnvConfig
+from omni_gym.physics.traction import ReferenceUse, TractionLimiter, reference_use
 from omni_gym.trajectories import Circle, FigureEight, Quintic, StraightLine, Trajectory
 
 RAMP_SECONDS = 1.0  # s, smooth start of the periodic paths
@@ -78,8 +81,7 @@ def _lemniscate_length(half_width: float) -> float:
     return float(np.sum(np.hypot(np.diff(x), np.diff(y))))
 
 
-def _waypoint_reference(cfg: EnvConfig, rng: np.random.Generator, t: np.ndarray,
-                        offset: float) -> tuple[np.ndarray, np.ndarray]:
+def _waypoint_reference(cfg: EnvConfig, rng: np.random.Generator, offset: float) -> Sampler:
     """Rest-to-rest quintics through random waypoints until the segments fill the episode.
 
     Waypoints lie 0.4–0.9 arena half-sizes apart, inside the arena's inner 70 %; each segment lasts
@@ -131,17 +133,87 @@ def _waypoint_reference(cfg: EnvConfig, rng: np.random.Generator, t: np.ndarray,
         total += durations[-1]
         x, y, heading = nx, ny, heading + turn
         pts.append([x, y, heading])
-    pose, vel = np.empty((len(t), 3)), np.empty((len(t), 3))
-    _sample_rest_to_rest(np.array(pts), np.array(durations), t, pose, vel)
-    return pose, vel
+    waypoints, seconds = np.array(pts), np.array(durations)
+
+    def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        pose, vel = np.empty((len(t), 3)), np.empty((len(t), 3))
+        _sample_rest_to_rest(waypoints, seconds, t, pose, vel)
+        return pose, vel
+
+    return sample
+
+
+Sampler = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]  # times [s] -> (poses (K, 3), velocities (K, 3))
+MAX_STRETCH = 8.0  # a reference is slowed down at most this much to fit the wheels' traction
+
+
+@dataclass(frozen=True)
+class TaskReference:
+    """A drawn reference: ``pose`` (n, 3) and world ``velocity`` (n, 3) at t = k / control_hz; ``stretch``, how
+    much slower than drawn it runs to fit the wheels' traction (1: as drawn); ``use``, the share of the
+    friction set it asks for (:class:`omni_gym.physics.traction.ReferenceUse`; None without a limiter)."""
+
+    pose: np.ndarray
+    velocity: np.ndarray
+    stretch: float = 1.0
+    use: ReferenceUse | None = None
+
+    @property
+    def feasible(self) -> bool | None:
+        """Whether the wheels can transmit what it asks (its peak use ≤ 1); None without a limiter."""
+        return None if self.use is None else self.use.peak <= 1.0
+
+
+def allowed_use(steady: float, ref_traction: float) -> float:
+    """The largest share of the friction set a reference may ask for: its steady part (the rolling resistance
+    of the motion itself, which no slowing lowers) plus ``ref_traction`` of what is left for accelerating."""
+    return steady + ref_traction * (1.0 - steady) if steady < 1.0 else steady
 
 
 def draw_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
-    """(poses (n_samples, 3), world velocities (n_samples, 3)) at t = k / control_hz.
+    """(poses (n_samples, 3), world velocities (n_samples, 3)) at t = k / control_hz, as drawn (no traction
+    fitting: :func:`draw_task_reference` does that).
 
     All random draws come from ``rng``, in a fixed order per family.
     """
     t = np.arange(n_samples) / cfg.control_hz
+    return _sampler(cfg, rng)(t)
+
+
+def draw_task_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int,
+                        limiter: TractionLimiter | None = None) -> TaskReference:
+    """The reference an environment drives: :func:`draw_reference`'s, slowed down to fit the wheels' traction.
+
+    With a ``limiter`` (the model's friction set, ``omni_gym.physics.traction``, "moving" mode) and
+    ``cfg.ref_traction`` = r > 0, a reference runs slower by a time stretch s (poses at t/s, velocities /s)
+    until its peak use over the episode is within :func:`allowed_use`: its steady part u_s (the motion's own
+    rolling resistance, which no slowing lowers) plus r of the rest, u ≤ u_s + r·(1 − u_s). Accelerations
+    fall as 1/s², so the use falls towards u_s; s stops at :data:`MAX_STRETCH`. With r = 1 only references the
+    wheels cannot follow at all (u > 1) are slowed; a smaller r keeps headroom for the feedback's corrections.
+    A reference whose steady part alone exceeds 1 asks what no speed makes possible (``feasible`` tells).
+    The draws from ``rng`` are the same as :func:`draw_reference`'s: fitting changes no later draw.
+    """
+    t = np.arange(n_samples) / cfg.control_hz
+    sample = _sampler(cfg, rng)
+    pose, vel = sample(t)
+    if limiter is None:
+        return TaskReference(pose, vel)
+    driven = cfg.episode_steps + 1  # the look-ahead tail beyond the episode is seen, never driven
+    use = reference_use(limiter, pose[:driven], vel[:driven], cfg.control_dt)
+    stretch = 1.0
+    while cfg.ref_traction > 0 and use.peak > allowed_use(use.steady, cfg.ref_traction) and stretch < MAX_STRETCH:
+        target = allowed_use(use.steady, cfg.ref_traction)
+        factor = math.sqrt((use.peak - use.steady) / (target - use.steady)) if target > use.steady else MAX_STRETCH
+        stretch = min(MAX_STRETCH, stretch * max(1.02, 1.02 * factor))  # 2 %: the steady part moves with s too
+        pose, vel = sample(t / stretch)
+        vel /= stretch
+        use = reference_use(limiter, pose[:driven], vel[:driven], cfg.control_dt)
+    return TaskReference(pose, vel, stretch, use)
+
+
+def _sampler(cfg: EnvConfig, rng: np.random.Generator) -> Sampler:
+    """Draw a reference of ``cfg``'s family from ``rng`` (every draw now, in a fixed order) and return its
+    sampler: times [s] → (poses, world velocities)."""
     T = cfg.episode_seconds
     h = cfg.arena_half_size
     fam = cfg.trajectory
@@ -152,7 +224,7 @@ def draw_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int) -> 
     const_heading = rng.uniform(-math.pi, math.pi) if cfg.ref_heading == "random" else 0.0
     heading = const_heading if cfg.ref_heading == "random" else "tangent"
     if fam == "waypoints":
-        return _waypoint_reference(cfg, rng, t, offset)
+        return _waypoint_reference(cfg, rng, offset)
     elif fam == "circle":
         radius = rng.uniform(0.25, 0.45) * h  # the circle passes through the start: it spans 2·radius
         clockwise = bool(rng.integers(2))
@@ -161,13 +233,13 @@ def draw_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int) -> 
         center = (0.0, -radius) if clockwise else (0.0, radius)
         phase = math.pi / 2 if clockwise else -math.pi / 2
         traj = Circle(center, radius, period, phase=phase, clockwise=clockwise, heading=heading,
-                      laps=T / period + 1)
+                      laps=T * MAX_STRETCH / period + 1)
         ramp = RAMP_SECONDS
     elif fam == "figure_eight":
         a = rng.uniform(0.5, 0.8) * h
         period = _lemniscate_length(a) / cfg.ref_speed
         traj = FigureEight((0.0, 0.0), a, period, clockwise=bool(rng.integers(2)), heading=heading,
-                           laps=T / period + 1)
+                           laps=T * MAX_STRETCH / period + 1)
         ramp = RAMP_SECONDS
     elif fam == "line":
         motion = max(T - SETTLE_SECONDS, 0.5)
@@ -182,7 +254,12 @@ def draw_reference(cfg: EnvConfig, rng: np.random.Generator, n_samples: int) -> 
         dist = min(cfg.ref_speed * motion, 0.8 * h) * rng.uniform(0.6, 1.0)
         goal = (dist * math.cos(ang), dist * math.sin(ang), rng.uniform(-math.pi / 2, math.pi / 2))
         traj = Quintic((0.0, 0.0, 0.0), goal, motion)
-    pose, vel = _sample(traj, t, ramp)
-    if fam in ("circle", "figure_eight") and cfg.ref_heading != "random":
-        pose[:, 2] += offset  # tangent heading, turned so the chosen body axis points along the path
-    return pose, vel
+    turned = fam in ("circle", "figure_eight") and cfg.ref_heading != "random"
+
+    def sample(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        pose, vel = _sample(traj, t, ramp)
+        if turned:
+            pose[:, 2] += offset  # tangent heading, turned so the chosen body axis points along the path
+        return pose, vel
+
+    return sample
