@@ -35,6 +35,12 @@ ANCHORS = (ZERO_ANCHOR, FULL_ANCHOR)
 DEGENERATE_GAP = 0.05  # ekf-pid better than open-loop by less than this fraction of RMSE_open: no scale
 RESAMPLES = 10_000
 SEED = 0
+# A percentile interval of a ratio that does not contain the ratio itself: the denominator RMSE_open − RMSE_ekfpid
+# comes near 0 (or changes sign) in some resamples, so the resampled scores are skewed away from the estimate and
+# their percentiles describe those resamples, not the score. Shown instead of the interval.
+NO_INTERVAL = ("the bootstrap resamples of the ratio are skewed away from the estimate (its denominator, "
+               "RMSE_open − RMSE_ekfpid, comes near 0 in some resamples), so their percentiles do not contain it")
+NO_SCORE = "the anchors' mean RMSE are equal, so the score itself is not defined (no scale)"
 
 
 def normalised_score(rmse_policy: float, rmse_open: float, rmse_ekfpid: float) -> float:
@@ -56,6 +62,7 @@ class Score:
     rmse_ekfpid: float
     episodes: int
     degenerate: bool  # ekf-pid not DEGENERATE_GAP better than open-loop
+    ci_note: str | None = None  # why there is no interval although there are resamples (NO_INTERVAL)
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -65,6 +72,7 @@ class Score:
 
     def text(self) -> str:
         ci = "" if self.ci95 is None else f" [{self.ci95[0]:.1f}, {self.ci95[1]:.1f}]"
+        ci = ci if self.ci_note is None else f" (interval not defined: {self.ci_note})"
         warn = (" (ekf-pid is not 5 % better than open-loop here: the scale is degenerate, do not read)"
                 if self.degenerate else "")
         return (f"normalised score {self.score:.1f}{ci} over {self.episodes} paired episodes (0 = {ZERO_ANCHOR} "
@@ -92,8 +100,11 @@ def score_episodes(policy, open_loop, ekf_pid, resamples: int = RESAMPLES) -> Sc
         if draws.size:
             lo, hi = np.quantile(draws, [0.025, 0.975])
             ci = (float(lo), float(hi))
+    note = None
+    if ci is not None and not (ci[0] <= s <= ci[1]):  # an interval that does not hold its own estimate
+        ci, note = None, (NO_INTERVAL if math.isfinite(s) else NO_SCORE)
     degenerate = (o.mean() - e.mean()) < DEGENERATE_GAP * o.mean()  # signed: an inverted scale too
-    return Score(s, ci, float(p.mean()), float(o.mean()), float(e.mean()), len(p), bool(degenerate))
+    return Score(s, ci, float(p.mean()), float(o.mean()), float(e.mean()), len(p), bool(degenerate), note)
 
 
 def score_results(result: dict, open_loop: dict, ekf_pid: dict) -> Score:

@@ -42,7 +42,7 @@ import numpy as np  # noqa: E402
 from baselines import CONDITIONS, conditions  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from agents.normalised_score import FULL_ANCHOR, ZERO_ANCHOR, score_episodes  # noqa: E402
+from agents.normalised_score import FULL_ANCHOR, NO_INTERVAL, NO_SCORE, ZERO_ANCHOR, score_episodes  # noqa: E402
 from agents.oracle import ORACLE, SENSOR_ORACLE, oracle_config  # noqa: E402
 from agents.policies import POLICY_NAMES  # noqa: E402
 from agents.rollout import Episode  # noqa: E402
@@ -159,6 +159,7 @@ def label(policy: str, metas: dict) -> str:
 def cell_text(eps: list[Episode], o: list[Episode], e: list[Episode]) -> str:
     s = score_episodes(*([x.tracking_rmse for x in group] for group in (eps, o, e)))
     ci = "" if s.ci95 is None else f" [{s.ci95[0]:.0f}, {s.ci95[1]:.0f}]"
+    ci = ci if s.ci_note is None else " (interval not defined †)"  # † explained under the table
     lost = sum(x.terminated for x in eps)
     return (f"{s.score + 0.0:.0f}{ci}".replace("-", "−") + (f", {lost} lost" if lost else "")
             + (" ‡" if s.degenerate else ""))
@@ -175,7 +176,8 @@ def write_markdown(path: Path, command: str, env_ids: list[str], policies: dict,
              "ended early (their RMSE is over the steps they ran, so a lost episode's score is flattering). "
              "Privileged policies read the true state (not robot controllers). Any policy: `omni-gym evaluate "
              "--policy P --env ID --episodes 50 --env-kwargs COND --score` (single environments, same episodes). "
-             f"Wall time of this run {elapsed / 60:.1f} min (episodes reused from `--cache` not counted).", "",
+             f"Wall time of this run {elapsed / 60:.1f} min (episodes reused from `--cache` not counted). "
+             f"†: interval not defined: {NO_INTERVAL}; or {NO_SCORE}.", "",
              "Conditions: " + "; ".join(f"{c}: `{json.dumps(CONDITIONS[c])}`" for c in conds) + ". On the mecanum "
              "id every condition uses `initial` friction (mecanum wheels have no roller-gap model): "
              + "; ".join(f"{c}: `{json.dumps(conditions(MECANUM)[c])}`" for c in conds) + ".", ""]

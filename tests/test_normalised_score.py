@@ -86,3 +86,17 @@ def test_benchmark_table_runs_the_mecanum_id_in_its_own_conditions():
         assert (mec["surface"], mec["lift_rate"]) == (omni["surface"], omni["lift_rate"])
     assert ns.Cell(ENV, "ekf-pid", "slip", (1,)).env_kwargs()["friction"] == "roller_gap"
     assert ns.Cell(ns.MECANUM, "ekf-pid", "slip", (1,), 2.0).env_kwargs()["episode_seconds"] == 2.0
+
+
+def test_an_interval_that_does_not_hold_its_estimate_is_not_shown():
+    """Anchors with equal means (open-loop 10 mm, ekf-pid 9, 9 and 12 mm): no score, and the resamples' percentile
+    interval [-200, 200] used to be printed beside "nan". No interval is given then, with the reason; an
+    interval that holds its estimate is kept."""
+    from agents.normalised_score import NO_INTERVAL, NO_SCORE, score_episodes
+
+    s = score_episodes([0.008] * 3, [0.010] * 3, [0.009, 0.009, 0.012])
+    assert s.ci95 is None and s.ci_note == NO_SCORE
+    assert "interval not defined" in s.text() and "[" not in s.text().split(" over ")[0]
+    ok = score_episodes([0.005, 0.006, 0.004], [0.010, 0.011, 0.009], [0.002, 0.003, 0.002])
+    assert ok.ci95 is not None and ok.ci95[0] <= ok.score <= ok.ci95[1] and ok.ci_note is None
+    assert NO_INTERVAL != NO_SCORE
