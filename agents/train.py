@@ -456,6 +456,12 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
         from agents.callbacks import HoldActor
 
         callbacks.append(HoldActor(warmup))
+    rollout = int(getattr(model, "n_steps", 0) or 0) * int(getattr(model, "n_envs", 1) or 1)
+    if rollout and n_timesteps % rollout:  # on-policy algorithms collect whole rollouts: say what will run
+        ran = -(-n_timesteps // rollout) * rollout
+        print(f"note: --timesteps {n_timesteps} rounds up to {ran}, whole rollouts of {rollout} steps (n_steps "
+              f"{model.n_steps} x n_envs {model.n_envs}); meta.json records the steps run as timesteps",
+              file=sys.stderr)
     t0 = time.time()
     try:
         model.learn(total_timesteps=n_timesteps, callback=callbacks, progress_bar=False,
