@@ -159,8 +159,28 @@ def summarize(episodes: list[Episode], interval: str = "bootstrap") -> dict:
     out["success_rate"] = {"mean": wins / len(episodes), "successes": wins, "ci95": wilson_ci(wins, len(episodes))}
     out["terminated_rate"] = sum(e.terminated for e in episodes) / len(episodes)
     out["per_episode"] = {k: [e.metrics()[k] for e in episodes]
-                          for k in ("seed", *METRICS, "episode_return", "success", "terminated")}
+                          for k in ("seed", *METRICS, "episode_return", "success", "terminated", "reference_traction")}
+    out["traction"] = traction_summary(episodes)
     return out
+
+
+def traction_summary(episodes: list[Episode]) -> dict:
+    """How many episodes' references asked more than the wheels' traction (their share of the friction set,
+    ``info["reference_traction"]``, above 1), and the largest share; ``known`` counts the episodes that tell."""
+    use = np.array([e.reference_traction for e in episodes], dtype=float)  # NaN where unknown
+    known = np.isfinite(use)
+    return {"known": int(known.sum()), "exceeded": int(np.sum(use[known] > 1.0)),
+            "max": float(use[known].max()) if known.any() else None}
+
+
+def traction_line(result: dict) -> str | None:
+    """One line when some references asked more than the robot's traction (None otherwise)."""
+    t = result.get("traction")
+    if not t or not t["exceeded"]:
+        return None
+    return (f"note: {t['exceeded']} of {t['known']} references asked more than the wheels can transmit (up to "
+            f"{t['max']:.2f} of the friction set, > 1 beyond the robot's traction): their errors measure the task "
+            "as much as the controller (ref_traction > 0 slows such references down; docs/environments.md)")
 
 
 def progress_lines(items: Iterable[int], total: int, what: str, every_s: float | None = None,
@@ -259,6 +279,9 @@ def format_table(result: dict) -> str:
     ci = "n/a" if r["ci95"] is None else f"[{r['ci95'][0]:.2f}, {r['ci95'][1]:.2f}]"
     lines.append(f"{'episode return':<26}{r['mean']:>10.2f}   {ci} (sum of the environment's reward; higher is "
                  f"better)")
+    note = traction_line(result)
+    if note is not None:
+        lines.append(note)
     return "\n".join(lines)
 
 

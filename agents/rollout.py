@@ -70,6 +70,9 @@ class Episode:
     terminated: bool
     steps: int
     episode_return: float = math.nan  # sum of the environment's own reward (the id's, not a wrapper's)
+    # The share of the wheels' friction set the episode's reference asks for (> 1: beyond the robot's traction;
+    # NaN where the environment cannot tell), info["reference_traction"] at reset.
+    reference_traction: float = math.nan
     t: np.ndarray = field(default_factory=lambda: np.zeros(0))
     pose: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # true pose (x, y, θ)
     reference: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
@@ -80,7 +83,8 @@ class Episode:
         return {"seed": self.seed, "tracking_rmse": self.tracking_rmse,
                 "final_position_error": self.final_position_error, "final_heading_error": self.final_heading_error,
                 "success": self.success, "terminated": self.terminated, "steps": self.steps,
-                "episode_return": self.episode_return}
+                "episode_return": self.episode_return,
+                "reference_traction": None if math.isnan(self.reference_traction) else self.reference_traction}
 
 
 def run_episode(env, policy: Policy, seed: int, record: bool = False) -> Episode:
@@ -90,6 +94,7 @@ def run_episode(env, policy: Policy, seed: int, record: bool = False) -> Episode
     policy's estimate after acting on observation k (NaN for open-loop) and the wheel contacts.
     """
     obs, info = env.reset(seed=seed)
+    traction = float(info.get("reference_traction", math.nan))
     policy.reset(obs)
     dt = env.unwrapped.cfg.control_dt
     core = env.unwrapped.core  # the environment's own reward, also under a wrapper that replaces it
@@ -119,7 +124,7 @@ def run_episode(env, policy: Policy, seed: int, record: bool = False) -> Episode
                  final_position_error=float(info["tracking_error"]),
                  final_heading_error=abs(float(info["heading_error"])),
                  success=bool(info["is_success"]) and not terminated, terminated=bool(terminated), steps=steps,
-                 episode_return=ret)
+                 episode_return=ret, reference_traction=traction)
     if record:
         ep.t = np.array([r[0] for r in rows])
         ep.pose = np.array([r[1] for r in rows])

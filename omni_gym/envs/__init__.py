@@ -54,7 +54,7 @@ ENV_IDS = {
 # translation: a robot of unknown traction gets a task it can do (docs/environments.md, "Tasks within reach").
 CUSTOM_ID = "OmniPathFollow-Custom-v0"
 CUSTOM_TRACTION = 0.15  # of the headroom above the rolling resistance (benchmarks/results/feasible_tasks.md)
-CUSTOM = ({"episode_seconds": 20.0, "ref_turn": "before", "ref_traction": CUSTOM_TRACTION}, 2000)
+CUSTOM = ({"episode_seconds": 20.0, "ref_traction": CUSTOM_TRACTION}, 2000)  # ref_turn: envs.config.CUSTOM_DEFAULTS
 CUSTOM_ENTRY = "omni_gym.envs.omni_env:OmniCustomEnv"
 CUSTOM_VECTOR_ENTRY = "omni_gym.envs.vector:OmniCustomVectorEnv"
 

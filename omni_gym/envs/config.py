@@ -395,13 +395,18 @@ class RenderModes(list):
 
 # The keyword defaults of CUSTOM_ID that differ from the other ids': the robot is the model (a calibrated one,
 # typically), so twist actions and the scripted controllers use its effective kinematics (docs/environments.md).
+# Its random-waypoint references turn in place before each translation (as OmniPathFollow-Williams-v1's): a robot
+# whose traction is not known gets a task it can do (docs/environments.md, "Tasks within reach").
 CUSTOM_DEFAULTS = {"kinematics": "model"}
+CUSTOM_WAYPOINT_DEFAULTS = {"ref_turn": "before"}
 
 
 def custom_kwargs(kwargs: dict) -> dict:
-    """The keywords of :data:`CUSTOM_ID` checked (:func:`check_custom`), with :data:`CUSTOM_DEFAULTS` filled in."""
+    """The keywords of :data:`CUSTOM_ID` checked (:func:`check_custom`), with :data:`CUSTOM_DEFAULTS` filled in
+    (and :data:`CUSTOM_WAYPOINT_DEFAULTS` for its random-waypoint references)."""
     check_custom(kwargs)
-    return {**CUSTOM_DEFAULTS, **kwargs}
+    waypoints = kwargs.get("trajectory", "waypoints") == "waypoints" and kwargs.get("task", "path") == "path"
+    return {**CUSTOM_DEFAULTS, **(CUSTOM_WAYPOINT_DEFAULTS if waypoints else {}), **kwargs}
 
 
 def check_custom(kwargs: dict) -> None:
