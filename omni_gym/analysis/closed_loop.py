@@ -29,14 +29,15 @@ HORIZON_S = 3600.0  # s after a reset over which the lift-off schedule is drawn 
 
 class SecondGeneratorPlant:
     """One robot of ``model`` (its own effects) with ``extra`` effects on top ({name: params}, e.g. ``drag``),
-    integrated by the event integrator (LSODA, rtol 1e-8 by default).
+    integrated by the event integrator (LSODA, rtol 1e-6 and atol 1e-9 by default: in closed loop the tracked
+    poses move by about 1e-9 m against rtol 1e-8, at 1.6× the speed; the open-loop datasets keep 1e-8).
 
     ``reset(pose, seed)`` draws the lift-off schedule of a ``wheel_liftoff`` effect from
     ``numpy.random.default_rng(seed)``; the same seed and commands give the same run, bit for bit.
     """
 
-    def __init__(self, model: SimModel, extra: dict | None = None, method: str = "LSODA", rtol: float = 1e-8,
-                 atol: float = 1e-10) -> None:
+    def __init__(self, model: SimModel, extra: dict | None = None, method: str = "LSODA", rtol: float = 1e-6,
+                 atol: float = 1e-9) -> None:
         self.model = model
         self.plant = build_plant(model, extra)
         self.n_wheels = self.plant.n
