@@ -1,7 +1,15 @@
-"""A minimal deployment loop: an exported policy (``omni-gym export``) driving a robot, here the simulator.
+"""A minimal deployment loop: an exported policy (``omni-gym export``) driving a robot: the simulator, or any plant.
 
     omni-gym export agents/models/ppo-residual-williams --out exported
     python examples/deploy_onnx.py exported [--seconds 10] [--seed 10000] [--env-kwargs JSON]
+    python examples/deploy_onnx.py exported --plant-model TRUTH.json [--plant-extra '{"drag": 2.0}']
+
+The robot is a *plant* (``omni_gym.physics.plant``: ``reset(pose, seed)``, ``step(wheel_speeds, duration)``).
+By default the environment's own world; ``--plant-model`` drives the second generator in closed loop instead
+(a robot with the hidden effects of a model file, integrated apart from the world); :class:`YourRobotDriver`
+below is where a real robot's driver goes: its ``step`` sends the wheel speeds to the motor drivers, waits one
+control period and returns what the robot's sensors read. The environment only supplies the reference path
+and scores the run (docs/formats.md, "Plants").
 
 Each control period (``policy.json``'s ``control_period_s``):
 
@@ -28,15 +36,39 @@ import numpy as np
 import onnxruntime as ort
 
 
-class SimulatedRobot:
-    """The robot's side: sensors in, twist action out (an omni-gym environment with sensor observations)."""
+class YourRobotDriver:
+    """The third plant: your robot behind its driver (a sketch to fill in; every method says what it must do).
 
-    def __init__(self, env_id: str, obs_mode: str, env_kwargs: dict, seed: int) -> None:
+    ``n_wheels``: the model's wheel count, in the model's wheel order. Units: metres, radians, seconds.
+    """
+
+    n_wheels = 3
+
+    def reset(self, pose, seed):
+        """Wait until the robot stands still at ``pose`` (x, y [m], θ [rad], the reference's start; place it
+        there, or drive it there first) and return ``PlantState(pose, velocity=zeros, wheel_angles, reading=...)``
+        with ``SensorReading(wheel_angles, gyro, compass, accel, fix)`` from the robot's own sensors."""
+        raise NotImplementedError("send the robot to the start pose, then return its PlantState")
+
+    def step(self, wheel_speeds, duration):
+        """Send ``wheel_speeds`` [rad/s] to the motor drivers, hold them for ``duration`` [s] (one control period:
+        sleep until the period's end on the robot's clock), then return the PlantState with the sensors' reading;
+        its pose and velocity come from motion capture, for scoring only."""
+        raise NotImplementedError("send the wheel speeds, wait one period, return the PlantState")
+
+
+class SimulatedRobot:
+    """The robot's side: sensors in, twist action out (an omni-gym environment with sensor observations), with the
+    wheel commands driving ``plant`` when one is given (else the environment's own world)."""
+
+    def __init__(self, env_id: str, obs_mode: str, env_kwargs: dict, seed: int, plant=None) -> None:
         import gymnasium as gym
 
         import omni_gym  # noqa: F401  (registers the ids)
 
         self.env = gym.make(env_id, obs_mode=obs_mode, action_mode="twist", **env_kwargs)
+        if plant is not None:
+            self.env.unwrapped.core.attach_plant(plant)
         self.obs, _ = self.env.reset(seed=seed)
         self.done = False
         self.errors: list[float] = []
@@ -51,16 +83,17 @@ class SimulatedRobot:
 
 
 def run(export_dir: str | Path, seconds: float = 10.0, seed: int = 10000, env_kwargs: dict | None = None,
-        record: bool = False) -> dict:
-    """Drive the simulated robot with the exported policy for ``seconds``; returns tracking RMSE [m], steps
-    and the largest wheel speed sent [rad/s]; with ``record`` also every network input and output (lists)."""
+        record: bool = False, plant=None) -> dict:
+    """Drive the robot (``plant``, else the simulator) with the exported policy for ``seconds``; returns tracking
+    RMSE [m], steps and the largest wheel speed sent [rad/s]; with ``record`` also every network input and output
+    (lists)."""
     export_dir = Path(export_dir)
     side = json.loads((export_dir / "policy.json").read_text())
     session = ort.InferenceSession(str(export_dir / "policy.onnx"), providers=["CPUExecutionProvider"])
     ekf = side["ekf_features"] is not None
     obs_mode = "sensors" if ekf else side["observation"]["mode"]
     kwargs = {"episode_seconds": seconds, **(env_kwargs or {})}
-    robot = SimulatedRobot(side["env_id"], obs_mode, kwargs, seed)
+    robot = SimulatedRobot(side["env_id"], obs_mode, kwargs, seed, plant)
     W = np.asarray(side["action"]["wheel_matrix"])
     scale = np.array([side["action"]["scale"][k][0] for k in ("vx", "vy", "omega")])
     features = None
@@ -97,8 +130,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seconds", type=float, default=10.0, help="episode length [s]")
     p.add_argument("--seed", type=int, default=10000, help="episode seed")
     p.add_argument("--env-kwargs", default="{}", help="JSON keywords of the environment (e.g. its model=)")
+    p.add_argument("--plant-model", default=None, help="drive the second generator with this model file's effects")
+    p.add_argument("--plant-extra", default=None, help="effects outside the library for it, e.g. {\"drag\": 2.0}")
     args = p.parse_args(argv)
-    result = run(args.export_dir, args.seconds, args.seed, json.loads(args.env_kwargs))
+    plant = None
+    if args.plant_model is not None:
+        from omni_gym.analysis.closed_loop import SecondGeneratorPlant
+        from omni_gym.envs.config import parse_model
+
+        extra = json.loads(args.plant_extra) if args.plant_extra else None
+        plant = SecondGeneratorPlant(parse_model(args.plant_model), extra)
+    result = run(args.export_dir, args.seconds, args.seed, json.loads(args.env_kwargs), plant=plant)
     print(f"{result['steps']} control periods, tracking RMSE {result['tracking_rmse'] * 1000:.2f} mm, "
           f"largest wheel speed {result['max_wheel_speed']:.2f} rad/s")
     return 0

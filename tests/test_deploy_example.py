@@ -71,3 +71,24 @@ def test_command_line(exported):
                           capture_output=True, text=True, cwd=ROOT, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "100 control periods, tracking RMSE" in proc.stdout
+
+
+def test_command_line_drives_a_plant(exported, tmp_path):
+    # The same exported agent driving the second generator with a hidden 2 cm centre-of-mass offset: the loop
+    # runs unchanged (the plant protocol) and the robot it drives is not the simulator (another RMSE).
+    from omni_gym.physics.friction import SURFACES
+    from omni_gym.physics.model import SimModel
+    from omni_gym.physics.robot import robot_preset
+
+    truth = SimModel(robot=robot_preset("williams2002"), surface=SURFACES["carpet"], friction="roller_gap",
+                     effects={"com_offset": {"com": [0.02, 0.0]}})
+    path = tmp_path / "truth.json"
+    path.write_text(json.dumps(truth.to_json()))
+    outs = []
+    for extra in ([], ["--plant-model", str(path)]):
+        proc = subprocess.run([sys.executable, str(EXAMPLE), str(exported / "residual"), "--seconds", "1", *extra],
+                              capture_output=True, text=True, cwd=ROOT, timeout=600)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert "100 control periods, tracking RMSE" in proc.stdout
+        outs.append(proc.stdout)
+    assert outs[0] != outs[1]
