@@ -35,7 +35,8 @@ PARITY_OBSERVATIONS = 1000
 PARITY_TOL = 1e-5  # float32 networks: onnxruntime and torch sum in different orders (about 1e-7 apart)
 OPSET = 17
 SIDE_FORMAT = "omni-gym policy export 1"
-MISSING = "omni-gym export needs the optional packages onnx and onnxruntime: pip install 'omni-gym[export]'"
+MISSING = ("omni-gym export needs the optional packages onnx and onnxruntime: pip install -e '.[export]' (from the "
+           "omni-gym checkout)")
 
 
 def _require() -> None:

@@ -148,7 +148,7 @@ def test_render_without_pygame_names_the_extra(monkeypatch):
     with pytest.raises(ModuleNotFoundError) as info:
         env.render()
     message = str(info.value)
-    assert 'pip install "omni-gym[render]"' in message and "pygame" in message and "rgb_array" in message
+    assert 'pip install -e ".[render]"' in message and "pygame" in message and "rgb_array" in message
     assert "\n" not in message
     assert info.value.name == "pygame"
     env.close()
@@ -157,7 +157,7 @@ def test_render_without_pygame_names_the_extra(monkeypatch):
 def test_gif_writing_without_imageio_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "imageio", None)
     monkeypatch.setitem(sys.modules, "imageio.v3", None)
-    with pytest.raises(ModuleNotFoundError, match=r'writing GIFs needs the .imageio. package.*omni-gym\[render\]'):
+    with pytest.raises(ModuleNotFoundError, match=r'writing GIFs needs the .imageio. package.*-e "\.\[render\]"'):
         render.require("imageio.v3", "writing GIFs")
 
 

@@ -3,7 +3,7 @@
 Imported only when an environment is made with a ``render_mode`` and ``render()`` is first called;
 pygame itself is imported inside :class:`Renderer`, so the rest of the package never needs it. Without
 pygame (or, for GIF writing, imageio) :func:`require` raises a ``ModuleNotFoundError`` that names the
-extra to install: ``pip install "omni-gym[render]"``.
+extra to install: ``pip install -e ".[render]"`` (from the repository root).
 
 What is drawn (world frame, x right, y up, the arena ``[-h, h]²`` filling the canvas below a text band):
 
@@ -61,7 +61,7 @@ MIN_WHEEL_PX = 3.0  # px, smallest drawn wheel side
 PX_LIMIT = 10_000  # px, coordinates are clipped to ±this so a runaway robot cannot overflow pygame
 
 
-RENDER_EXTRA = 'pip install "omni-gym[render]"'
+RENDER_EXTRA = 'pip install -e ".[render]" (from the repository root)'
 # module -> the distribution the render extra installs it from
 RENDER_PACKAGES = {"pygame": "pygame-ce", "imageio": "imageio", "imageio.v3": "imageio"}
 
