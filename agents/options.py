@@ -14,6 +14,11 @@ from agents.registry import Registry
 from omni_gym.bounds import Bound
 
 SEED_MAX = 2**31 - 1  # SB3 seeds numpy's legacy generator (< 2^32) with seed + i for environment i
+# What one training may allocate unless raised (--max-parameters, --max-buffer-mb), checked before anything is
+# built: the committed networks have 10^4 to 2·10^5 parameters and their buffers take at most ~0.3 GB, while
+# net_arch [100000000, 100000000] (10^16 weights) or buffer_size 10^8 would take the machine's memory silently.
+MAX_PARAMETERS = 10_000_000  # 40 MB of float32 weights; with gradients, Adam's moments and target copies ~0.3 GB
+MAX_BUFFER_MB = 4096.0  # rollout or replay buffer plus one batch's activations
 
 TRAIN: dict[str, Bound] = {b.name: b for b in (
     Bound("--timesteps", 1, 1e9, "steps", "at least one step; the committed agent trained at 450 steps/s "
@@ -33,6 +38,12 @@ TRAIN: dict[str, Bound] = {b.name: b for b in (
           "replaced by 1); 1024 exceeds any machine's cores", integer=True),
     Bound("--num-env-runners", 0, 1024, "", "RLlib env runner actors (0: sample in the training process); "
           "each needs a CPU of the Ray cluster, 1024 exceeds any cluster this runs on", integer=True),
+    Bound("--max-parameters", 1, 1e10, "", f"most network parameters (all networks of the algorithm; default "
+          f"{MAX_PARAMETERS:.0e}, the committed agents have at most 2·10⁵): raise it for a larger network",
+          integer=True),
+    Bound("--max-buffer-mb", 1.0, 1e7, "MB", f"most memory of the rollout or replay buffer and a batch's "
+          f"activations (default {MAX_BUFFER_MB:g}, the committed agents need at most ~300): raise it for a "
+          "larger buffer_size, n_steps × n_envs or batch_size"),
 )}
 
 # The training backends (``--backend``); argparse refuses other names with its own message.
@@ -170,6 +181,11 @@ def check_backend_args(args: argparse.Namespace) -> None:
     if backend == "sb3" and getattr(args, "algo", None) is None:
         raise ValueError("--algo is required with --backend sb3 (ppo, sac or td3)")
     if backend == "rllib":
+        address = getattr(args, "address", None)
+        if address:  # nothing listening: one line now, as gap --ray does (ray.init would retry for minutes)
+            from omni_gym.parallel import check_ray_address
+
+            check_ray_address(address)
         if getattr(args, "algo", None) not in (None, "ppo"):
             raise ValueError(f"--algo {args.algo}: --backend rllib trains ppo only")
         if getattr(args, "vec_env", "native") != "native":
@@ -182,3 +198,83 @@ def check_evaluate_args(args: argparse.Namespace) -> None:
     last = args.seed + args.episodes - 1
     if last > EVALUATE["--seed"].hi:
         raise ValueError(f"--seed {args.seed} with --episodes {args.episodes}: the last seed {last} exceeds 2^53")
+
+
+# --- sizes: what a training allocates, estimated before anything is built ------------------------------------
+
+# Stable-Baselines3's default net_arch per algorithm, and the networks each holds: (head, copies) where a head
+# is "pi" (the actor: observation -> action) or "vf"/"qf" (value: observation [+ action] -> 1).
+DEFAULT_NET_ARCH = {"ppo": [64, 64], "sac": [256, 256], "td3": [400, 300]}
+
+
+def _layer_list(value, where: str) -> list[int]:
+    if not isinstance(value, (list, tuple)):
+        raise ValueError(f"{where}: expected a list of layer sizes, got {value!r}")
+    for size in value:
+        if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+            raise ValueError(f"{where}: layer sizes must be integers >= 1, got {size!r}")
+    return list(value)
+
+
+def _chain(dims: list[int]) -> int:
+    """Weights and biases of fully connected layers ``dims[0] -> dims[1] -> ...``."""
+    return sum(a * b + b for a, b in zip(dims, dims[1:], strict=False))
+
+
+def network_parameters(policy_kwargs: dict | None, algo: str, obs_dim: int, act_dim: int, where: str) -> int:
+    """The parameter count of ``algo``'s networks for the declarative ``policy_kwargs`` (``net_arch`` a list,
+    or a mapping with ``pi`` and ``vf``/``qf``): PPO's actor (with its log std) and value network; SAC's actor
+    (mean and log std heads) and ``n_critics`` Q networks with their target copies; TD3's actor and critics, each
+    with a target copy. ValueError naming ``where`` for a malformed net_arch."""
+    kw = policy_kwargs or {}
+    arch = kw.get("net_arch", DEFAULT_NET_ARCH.get(algo, [64, 64]))
+    value_key = "vf" if algo == "ppo" else "qf"
+    if isinstance(arch, dict):
+        pi = _layer_list(arch.get("pi", []), f"{where}: net_arch.pi")
+        vf = _layer_list(arch.get(value_key, []), f"{where}: net_arch.{value_key}")
+    else:
+        pi = vf = _layer_list(arch, f"{where}: net_arch")
+    critics = kw.get("n_critics", 2)
+    critics = critics if isinstance(critics, int) and not isinstance(critics, bool) and critics >= 1 else 2
+    if algo == "ppo":
+        return _chain([obs_dim, *pi, act_dim]) + act_dim + _chain([obs_dim, *vf, 1])
+    actor = _chain([obs_dim, *pi]) + (_chain([pi[-1] if pi else obs_dim, act_dim]) if algo == "sac" else 0) \
+        + _chain([pi[-1] if pi else obs_dim, act_dim])
+    q = critics * _chain([obs_dim + act_dim, *vf, 1])
+    return (2 * actor if algo == "td3" else actor) + 2 * q  # target copies: TD3's actor, every critic
+
+
+def buffer_megabytes(hp: dict, algo: str, n_envs: int, obs_dim: int, act_dim: int, widest: int) -> tuple[float, str]:
+    """(MB, what) of the buffer ``algo`` allocates at the start (float32: PPO's rollout of ``n_steps`` ×
+    ``n_envs`` transitions with six scalars each; SAC/TD3's replay buffer of ``buffer_size`` transitions,
+    observation and next observation stored) plus one batch's activations (``batch_size`` × ``widest`` layer,
+    forward and backward)."""
+    batch = int(hp.get("batch_size", 64 if algo == "ppo" else 256))
+    if algo == "ppo":
+        rows = int(hp.get("n_steps", 2048)) * n_envs
+        per_row, what = obs_dim + act_dim + 6, f"n_steps {int(hp.get('n_steps', 2048))} × n_envs {n_envs}"
+    else:
+        rows = int(hp.get("buffer_size", 1_000_000))
+        per_row, what = 2 * obs_dim + act_dim + 3, f"buffer_size {rows}"
+    return 4 * (rows * per_row + 2 * batch * max(widest, obs_dim)) / 2**20, f"{what}, batch_size {batch}"
+
+
+def check_training_size(hp: dict, policy_kwargs: dict | None, algo: str, n_envs: int, obs_dim: int, act_dim: int,
+                        where: str, max_parameters: int | None = None, max_buffer_mb: float | None = None) -> int:
+    """Refuse a training whose networks or buffer exceed the limits (:data:`MAX_PARAMETERS`,
+    :data:`MAX_BUFFER_MB`, or the given ones), before anything is allocated; returns the parameter count."""
+    max_parameters = MAX_PARAMETERS if max_parameters is None else max_parameters
+    max_buffer_mb = MAX_BUFFER_MB if max_buffer_mb is None else max_buffer_mb
+    params = network_parameters(policy_kwargs, algo, obs_dim, act_dim, where)
+    if params > max_parameters:
+        raise ValueError(f"{where}: policy_kwargs: the {algo} networks would have {params:.3g} parameters "
+                         f"({4 * params / 2**20:.3g} MB of weights, several times that in training), more than the "
+                         f"limit {max_parameters:.3g}; use smaller net_arch layers, or raise --max-parameters")
+    arch = (policy_kwargs or {}).get("net_arch", DEFAULT_NET_ARCH.get(algo, [64, 64]))
+    widths = [w for layers in (arch.values() if isinstance(arch, dict) else [arch]) for w in layers]
+    mb, what = buffer_megabytes(hp, algo, n_envs, obs_dim, act_dim, max(widths, default=1))
+    if mb > max_buffer_mb:
+        raise ValueError(f"{where}: {what}: the {'rollout' if algo == 'ppo' else 'replay'} buffer and a batch would "
+                         f"take {mb:.4g} MB, more than the limit {max_buffer_mb:g} MB; make them smaller, or raise "
+                         "--max-buffer-mb")
+    return params

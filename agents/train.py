@@ -70,7 +70,16 @@ import numpy as np
 
 from agents import require_agents_extra
 from agents.algorithms import ALGORITHMS, ALGOS, algorithm_class
-from agents.options import BACKENDS, check_backend_args, check_hyperparams, check_train_args, parse_env_kwargs
+from agents.options import (
+    BACKENDS,
+    MAX_BUFFER_MB,
+    MAX_PARAMETERS,
+    check_backend_args,
+    check_hyperparams,
+    check_train_args,
+    check_training_size,
+    parse_env_kwargs,
+)
 from agents.registry import Registry
 from agents.rollout import make_env, run_episode
 from agents.sb3_policy import VectorSB3Policy, wrap_vector_for
@@ -339,7 +348,8 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
                vec_env: str = "native", eval_freq: int = 50_000, eval_episodes: int = VALIDATION_EPISODES,
                checkpoint_freq: int = 0,
                tensorboard: str | None = None, progress: bool | None = None, max_minutes: float | None = None,
-               command: str | None = None, threads: int = 1) -> dict:
+               command: str | None = None, threads: int = 1, max_parameters: int | None = None,
+               max_buffer_mb: float | None = None) -> dict:
     """Train and save into ``out`` directly (no transaction: :func:`train` gives one); returns the meta
     dict written to ``out/meta.json``.
 
@@ -394,6 +404,12 @@ def train_into(algo: str, env_id: str, timesteps: int | None, seed: int, out: st
     reward = spec.reward
     probe = make_train_env(env_id, kw, wrapper, residual_scale, noise, reward)
     probe.close()
+    # The networks' and buffer's sizes within the limits (agents.options) before any of them is allocated.
+    from agents.policy_spec import declarative
+
+    check_training_size(hp, declarative(hp.get("policy_kwargs"), f"{where}: policy_kwargs"), algo, n,
+                        int(np.prod(probe.observation_space.shape)), int(np.prod(probe.action_space.shape)), where,
+                        max_parameters, max_buffer_mb)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     venv, vec_env = make_training_vec_env(vec_env, env_id, kw, spec, n, seed)
@@ -735,6 +751,12 @@ def build_arg_parser(parser: argparse.ArgumentParser | None = None) -> argparse.
     p.add_argument("--num-env-runners", type=int, default=None,
                    help="rllib: env runner actors, each stepping --n-envs robots in one native vector env "
                         "(default 0: sample in the training process)")
+    p.add_argument("--max-parameters", type=float, default=None,
+                   help=f"most network parameters, all networks together (default {MAX_PARAMETERS:.0e}); checked "
+                        "before anything is built")
+    p.add_argument("--max-buffer-mb", type=float, default=None,
+                   help=f"most memory [MB] of the rollout or replay buffer and a batch (default {MAX_BUFFER_MB:g}); "
+                        "checked before anything is built")
     p.add_argument("--force", action="store_true",
                    help="replace an existing model directory (default: refuse; the directory appears complete "
                         "or not at all, see docs/formats.md)")
@@ -755,7 +777,9 @@ def command_line(prog: str, args: argparse.Namespace) -> str:
     for opt, value in (("--env-kwargs", args.env_kwargs), ("--hyperparams", args.hyperparams),
                        ("--n-envs", args.n_envs), ("--tensorboard", args.tensorboard),
                        ("--max-minutes", args.max_minutes), ("--address", getattr(args, "address", None)),
-                       ("--num-env-runners", getattr(args, "num_env_runners", None))):
+                       ("--num-env-runners", getattr(args, "num_env_runners", None)),
+                       ("--max-parameters", getattr(args, "max_parameters", None)),
+                       ("--max-buffer-mb", getattr(args, "max_buffer_mb", None))):
         if value is not None:
             parts += [opt, str(value)]
     parts += ["--vec-env", args.vec_env, "--eval-freq", str(args.eval_freq)]
@@ -786,7 +810,12 @@ def run_from_args(args: argparse.Namespace, command: str | None = None) -> dict:
                  kwargs, args.hyperparams, args.n_envs, args.vec_env, args.eval_freq,
                  VALIDATION_EPISODES if args.eval_episodes is None else args.eval_episodes,
                  args.checkpoint_freq, args.tensorboard, args.progress, args.max_minutes, command, args.threads,
+                 _int_or_none(getattr(args, "max_parameters", None)), getattr(args, "max_buffer_mb", None),
                  force=getattr(args, "force", False))
+
+
+def _int_or_none(value) -> int | None:
+    return None if value is None else int(value)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -544,6 +544,13 @@ def _import_ray() -> Any:
     return ray
 
 
+def check_ray_address(address: str, timeout: float = 5.0) -> None:
+    """BackendError (one line) unless something listens at the Ray ``address`` (HOST:PORT; ``auto``, ``local``
+    and ``ray://`` pass): ``ray.init`` would retry an unreachable one for a minute or more. For every command
+    that connects to a cluster (``gap --ray``, ``train --backend rllib --address``)."""
+    _check_reachable(address, timeout)
+
+
 def _check_reachable(address: str, timeout: float = 5.0) -> None:
     """A fast one-line error for an address nothing listens on (ray.init would retry for a minute)."""
     if address in ("auto", "local") or address.startswith("ray://"):

@@ -45,6 +45,7 @@ from agents.train import (
 )
 from agents.wrappers import wrap_env
 from omni_gym.envs.config import parse_model
+from omni_gym.parallel import check_ray_address
 from omni_gym.rllib import require_ray
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -98,6 +99,7 @@ def ray_session(address: str | None, num_env_runners: int) -> Iterator[None]:
     owned = not ray.is_initialized()
     if owned:
         if address:
+            check_ray_address(address)  # one line at once for an address nothing listens on
             try:
                 ray.init(address=address, log_to_driver=False, configure_logging=False)
             except (ConnectionError, RuntimeError, ValueError) as exc:
@@ -146,11 +148,34 @@ def _settings(env_id: str, timesteps: int | None, seed: int, env_kwargs: dict | 
     return hp, budget, n, kw, where
 
 
+def _check_sizes(hp: RLlibHyperparams, where: str, env, max_parameters: int | None, max_buffer_mb: float | None
+                 ) -> None:
+    """The PPO module's networks (``model``: ``fcnet_hiddens`` then ``head_fcnet_hiddens``, for the policy, whose
+    output is a mean and a log std per action, and the value function) and one train batch within the limits of
+    :func:`agents.options.check_training_size`."""
+    import numpy as np
+
+    from agents.options import check_training_size
+
+    obs_dim = int(np.prod(env.observation_space.shape))
+    act_dim = int(np.prod(env.action_space.shape))
+    layers = [*hp.model.get("fcnet_hiddens", [256, 256]), *hp.model.get("head_fcnet_hiddens", [])]
+    sizes = {"n_steps": hp.training.get("train_batch_size_per_learner", 4000),
+             "batch_size": hp.training.get("minibatch_size", 128)}
+    for key, value in sizes.items():
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            name = "train_batch_size_per_learner" if key == "n_steps" else "minibatch_size"
+            raise ValueError(f"{where}: training: {name} must be an integer >= 1, got {value!r}")
+    check_training_size(sizes, {"net_arch": layers}, "ppo", 1, obs_dim, 2 * act_dim, f"{where}: model",
+                        max_parameters, max_buffer_mb)
+
+
 def train_into(env_id: str, timesteps: int | None, seed: int, out: str | Path, env_kwargs: dict | None = None,
                hyperparams: str | Path | None = None, n_envs: int | None = None, num_env_runners: int = 0,
                address: str | None = None, eval_freq: int = 50_000, eval_episodes: int = SERIAL_EPISODES,
                checkpoint_freq: int = 0, progress: bool | None = None, max_minutes: float | None = None,
-               command: str | None = None, threads: int = 1) -> dict:
+               command: str | None = None, threads: int = 1, max_parameters: int | None = None,
+               max_buffer_mb: float | None = None) -> dict:
     """Train and save into ``out`` directly (:func:`train` gives the transaction); returns the meta dict.
 
     Arguments as ``omni-gym train`` (module doc); ``eval_freq`` / ``checkpoint_freq`` [env steps over all
@@ -167,6 +192,7 @@ def train_into(env_id: str, timesteps: int | None, seed: int, out: str | Path, e
     # One env in this process first: bad keywords fail here with a clear ValueError, before Ray starts.
     eval_env = wrap_env(make_env(env_id, val_kw, obs_mode=obs_mode), "none")
     make_env(env_id, {k: v for k, v in kw.items() if k != "obs_mode"}, obs_mode=obs_mode).close()
+    _check_sizes(hp, where, eval_env, max_parameters, max_buffer_mb)  # before Ray starts or anything is allocated
     torch.set_num_threads(threads)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -271,6 +297,7 @@ def run_from_args(args: argparse.Namespace, command: str | None = None) -> dict:
                  args.hyperparams, args.n_envs, args.num_env_runners or 0, args.address, args.eval_freq,
                  SERIAL_EPISODES if args.eval_episodes is None else args.eval_episodes,
                  args.checkpoint_freq, args.progress, args.max_minutes, command, args.threads,
+                 None if args.max_parameters is None else int(args.max_parameters), args.max_buffer_mb,
                  force=args.force)
 
 
