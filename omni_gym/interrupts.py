@@ -25,7 +25,9 @@ import threading
 from typing import Any
 
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, what a shell reports for a process ended by Ctrl-C
+EXIT_TERMINATED = 143  # 128 + SIGTERM (kill PID, a job scheduler's stop): handled as an interrupt
 MESSAGE = "omni-gym: interrupted"
+_exit_status = {"status": EXIT_INTERRUPTED}  # what exit_interrupted() leaves with: 143 after a SIGTERM
 
 
 def is_command_line() -> bool:
@@ -66,7 +68,7 @@ def exit_interrupted() -> None:
             stream.flush()
         except (OSError, ValueError):  # closed, or a broken pipe: nothing more can be said there
             pass
-    os._exit(EXIT_INTERRUPTED)
+    os._exit(_exit_status["status"])
 
 
 class WorkHandler:
@@ -79,7 +81,9 @@ class WorkHandler:
     def __init__(self) -> None:
         self.interrupted = False
         self._previous: Any = None
+        self._previous_term: Any = None
         self._installed = False
+        self._pid = os.getpid()
 
     def install(self) -> WorkHandler:
         if threading.current_thread() is not threading.main_thread():
@@ -89,11 +93,24 @@ class WorkHandler:
             return self
         self._previous, self._installed = previous, True
         signal.signal(signal.SIGINT, self._first)
+        # SIGTERM (kill PID) takes the same way out, so the output's lock and temporary folder are removed; a
+        # handler the caller installed is left alone.
+        if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+            self._previous_term = signal.SIG_DFL
+            signal.signal(signal.SIGTERM, self._first)
         return self
 
     def _first(self, signum: int, frame: Any) -> None:
+        if signum == signal.SIGTERM and os.getpid() != self._pid:  # a forked child: die as it would have
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            os.kill(os.getpid(), signal.SIGTERM)
+            return
         self.interrupted = True
+        if signum == signal.SIGTERM:
+            _exit_status["status"] = EXIT_TERMINATED
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # the way out has begun: later interrupts wait for it
+        if self._previous_term is not None:
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
         raise KeyboardInterrupt
 
     def __call__(self) -> None:
@@ -102,6 +119,8 @@ class WorkHandler:
         message, so SIGINT stays ignored; elsewhere the caller's handler comes back."""
         if not self._installed:
             return
+        if self._previous_term is not None:
+            signal.signal(signal.SIGTERM, self._previous_term)
         if not is_command_line():
             signal.signal(signal.SIGINT, self._previous)
         else:

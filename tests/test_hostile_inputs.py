@@ -314,3 +314,106 @@ class _Payload:
 
     def __reduce__(self):
         return (open, (self.path, "w"))
+
+
+# -- 6. resource bounds in train ----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("algo, entry, message", [
+    ("ppo", '{policy_kwargs: "dict(net_arch=[100000000, 100000000])"}', "2e+16 parameters"),
+    ("sac", "{policy_kwargs: {net_arch: {pi: [64], qf: [20000, 20000]}}}", "--max-parameters"),
+    ("sac", "{buffer_size: 100000000}", "--max-buffer-mb"),
+    ("ppo", "{n_steps: 1000000, n_envs: 64}", "n_steps 1000000 × n_envs 64"),
+])
+def test_train_refuses_huge_networks_and_buffers(tmp_path, capsys, algo, entry, message):
+    hp = tmp_path / "hp.yml"
+    hp.write_text(f"{ENV}: {entry}\n")
+    rc = main(["train", "--algo", algo, "--env", ENV, "--hyperparams", str(hp), "--timesteps", "10", "--out",
+               str(tmp_path / "m"), "--no-progress"])
+    err = _one_line(capsys.readouterr().err)
+    assert rc == 2 and message in err and "hp.yml" in err
+    assert not (tmp_path / "m").exists()
+
+
+def test_the_limits_can_be_raised_and_leave_the_committed_files_alone():
+    from agents.options import MAX_PARAMETERS, check_training_size, network_parameters
+    from agents.policy_spec import declarative
+    from agents.train import HYPERPARAM_DIR
+    from omni_gym.io import read_yaml
+
+    decl = {"net_arch": [4000, 4000]}
+    n = network_parameters(decl, "ppo", 30, 3, "x")
+    assert n > MAX_PARAMETERS
+    assert check_training_size({}, decl, "ppo", 1, 30, 3, "x", max_parameters=n) == n
+    # Every shipped entry fits the defaults with room: 128 observations and 3 actions exceed every env's.
+    for f in sorted(HYPERPARAM_DIR.rglob("*.yml")):
+        for env_id, hp in (read_yaml(f) or {}).items():
+            if not isinstance(hp, dict):
+                continue
+            where = f"{f.name}: {env_id}"
+            kw = declarative(hp.get("policy_kwargs"), where)
+            for algo in ("ppo", "sac", "td3"):  # whichever reads the file
+                check_training_size(hp, kw, algo, int(hp.get("n_envs", 1)), 128, 3, where)
+
+
+def test_network_parameters_match_sb3():
+    """The estimate is exact for SB3's PPO, SAC and TD3 networks (target copies included)."""
+    pytest.importorskip("stable_baselines3")
+    import gymnasium as gym
+    import numpy as np
+    from stable_baselines3 import PPO, SAC, TD3
+
+    from agents.options import network_parameters
+
+    class Box(gym.Env):
+        observation_space = gym.spaces.Box(-1, 1, (7,), np.float32)
+        action_space = gym.spaces.Box(-1, 1, (3,), np.float32)
+
+    for cls, algo, kw in ((PPO, "ppo", {"net_arch": {"pi": [32, 16], "vf": [8]}}), (SAC, "sac", {"net_arch": [32, 16]}),
+                          (TD3, "td3", {"net_arch": [32, 16]})):
+        model = cls("MlpPolicy", Box(), policy_kwargs=kw, buffer_size=10, device="cpu") if algo != "ppo" else \
+            cls("MlpPolicy", Box(), policy_kwargs=kw, n_steps=8, batch_size=8, device="cpu")
+        counted = sum(p.numel() for p in model.policy.parameters())  # target networks are submodules: counted
+        assert network_parameters(kw, algo, 7, 3, "test") == counted, algo
+
+
+def test_rllib_unreachable_address_is_refused_at_once(tmp_path, capsys):
+    import time
+
+    t0 = time.monotonic()
+    rc = main(["train", "--backend", "rllib", "--env", ENV, "--address", "256.1.1.1:1", "--out", str(tmp_path / "m"),
+               "--no-progress"])
+    err = _one_line(capsys.readouterr().err)
+    # gap --ray refuses the same address within 3 s; ray.init would retry it for more than a minute. 30 s leaves
+    # room for a loaded machine's imports.
+    assert rc == 2 and "256.1.1.1:1" in err and time.monotonic() - t0 < 30
+    assert not (tmp_path / "m").exists()
+
+
+# -- 7. SIGTERM takes the interrupt's way out: no lock or temporary folder left ----------------------------------
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="Linux")
+def test_sigterm_removes_the_lock_and_the_temporary(tmp_path):
+    import signal
+    import subprocess
+    import time
+
+    assert main(["synth", "--model", MODEL, "--hidden", "viscous_drag", "--runs", "3", "--duration", "3", "--out",
+                 str(tmp_path / "ds")]) == 0
+    out = tmp_path / "rep"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    proc = subprocess.Popen([sys.executable, "-m", "omni_gym.cli", "gap", str(tmp_path / "ds"), "--out", str(out),
+                             "--no-plots"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env,
+                            start_new_session=True)
+    lock = tmp_path / ".rep.lock"
+    deadline = time.monotonic() + 120  # the imports and the lock: seconds; 120 s for a loaded machine
+    while not (lock.exists() and any(p.name.startswith(".rep.tmp-") for p in tmp_path.iterdir())):
+        assert proc.poll() is None and time.monotonic() < deadline, "gap ended or never took its lock"
+        time.sleep(0.05)
+    time.sleep(0.5)  # into the work
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    assert err.strip().splitlines()[-1] == "omni-gym: interrupted" and "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ds", "ds.truth.json"]  # no lock, no .rep.tmp-PID
