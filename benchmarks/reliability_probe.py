@@ -10,7 +10,11 @@ and prints exactly one line ``omni-gym: error: ...`` (no traceback), its peak re
 under 1 GB and it ends within the case's time limit (argparse's refusal of a malformed option, its usage
 line then ``omni-gym COMMAND: error: ...``, counts as clean too); a crafted model must also leave its payload's
 marker file absent. Anything else is counted by kind: ``accepted`` (exit 0: the bad input was not
-refused), ``traceback``, ``other status``, ``memory``, ``hang``, ``code ran``.
+refused), ``traceback``, ``other status`` (also a warning printed before the error line), ``memory``, ``hang``,
+``code ran``, ``wrote`` (a file outside ``--out``, or ``--force`` replaced a FIFO) and ``unescaped`` (a control
+character, e.g. an escape sequence from a crafted file, reached the terminal).
+
+``--only hostile`` runs just the cases of issue 51 (:func:`build_hostile_cases`), in about half a minute.
 
 The table (counts per category and kind, then every case that was not clean) goes to ``--out``.
 """
@@ -47,6 +51,10 @@ class Case:
     argv: list[str]
     marker: Path | None = None  # a crafted file's payload would create it
     result: dict = field(default_factory=dict)
+    outside: Path | None = None  # a file the command must not write (a run name that is a path out of --out)
+    fifo: Path | None = None  # a FIFO that --force must leave a FIFO
+    env: dict = field(default_factory=dict)  # extra environment variables of the process
+    time_limit: float | None = None  # seconds, when shorter than TIME_LIMIT_S (a refusal that must be quick)
 
 
 class _Marker:
@@ -406,6 +414,142 @@ def build_cases(work: Path) -> list[Case]:
     return cases
 
 
+def build_hostile_cases(work: Path) -> list[Case]:
+    """Issue 51's classes: writes outside --out through run names, --force on a FIFO, a model folder's env_id that
+    imports a module, garbage gzip, a bag claiming zstd, deep JSON to export, escape sequences echoed, huge
+    networks and buffers in train, an unreachable Ray address (which must be refused within 15 s), a numpy
+    warning printed before the error. Categories start with "hostile" (``--only hostile`` runs just these)."""
+    cases: list[Case] = []
+    add = cases.append
+    h = work / "hostile"
+    h.mkdir()
+    env_id = "OmniPathFollow-Phunopas-v0"
+    columns = "t=t,x=x,y=y,theta=theta,enc1=enc1,enc2=enc2,enc3=enc3"
+    subprocess.run([sys.executable, "-m", "omni_gym.cli", "synth", "--model", "williams2002", "--hidden", "none",
+                    "--runs", "1", "--duration", "2", "--out", str(h / "ds")], check=True, cwd=ROOT, env=_env(),
+                   capture_output=True)
+    log = h / "robot.csv"
+    shutil.copyfile(h / "ds" / "runs" / "run000.csv", log)
+    csv_import = ["import", "csv", str(log), "--model", "williams2002", "--columns", columns]
+
+    # run names that are paths: nothing may appear outside --out
+    (h / "abs").mkdir()
+    names = ((f"{h}/abs/evil", h / "abs" / "evil.csv"), ("../../evil-up", h / "evil-up.csv"),
+             ("../evil-in", h / "imp-w2" / "evil-in.csv"), ("..", None))
+    for i, (name, written) in enumerate(names):
+        add(Case("hostile: run names", f"--window {name[-12:]}=0:1", [*csv_import, "--window", f"{name}=0:1",
+                                                                       "--out", f"{h}/imp-w{i}"], outside=written))
+    mapping = h / "mapping.json"
+    mapping.write_text(json.dumps({"model": "williams2002", "columns": columns, "window": ["../../evil-map=0:1"]}))
+    add(Case("hostile: run names", "mapping window ../../evil-map", ["import", "csv", str(log), "--mapping",
+                                                                      str(mapping), "--out", f"{h}/imp-map"],
+             outside=h / "evil-map.csv"))
+    try:
+        from omni_gym.discrepancy.synthetic.bags import write_bag
+        from omni_gym.discrepancy.synthetic.synth import synthesize
+        from omni_gym.physics.model import load_model
+
+        runs, _ = synthesize(load_model("williams2002"), "none", runs=1, noise=0.0, seed=5, duration=1.0)
+        r = runs[0]
+        joints = ["wl", "wr", "wb"]
+        bag_args = ["--model", "williams2002", "--joints", "wl,-wr,wb", "--pose-topic", "/tracker/pose"]
+        write_bag(h / "bag", [(r.t, r.enc, r.pose)], joints, [1.0, -1.0, 1.0])
+        add(Case("hostile: run names", "rosbag2 --window ../../evil-bag", ["import", "rosbag2", str(h / "bag"),
+                                                                           *bag_args, "--window", "../../evil-bag=0:1",
+                                                                           "--out", f"{h}/imp-bag"],
+                 outside=h / "evil-bag.csv"))
+        for mode in ("MESSAGE", "FILE"):
+            z = h / f"bag-zstd-{mode.lower()}"
+            shutil.copytree(h / "bag", z)
+            meta = (z / "metadata.yaml").read_text()
+            (z / "metadata.yaml").write_text(meta.replace("compression_format: ''", "compression_format: zstd")
+                                             .replace("compression_mode: ''", f"compression_mode: {mode}"))
+            add(Case("hostile: damaged files", f"bag claiming zstd ({mode})", ["import", "rosbag2", str(z), *bag_args,
+                                                                                "--out", f"{h}/imp-{z.name}"]))
+        write_bag(h / "bag-esc", [(r.t, r.enc, r.pose)], joints, [1.0, -1.0, 1.0], frame="w\x1b[31mRED\nforged")
+        add(Case("hostile: messages", "bag frame_id with an escape sequence",
+                 ["import", "rosbag2", str(h / "bag-esc"), *bag_args, "--frames", "world:base_link", "--out",
+                  f"{h}/imp-esc"]))
+    except ImportError:  # rosbags missing: the bag cases are left out
+        pass
+
+    # --force on something that is not a regular file (a FIFO stands in for /dev/full)
+    for command, argv in (("simulate", ["simulate", "--model", "williams2002", "--commands", str(h / "cmd.csv")]),
+                          ("calibrate", ["calibrate", str(h / "ds")])):
+        (h / "cmd.csv").write_text("t,w1,w2,w3\n0,1,1,1\n0.1,1,1,1\n")
+        fifo = h / f"fifo-{command}"
+        os.mkfifo(fifo)
+        add(Case("hostile: --force", f"{command} --out FIFO --force", [*argv, "--out", str(fifo), "--force"],
+                 fifo=fifo))
+        link = h / f"link-{command}"
+        link.symlink_to(fifo)
+        add(Case("hostile: --force", f"{command} --out link-to-FIFO --force", [*argv, "--out", str(link), "--force"],
+                 fifo=fifo))
+
+    # a model folder whose env_id imports a module (the module writes the marker when imported)
+    model = ROOT / "agents" / "models" / "ppo-residual"
+    (h / "pymod").mkdir()
+    marker = h / "marker-envid"
+    (h / "pymod" / "probe_evil_env.py").write_text(f"open({str(marker)!r}, 'w').close()\n")
+    for command in ("export", "evaluate"):
+        d = h / f"model-envid-{command}"
+        shutil.copytree(model, d)
+        meta = json.loads((d / "meta.json").read_text())
+        meta["env_id"] = f"probe_evil_env:{env_id}"
+        (d / "meta.json").write_text(json.dumps(meta))
+        argv = (["export", str(d), "--out", f"{h}/exp-{command}"] if command == "export" else
+                ["evaluate", "--policy", str(d), "--env", env_id, "--episodes", "1"])
+        add(Case("hostile: model folders", f"{command}: env_id MODULE:ID", argv, marker=marker,
+                 env={"PYTHONPATH": f"{ROOT}{os.pathsep}{h / 'pymod'}"}))
+    d = h / "model-deep"
+    shutil.copytree(model, d)
+    (d / "meta.json").write_text("[" * 100_000 + "]" * 100_000)
+    add(Case("hostile: damaged files", "export: meta.json nested 100000", ["export", str(d), "--out", f"{h}/exp-deep"]))
+
+    # garbage gzip in an OptiOdom session
+    src = ROOT / "data" / "optiodom-omni3" / "circular" / "221220201730"
+    for name, data in (("zlib garbage", b"\x1f\x8b\x08\x00\x00\x00\x00\x00\x00\x03garbage"),
+                       ("not gzip", b"plain text"), ("truncated", None)):
+        d = h / f"oo-{name.replace(' ', '-')}" / src.name
+        shutil.copytree(src, d)
+        run = next(d.glob("*_run-01.csv"))
+        data = gzip.compress(run.read_bytes())[:300] if data is None else data
+        run.unlink()
+        run.with_name(run.name + ".gz").write_bytes(data)
+        add(Case("hostile: damaged files", f"optiodom run-01.csv.gz {name}", ["import", "optiodom", str(d), "--out",
+                                                                             f"{h}/imp-oo-{name.replace(' ', '-')}"]))
+
+    # escape sequences in a name echoed by the error; a numpy warning before the error
+    add(Case("hostile: messages", "file name with an escape sequence", ["simulate", "--model", "williams2002",
+                                                                        "--commands", f"{h}/a\x1b]0;x\x07.csv",
+                                                                        "--out", f"{h}/t.csv"]))
+    lines = log.read_text().splitlines()
+    cells = lines[4].split(",")
+    cells[4] = "1e308"
+    (h / "overflow.csv").write_text("\n".join([*lines[:4], ",".join(cells), *lines[5:]]) + "\n")
+    add(Case("hostile: messages", "wheel angle 1e308 (overflow warning)", ["import", "csv", str(h / "overflow.csv"),
+                                                                           "--model", "williams2002", "--columns",
+                                                                           columns, "--out", f"{h}/imp-overflow"]))
+
+    # train: huge networks and buffers, an unreachable Ray address
+    sizes = (("net_arch [1e8, 1e8]", '{policy_kwargs: "dict(net_arch=[100000000, 100000000])"}', "ppo"),
+             ("net_arch qf [20000, 20000]", "{policy_kwargs: {net_arch: {pi: [64], qf: [20000, 20000]}}}", "sac"),
+             ("buffer_size 1e8", "{buffer_size: 100000000}", "sac"),
+             ("n_steps 1e6 x n_envs 64", "{n_steps: 1000000, n_envs: 64}", "ppo"))
+    for name, entry, algo in sizes:
+        f = h / f"hp-{len(cases)}.yml"
+        f.write_text(f"{env_id}: {entry}\n")
+        add(Case("hostile: train sizes", name, ["train", "--algo", algo, "--env", env_id, "--hyperparams", str(f),
+                                                 "--timesteps", "10", "--out", f"{h}/train-{len(cases)}",
+                                                 "--no-progress"]))
+    add(Case("hostile: train sizes", "rllib --address 256.1.1.1:1 (15 s bound)",
+             ["train", "--backend", "rllib", "--env", env_id, "--address", "256.1.1.1:1", "--out", f"{h}/train-ray",
+              "--no-progress"], time_limit=15.0))
+    add(Case("hostile: train sizes", "gap --ray 256.1.1.1:1 (15 s bound)",
+             ["gap", str(h / "ds"), "--ray", "256.1.1.1:1", "--out", f"{h}/gap-ray"], time_limit=15.0))
+    return cases
+
+
 def _env() -> dict:
     return {**os.environ, "PYTHONPATH": str(ROOT), "SDL_VIDEODRIVER": "dummy", "MPLBACKEND": "Agg",
             "OMP_NUM_THREADS": "1"}
@@ -413,12 +557,12 @@ def _env() -> dict:
 
 def run_case(case: Case) -> Case:
     t0 = time.monotonic()
-    proc = subprocess.Popen([sys.executable, "-m", "omni_gym.cli", *case.argv], cwd=ROOT, env=_env(),
+    proc = subprocess.Popen([sys.executable, "-m", "omni_gym.cli", *case.argv], cwd=ROOT, env={**_env(), **case.env},
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL,
                             start_new_session=True)
     hung = False
     try:
-        _, err = proc.communicate(timeout=TIME_LIMIT_S)
+        _, err = proc.communicate(timeout=case.time_limit or TIME_LIMIT_S)
     except subprocess.TimeoutExpired:
         hung = True
         os.killpg(proc.pid, signal.SIGKILL)
@@ -426,10 +570,14 @@ def run_case(case: Case) -> Case:
     # peak memory of the process (and its reaped children) [KB]: read from /proc before it was reaped is
     # not possible after communicate, so the probe asks the kernel through wait4 in _rusage below
     err = err.decode(errors="replace")
+    control = bool(re.search("[\x00-\x08\x0b-\x1f\x7f]", err))  # an escape sequence reached the terminal
     lines = [ln for ln in err.strip().splitlines() if ln.strip()]
     case.result = {"rc": proc.returncode, "wall_s": round(time.monotonic() - t0, 2), "stderr": lines[-1][:200]
-                   if lines else "", "lines": len(lines), "traceback": "Traceback" in err, "hung": hung,
-                   "max_rss_kb": _MAXRSS.get(proc.pid, 0)}
+                   if lines else "", "first": lines[0][:200] if lines else "", "lines": len(lines),
+                   "traceback": "Traceback" in err, "hung": hung,
+                   "max_rss_kb": _MAXRSS.get(proc.pid, 0), "control": control,
+                   "wrote_outside": case.outside is not None and os.path.lexists(case.outside),
+                   "replaced_fifo": case.fifo is not None and not case.fifo.is_fifo()}
     return case
 
 
@@ -455,6 +603,10 @@ def classify(case: Case) -> str:
     r = case.result
     if case.marker is not None and case.marker.exists():
         return "code ran"
+    if r.get("wrote_outside") or r.get("replaced_fifo"):
+        return "wrote"
+    if r.get("control"):
+        return "unescaped"
     if r["hung"]:
         return "hang"
     if r["max_rss_kb"] > MEMORY_LIMIT_KB:
@@ -464,14 +616,15 @@ def classify(case: Case) -> str:
     if r["rc"] == 0:
         return "accepted"
     if r["rc"] == 2 and (r["lines"] == 1 and r["stderr"].startswith("omni-gym: error: ")
-                         or _USAGE.match(r["stderr"]) and r["lines"] <= 40):
+                         or _USAGE.match(r["stderr"]) and r.get("first", "").startswith("usage:")
+                         and r["lines"] <= 40):  # argparse: usage lines, then the error (not a warning first)
         return "clean"
     return "other status"
 
 
 # argparse's refusal of a malformed option: its usage line(s), then "omni-gym [COMMAND]: error: ..."
 _USAGE = re.compile(r"^omni-gym( [a-z]+)*: error: ")
-KINDS = ("clean", "accepted", "traceback", "other status", "memory", "hang", "code ran")
+KINDS = ("clean", "accepted", "traceback", "other status", "memory", "hang", "code ran", "wrote", "unescaped")
 
 
 def report(cases: list[Case], wall: float) -> str:
@@ -512,7 +665,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     _install_rss_reaper()
     with tempfile.TemporaryDirectory(prefix="omni-gym-probe-") as tmp:
-        cases = build_cases(Path(tmp))
+        hostile_only = bool(args.only) and args.only.startswith("hostile")
+        cases = ([] if hostile_only else build_cases(Path(tmp))) + build_hostile_cases(Path(tmp))
         if args.only:
             cases = [c for c in cases if args.only in c.category]
         print(f"{len(cases)} cases", flush=True)
