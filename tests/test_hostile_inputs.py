@@ -417,3 +417,28 @@ def test_sigterm_removes_the_lock_and_the_temporary(tmp_path):
     assert proc.returncode == 143, err
     assert err.strip().splitlines()[-1] == "omni-gym: interrupted" and "Traceback" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ds", "ds.truth.json"]  # no lock, no .rep.tmp-PID
+
+
+def test_rllib_sizes_are_checked_before_ray_starts():
+    """The RLlib module's networks (fcnet_hiddens) and train batch within the same limits (no Ray needed)."""
+    import gymnasium as gym
+    import numpy as np
+
+    from agents.rllib.config import RLlibHyperparams
+    from agents.rllib.train import _check_sizes
+    from agents.zoo_config import wrapper_spec
+
+    env = type("E", (), {"observation_space": gym.spaces.Box(-1, 1, (30,), np.float32),
+                         "action_space": gym.spaces.Box(-1, 1, (3,), np.float32)})()
+    spec = wrapper_spec({}, "x")
+
+    def hp(model=None, training=None):
+        return RLlibHyperparams({}, spec, 10, 1, training or {}, model or {})
+
+    _check_sizes(hp(), "ppo.yml", env, None, None)  # RLlib's defaults fit
+    with pytest.raises(ValueError, match="ppo.yml: model: policy_kwargs: .*--max-parameters"):
+        _check_sizes(hp({"fcnet_hiddens": [100_000, 100_000]}), "ppo.yml", env, None, None)
+    with pytest.raises(ValueError, match="--max-buffer-mb"):
+        _check_sizes(hp(training={"train_batch_size_per_learner": 10**9}), "ppo.yml", env, None, None)
+    with pytest.raises(ValueError, match="minibatch_size must be an integer"):
+        _check_sizes(hp(training={"minibatch_size": "x"}), "ppo.yml", env, None, None)
