@@ -365,12 +365,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed0", type=int, default=0, help="offset of every plant's seed (0: the committed set)")
     ap.add_argument("--out", type=Path, required=True, help="folder for sim_to_real.md, .json, .png, _runs.jsonl")
     ap.add_argument("--resume", action="store_true", help="skip the plants already in OUT/sim_to_real_runs.jsonl")
+    ap.add_argument("--report-only", action="store_true",
+                    help="write the table, JSON and plot from the plants already in OUT/sim_to_real_runs.jsonl, "
+                         "running none (a study stopped part way; the table says how many plants it covers)")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     log = args.out / "sim_to_real_runs.jsonl"
     todo = plants(tuple(args.kinds), tuple(args.robots), args.seed0)
     done: list[dict] = []
-    if args.resume and log.exists():
+    if (args.resume or args.report_only) and log.exists():
         keys = {(c["robot"], c["kind"], c["seed"]) for c in todo}
         for line in log.read_text().splitlines():
             r = json.loads(line)
@@ -380,6 +383,9 @@ def main(argv: list[str] | None = None) -> int:
         log.unlink()
     seen = {(r["robot"], r["kind"], r["seed"]) for r in done}
     todo = [c for c in todo if (c["robot"], c["kind"], c["seed"]) not in seen]
+    missing = len(todo)
+    if args.report_only:
+        todo = []
     print(f"sim_to_real: {len(todo)} plants to run ({len(done)} resumed), {args.jobs} at a time", file=sys.stderr,
           flush=True)
     t0 = time.perf_counter()
@@ -399,6 +405,9 @@ def main(argv: list[str] | None = None) -> int:
     pool = pooled(done, rows)
     command = "python benchmarks/sim_to_real.py " + " ".join(record_args(argv if argv is not None else sys.argv[1:]))
     text = table(done, rows, pool, command, args.episodes)
+    if missing and args.report_only:
+        text = text.replace("\n\n", f"\n\n**Partial: {len(done)} of {len(done) + missing} plants** (the others did not "
+                            "run; `--resume` runs them).\n\n", 1)
     (args.out / "sim_to_real.md").write_text(text)
     (args.out / "sim_to_real.json").write_text(json.dumps({"plants": rows, "pooled": pool}, indent=1) + "\n")
     plot(rows, args.out / "sim_to_real.png")
