@@ -31,6 +31,7 @@ least 20 %: the share won back and (c) ÷ (a), paired over (plant, seed).
 
     python benchmarks/sim_to_real.py --jobs 2 --out benchmarks/results          # about 1.5 h on 2 cores
     python benchmarks/sim_to_real.py --jobs 2 --out benchmarks/results --resume  # after an interruption
+    python benchmarks/sim_to_real.py --ray HOST:PORT --out benchmarks/results    # plants as Ray tasks on a cluster
     python benchmarks/sim_to_real.py --kinds none com_offset --episodes 2 --out /tmp/s2r  # a quick look
 
 Writes OUT/sim_to_real.md, .json (every plant) and .png (one panel per robot type); each finished plant is
@@ -52,7 +53,6 @@ import subprocess
 import sys
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -65,6 +65,7 @@ from independent_data import hidden_effect  # noqa: E402  (the study's random ef
 
 from agents.evaluate import paired_bootstrap_ratio  # noqa: E402
 from omni_gym.analysis.second_generator import MANOEUVRES, write_second_dataset  # noqa: E402
+from omni_gym.parallel import add_ray_option, backend_from_options, parallel_map  # noqa: E402
 from omni_gym.physics.effects import REGISTRY  # noqa: E402
 from omni_gym.physics.model import SimModel, load_model  # noqa: E402
 from omni_gym.record_paths import record_args  # noqa: E402
@@ -149,6 +150,11 @@ def evaluate_on(model_path: Path, plant: dict | None, episodes: int) -> dict:
         raise RuntimeError(f"evaluate failed: {proc.stderr.strip()[-400:]}")
     r = json.loads(proc.stdout)
     return {"rmse": r["per_episode"]["tracking_rmse"], "success": r["per_episode"]["success"]}
+
+
+def run_task(task: tuple[dict, int]) -> dict:
+    """:func:`run_plant` of (case, episodes): one backend task (a module-level function the workers import)."""
+    return {**run_plant(*task), "episodes": task[1]}
 
 
 def run_plant(case: dict, episodes: int) -> dict:
@@ -362,6 +368,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--robots", nargs="+", default=list(ROBOTS), choices=ROBOTS)
     ap.add_argument("--episodes", type=int, default=8, help="held-out episodes per controller and plant")
     ap.add_argument("--jobs", type=int, default=1, help="plants run side by side")
+    add_ray_option(ap, "the plants", "--jobs")
     ap.add_argument("--seed0", type=int, default=0, help="offset of every plant's seed (0: the committed set)")
     ap.add_argument("--out", type=Path, required=True, help="folder for sim_to_real.md, .json, .png, _runs.jsonl")
     ap.add_argument("--resume", action="store_true", help="skip the plants already in OUT/sim_to_real_runs.jsonl")
@@ -388,18 +395,25 @@ def main(argv: list[str] | None = None) -> int:
         todo = []
     print(f"sim_to_real: {len(todo)} plants to run ({len(done)} resumed), {args.jobs} at a time", file=sys.stderr,
           flush=True)
+    try:
+        backend = backend_from_options(max(args.jobs, 1), args.ray)
+    except ValueError as exc:  # ray missing, nothing at the address
+        raise SystemExit(f"sim_to_real.py: error: {exc}") from None
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(max(args.jobs, 1)) as pool:
-        futures = {pool.submit(run_plant, c, args.episodes): c for c in todo}
-        for k, fut in enumerate(as_completed(futures), 1):
-            r = {**fut.result(), "episodes": args.episodes}
-            with log.open("a") as f:
-                f.write(json.dumps(r) + "\n")
-            done.append(r)
-            elapsed = time.perf_counter() - t0
-            print(f"sim_to_real: {k}/{len(todo)} plants ({r['robot']} {r['kind']} → {r['gap_effect']}), "
-                  f"{elapsed / 60:.1f} min, about {elapsed / k * (len(todo) - k) / 60:.0f} min left",
-                  file=sys.stderr, flush=True)
+    finished = [0]
+
+    def keep(_i: int, r: dict) -> None:  # as each plant finishes: logged at once (resume), one progress line
+        with log.open("a") as f:
+            f.write(json.dumps(r) + "\n")
+        done.append(r)
+        finished[0] += 1
+        k, elapsed = finished[0], time.perf_counter() - t0
+        print(f"sim_to_real: {k}/{len(todo)} plants ({r['robot']} {r['kind']} → {r['gap_effect']}), "
+              f"{elapsed / 60:.1f} min, about {elapsed / k * (len(todo) - k) / 60:.0f} min left", file=sys.stderr,
+              flush=True)
+
+    if todo:
+        parallel_map(run_task, [(c, args.episodes) for c in todo], backend, on_done=keep)
     done.sort(key=lambda r: (ROBOTS.index(r["robot"]), KINDS.index(r["kind"])))
     rows = figures(done)
     pool = pooled(done, rows)
