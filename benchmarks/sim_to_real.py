@@ -199,7 +199,9 @@ def run_plant(case: dict, episodes: int) -> dict:
         plant = {"model": tmp / "truth.json", "extra": extra}
         for name, path in models.items():
             out["models"][name] = {"plant": evaluate_on(path, plant, episodes),
-                                   "own": evaluate_on(path, None, episodes)}
+                                   "own": evaluate_on(path, None, episodes),
+                                   "model": json.loads(path.read_text())}  # kept: agents can be designed on it later
+        out["truth"] = {"model": truth, "extra": extra}
     out["wall_s"] = time.perf_counter() - t0
     return out
 
