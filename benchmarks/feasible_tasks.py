@@ -10,7 +10,7 @@ optiodom``'s nominal models, on the ``grip`` floor their import assumes), ``ekf-
 
 and on the id made for that robot with its own defaults (williams2002: ``OmniPathFollow-Williams-v1``;
 phunopas2018: ``OmniPathFollow-Phunopas-v0``; optiodom_omni4: ``OmniPathFollow-Mecanum-v0``; these ids have
-lift-off where the nominal models have none). Goal (issue 50): the goal reached in ≥ 95 % of the episodes and a
+lift-off where the nominal models have none). The goal: the goal reached in ≥ 95 % of the episodes and a
 tracking RMSE within 2× the id's.
 
     python benchmarks/feasible_tasks.py --out benchmarks/results [--episodes 50]

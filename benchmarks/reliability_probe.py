@@ -14,7 +14,7 @@ refused), ``traceback``, ``other status`` (also a warning printed before the err
 ``code ran``, ``wrote`` (a file outside ``--out``, or ``--force`` replaced a FIFO) and ``unescaped`` (a control
 character, e.g. an escape sequence from a crafted file, reached the terminal).
 
-``--only hostile`` runs just the cases of issue 51 (:func:`build_hostile_cases`), in about half a minute.
+``--only hostile`` runs just the hostile-input cases (:func:`build_hostile_cases`), in about half a minute.
 
 The table (counts per category and kind, then every case that was not clean) goes to ``--out``.
 """
@@ -415,7 +415,7 @@ def build_cases(work: Path) -> list[Case]:
 
 
 def build_hostile_cases(work: Path) -> list[Case]:
-    """Issue 51's classes: writes outside --out through run names, --force on a FIFO, a model folder's env_id that
+    """Hostile inputs: writes outside --out through run names, --force on a FIFO, a model folder's env_id that
     imports a module, garbage gzip, a bag claiming zstd, deep JSON to export, escape sequences echoed, huge
     networks and buffers in train, an unreachable Ray address (which must be refused within 15 s), a numpy
     warning printed before the error. Categories start with "hostile" (``--only hostile`` runs just these)."""

@@ -37,7 +37,7 @@ least 20 %: the share won back and (c) ÷ (a), paired over (plant, seed).
 Writes OUT/sim_to_real.md, .json (every plant) and .png (one panel per robot type); each finished plant is
 appended to OUT/sim_to_real_runs.jsonl at once, which ``--resume`` reads.
 
-Not here (issue 50, item 4): agents trained on each model (a residual or student agent per plant and model);
+Not here yet: agents trained on each model (a residual or student agent per plant and model);
 tracker effects (``tracker_offset``, ``time_offset``: they change what is logged, not how the robot moves, and
 the closed-loop plant models motion only).
 """

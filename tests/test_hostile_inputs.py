@@ -1,4 +1,4 @@
-"""Hostile inputs found by a probe (issue 51): each is refused with one line, before anything is written, and
+"""Hostile inputs found by a probe: each is refused with one line, before anything is written, and
 nothing is written outside ``--out`` (run names), replaced where it is not ours (``--force``), or imported."""
 
 from __future__ import annotations

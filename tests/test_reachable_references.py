@@ -75,7 +75,7 @@ def test_preset_ids_references_are_unchanged(env_id):
 
 
 def test_custom_id_gives_the_nominal_robot_a_task_it_can_do(tmp_path):
-    # The case of the issue: williams2002 on carpet with the `initial` friction model, unchanged, made
+    # The case that failed: williams2002 on carpet with the `initial` friction model, unchanged, made
     # ekf-pid lose 0 of 5 goals at 138 mm RMSE with the old random waypoints (turning while translating).
     model = SimModel(robot=robot_preset("williams2002"), surface=SURFACES["carpet"], friction="initial")
     path = tmp_path / "nominal.json"

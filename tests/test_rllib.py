@@ -239,5 +239,5 @@ def test_without_ray_the_error_names_the_extra(monkeypatch):
 
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name.startswith("ray") else real(name))
-    with pytest.raises(ModuleNotFoundError, match=r"omni-gym\[rllib\]"):
+    with pytest.raises(ModuleNotFoundError, match=r"-e '\.\[rllib\]'"):
         rllib.register_envs()

@@ -65,8 +65,15 @@ def write_bags(folder: Path, nominal) -> None:
                   pose_topic="/mocap/robot/pose")
 
 
+EXPECTED_EXIT = re.compile(r"\s+# exits (\d+)\b.*$")  # a line the walkthrough says fails, and how
+
+
 def run_command(line: str) -> str:
-    """Run one walkthrough line in this process (``omni-gym …``, ``python …``, with ``> FILE``); its stdout."""
+    """Run one walkthrough line in this process (``omni-gym …``, ``python …``, with ``> FILE``); its stdout. A line
+    ending in ``# exits N: why`` must exit with status N (the walkthrough shows a refusal)."""
+    expected = 0
+    if m := EXPECTED_EXIT.search(line):
+        expected, line = int(m.group(1)), line[:m.start()]
     redirect = None
     if " > " in line:
         line, redirect = (s.strip() for s in line.split(" > ", 1))
@@ -81,7 +88,7 @@ def run_command(line: str) -> str:
                         args[args.index(opt) + 1] = value
                     else:
                         args += [opt, value]
-            assert main(args) == 0, line
+            assert main(args) == expected, line
         elif argv[0] == "python":
             old = sys.argv
             sys.argv = argv[1:]

@@ -14,15 +14,12 @@ cannot raise it, while a run in millimetres raises every moving window by a fact
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from omni_gym.bounds import LOGS, PLAUSIBLE_SPEED, PLAUSIBLE_YAW_RATE
 from omni_gym.io import InputError
-
-if TYPE_CHECKING:  # the dataset module imports this one
-    from omni_gym.discrepancy.data.dataset import Run
 
 BASELINE = 1.0  # s: shortest time between the two poses of one rate (the whole run if shorter)
 
@@ -153,6 +150,16 @@ WHEEL_MISTAKES = ((60.0 / (2.0 * np.pi), "wheel angles or speeds in rad (rad/s) 
 
 def _matches(ratio: float, table) -> list[str]:
     return [what for factor, what in table if ratio > 0 and abs(np.log(ratio / factor)) < np.log(MATCH)]
+
+
+class Run(Protocol):
+    """What the unit checks read of a run (``omni_gym.discrepancy.data.dataset.Run`` has it; not imported here:
+    the dataset module imports this one)."""
+
+    t: np.ndarray
+    pose: np.ndarray
+    enc: np.ndarray | None
+    cmd: np.ndarray
 
 
 def wheel_travel_of(run: Run) -> np.ndarray:
