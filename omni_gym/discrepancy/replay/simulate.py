@@ -7,6 +7,7 @@ hundreds of parameter candidates on ten runs is one world of thousands of robots
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -137,12 +138,17 @@ def simulate_jobs(jobs: list[Job], dt: float = FIT_DT, start_window: float | Non
 
 
 def simulate_poses(jobs: list[Job], dt: float = FIT_DT, max_batch: int = 1500,
-                   start_window: float | None = None) -> list[np.ndarray]:
+                   start_window: float | None = None,
+                   done: Callable[[int, int], None] | None = None) -> list[np.ndarray]:
     """Poses (K, 3) of every job, simulated in worlds of at most ``max_batch`` robots (memory bound);
-    ``start_window``: as :func:`simulate_jobs`."""
+    ``start_window``: as :func:`simulate_jobs`. ``done(j, m)`` after each world: j of the m worlds simulated
+    (progress)."""
     out: list[np.ndarray] = []
-    for i in range(0, len(jobs), max_batch):
+    m = -(-len(jobs) // max_batch)
+    for j, i in enumerate(range(0, len(jobs), max_batch), 1):
         out += [p for p, _ in simulate_jobs(jobs[i:i + max_batch], dt=dt, start_window=start_window)]
+        if done is not None:
+            done(j, m)
     return out
 
 
