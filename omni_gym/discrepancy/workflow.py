@@ -59,6 +59,7 @@ from omni_gym.parallel import SERIAL, Backend, Executor, executor
 from omni_gym.physics.effects.base import Dim
 from omni_gym.physics.liftoff import contact_cases
 from omni_gym.physics.model import SimModel
+from omni_gym.progress import OFF, ProgressLines
 
 STARTS = ("nominal", "kinematic", "tracker", "auto")  # gap's first model (``start``): see :func:`start_model`
 KINEMATIC = "kinematic_calibration"  # the calibration's name as a hypothesis of the first step (_kinematic_fit)
@@ -74,7 +75,9 @@ def gap(dataset: str | Path, out: str | Path | None = None, seed: int = 0, folds
         start: str | SimModel | None = "auto", settings: GapSettings | None = None) -> dict:
     """Run the workflow on ``dataset``; write the report folder ``out`` (if given); return the result.
 
-    ``progress``: tqdm bar on stderr (None: only when stderr is a terminal). Same seed, same result.
+    ``progress``: tqdm bar on stderr (None: only when stderr is a terminal; else a line per stage and,
+    inside each long fit, a progress line with the time left at most every
+    :data:`omni_gym.progress.PROGRESS_EVERY_S` seconds; False: nothing). Same seed, same result.
     ``max_effects`` (>= 1): most effects named one after another (module docstring).
     ``fit_budget`` [s]: most robot time fitted; a longer dataset is fitted on an even sample of its
     runs' segments (:mod:`omni_gym.discrepancy.data.segments`; ``math.inf``: always the whole runs).
@@ -156,7 +159,8 @@ class SearchRun:
     (each fit's own seed, :func:`fit_seed`); ``bar``: the tqdm progress bar; ``say``: the stage printer;
     ``ex``: where the fits run (None: in this process, with a progress tick per search round);
     ``refit``: effects the start model carries that are refitted from their current values
-    (:func:`_from_current`), not from the effect's own null point.
+    (:func:`_from_current`), not from the effect's own null point; ``lines``: the progress lines inside each
+    fit (:mod:`omni_gym.progress`; on where stderr is not a terminal).
     """
 
     ev: Evaluator
@@ -169,6 +173,7 @@ class SearchRun:
     say: Callable[[str], None]
     ex: Executor | None = None
     refit: tuple[str, ...] = ()
+    lines: ProgressLines = OFF
 
 
 def _search_step(search: SearchRun, base: SimModel, base_sse: np.ndarray, exclude: list[str], step: int,
@@ -212,8 +217,12 @@ def _search_step(search: SearchRun, base: SimModel, base_sse: np.ndarray, exclud
         else:
             bar.update(max(ends[i] - bar.n, 0))  # searches that converge early skip their remaining rounds
 
+    # Per fit its own progress line: k of its most rounds (a fit that converges stops early, so the time left
+    # errs long), or the lift-event inference's steps and batches (their number is not known in advance).
+    loops = [search.lines.loop(f"{prefix}fitting {c.name}: lift events", None, "batches") if c.stochastic else
+             search.lines.loop(f"{prefix}fitting {c.name}:", max_ticks(c, cfg.fit), "rounds") for c in cands]
     fits, simulated, works = run_fits(tasks, ev, ex, shared, tick=lambda: bar.update(1), started=started,
-                                      finished=done)
+                                      finished=done, progress=loops)
     ev.simulated = start + simulated  # in place (this process) or counted by the workers
     fits = [*fits, *(extra or [])]
     say(f"{prefix}deciding")
@@ -377,17 +386,18 @@ def _gap(opts: GapOptions) -> dict:
     cpu0, wall0 = time.process_time(), time.perf_counter()  # the work record (fit_tasks.work_json)
     show = sys.stderr.isatty() if opts.progress is None else opts.progress
     say = _stage_printer(opts.progress is None and not show)  # redirected stderr: one line per stage
+    lines = ProgressLines("gap", enabled=opts.progress is None and not show)  # ... and lines inside long fits
     data = _data_stage(opts, say)
-    start = _start_stage(opts, data, say)
+    start = _start_stage(opts, data, say, lines)
     if start.won is not None:
         say("the kinematic calibration predicts held-out whole runs better; searching on top of it")
         return _gap(replace(opts, start="kinematic", competition=start.won))
-    search = _search_stage(opts, data, start, say, show)
+    search = _search_stage(opts, data, start, say, show, lines)
     if search.won is not None:
         # The calibration won the first step: search again from it (its fold models score the held-out runs).
         say("the kinematic calibration wins the first step; searching on top of it")
         return _gap(replace(opts, start="kinematic", competition=search.won))
-    answer = _decide_stage(opts, data, start, search, say)
+    answer = _decide_stage(opts, data, start, search, say, lines)
     result = _result(opts, data, start, search, answer, cpu0, wall0).to_json()
     if opts.out is not None:
         from omni_gym.discrepancy.report.report import write_report
@@ -431,9 +441,10 @@ def _data_stage(opts: GapOptions, say: Callable[[str], None]) -> DataStage:
                      trust)
 
 
-def _start_stage(opts: GapOptions, data: DataStage, say: Callable[[str], None]) -> StartStage:
+def _start_stage(opts: GapOptions, data: DataStage, say: Callable[[str], None],
+                 lines: ProgressLines = OFF) -> StartStage:
     """The start model (and the kinematic hypothesis), its residuals and the decision's noise floor."""
-    first = start_model(data.whole, data.fold_src, opts.start, opts.dt)
+    first = start_model(data.whole, data.fold_src, opts.start, opts.dt, lines)
     if first.kind == "kinematic":
         say(f"start: kinematic calibration ({first.describe()})")
     elif first.kind == "tracker":
@@ -481,7 +492,7 @@ def _whole_run_competition(data: DataStage, first: StartModel, opts: GapOptions)
 
 
 def _search_stage(opts: GapOptions, data: DataStage, start: StartStage, say: Callable[[str], None],
-                  show: bool) -> SearchStage:
+                  show: bool, lines: ProgressLines = OFF) -> SearchStage:
     """Localise, then name effects step by step until none/unexplained, the library or ``max_effects`` is used up
     (module docstring); with the kinematic hypothesis competing at the first step."""
     from tqdm import tqdm
@@ -502,7 +513,7 @@ def _search_stage(opts: GapOptions, data: DataStage, start: StartStage, say: Cal
         where = localise(data.ds, first.model, data.lever, start.res0, dt=opts.dt, sigma=start.tracker)
         bar.update(1)
         model, base_sse = first.model, start.sse0
-        search = SearchRun(ev, shared, n_comp, sigma, rng, opts.seed, bar, say, ex, first.refit)
+        search = SearchRun(ev, shared, n_comp, sigma, rng, opts.seed, bar, say, ex, first.refit, lines)
         kin = None  # the kinematic hypothesis, replayed only once a first step is searched at all
         while True:
             if sigma is not None and geo_mse(base_sse, n_comp) <= sigma**2 * (1 + rules.noise_margin):
@@ -546,7 +557,7 @@ def _search_stage(opts: GapOptions, data: DataStage, start: StartStage, say: Cal
 
 
 def _decide_stage(opts: GapOptions, data: DataStage, start: StartStage, search: SearchStage,
-                  say: Callable[[str], None]) -> Answer:
+                  say: Callable[[str], None], lines: ProgressLines = OFF) -> Answer:
     """The whole-run drift check, the identified refit, and the answer."""
     settings, rules, first, ev = opts.settings, opts.settings.rules, start.first, start.ev
     n_comp, sigma, competition = data.n_comp, start.sigma, opts.competition
@@ -576,8 +587,8 @@ def _decide_stage(opts: GapOptions, data: DataStage, start: StartStage, search: 
                                                   for s in steps], start.noise_parts["noise"],
                                     settings.identifiability)
     det = [s for s in steps if not s.fit.candidate.stochastic]
-    refit = (identified_fit.refit(ev, nominal, lin, data.fold_of, det[-1].fit.heldout, n_comp, settings.fit)
-             if lin is not None else None)
+    refit = (identified_fit.refit(ev, nominal, lin, data.fold_of, det[-1].fit.heldout, n_comp, settings.fit,
+                                  lines=lines) if lin is not None else None)
     ident_json = None
     if lin is not None:
         status = refit.status if refit is not None else identified_fit.statuses(lin)
@@ -769,7 +780,8 @@ def _has_odometry(ds: Dataset) -> bool:
     return all(r.enc is not None and np.all(np.isfinite(r.enc)) for r in ds.runs)
 
 
-def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: float = FIT_DT) -> StartModel:
+def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: float = FIT_DT,
+                lines: ProgressLines = OFF) -> StartModel:
     """The first model of the search (``start``: ``nominal``, ``kinematic`` or ``auto``) on the source runs
     ``ds`` with folds ``fold_src`` (-1: a run in no fold).
 
@@ -783,6 +795,7 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
     reckoning assumes rolling wheels; on a robot that slips hard (the synthetic recovery robot's random twist
     steps: 73 mm dead-reckoning RMS where the simulator's nominal replay is 1.4 mm) the calibration fits the
     slip and absorbs part of a physical effect, so it must win against the effects, not start before them.
+    ``lines``: progress lines of the calibrations (one per fold and one on all runs).
     """
     nominal = ds.model
     K = int(fold_src.max()) + 1
@@ -798,7 +811,7 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
         return StartModel("nominal", nominal, nominal, [nominal] * K,
                           why="the runs have no wheel odometry: no kinematic calibration")
     try:
-        cal, fold_cals = _calibrations(ds, fold_src, nominal, tracker=False)
+        cal, fold_cals = _calibrations(ds, fold_src, nominal, tracker=False, lines=lines)
     except ValueError as exc:  # e.g. no convergence on sparse observations
         if start in ("kinematic", "tracker"):
             raise ValueError(f"{ds.path}: {start} start: {exc}") from None
@@ -813,7 +826,7 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
                           kinematic_folds=kin_folds, kinematic_all=cal.model,
                           why="the model given (the same for every fold: fitted on which runs, gap cannot know)")
     if start == "tracker":
-        return _tracker_start(ds, fold_src, nominal, cal, fold_cals)
+        return _tracker_start(ds, fold_src, nominal, cal, fold_cals, lines)
     if start in ("nominal", "auto"):
         return StartModel("nominal", nominal, nominal, [nominal] * K, calibration=cal.to_json(),
                           fold_calibrations=[c.to_json() for c in fold_cals], kinematic_folds=kin_folds,
@@ -831,22 +844,31 @@ def start_model(ds: Dataset, fold_src: np.ndarray, start: str | SimModel, dt: fl
                           "training runs for held-out scores)")
 
 
-def _calibrations(ds: Dataset, fold_src: np.ndarray, nominal: SimModel, tracker: bool) -> tuple:
+def _calibrations(ds: Dataset, fold_src: np.ndarray, nominal: SimModel, tracker: bool,
+                  lines: ProgressLines = OFF) -> tuple:
     """The kinematic calibration (with the tracked frame when ``tracker``) on all runs of ``ds``, and on each
-    fold's training runs (the runs outside fold k); ValueError as :func:`calibrate`."""
+    fold's training runs (the runs outside fold k); ValueError as :func:`calibrate`. ``lines``: progress."""
+    K = int(fold_src.max()) + 1
+    progress = lines.loop("kinematic calibration" + (" with the tracked frame" if tracker else "") + ":", K + 1,
+                          "fits")
     whole = calibrate(ds.runs, nominal, tracker=tracker)
-    folds = [calibrate([r for r, f in zip(ds.runs, fold_src, strict=True) if f != k], nominal, tracker=tracker)
-             for k in range(int(fold_src.max()) + 1)]
+    progress.update()
+    folds = []
+    for k in range(K):
+        folds.append(calibrate([r for r, f in zip(ds.runs, fold_src, strict=True) if f != k], nominal,
+                               tracker=tracker))
+        progress.update()
     return whole, folds
 
 
-def _tracker_start(ds: Dataset, fold_src: np.ndarray, nominal: SimModel, cal, fold_cals: list) -> StartModel:
+def _tracker_start(ds: Dataset, fold_src: np.ndarray, nominal: SimModel, cal, fold_cals: list,
+                   lines: ProgressLines = OFF) -> StartModel:
     """The ``tracker`` start: the kinematics and the tracked frame (offset, yaw) fitted jointly by dead
     reckoning over whole runs (:func:`calibrate` with ``tracker=True``, what ``omni-gym calibrate --tracker``
     writes), on all runs and on each fold's training runs. Its effects are kept as fitted (the search adds
     others on top); the plain kinematic calibration ``cal``/``fold_cals`` stays the side-by-side baseline."""
     try:
-        joint, fold_joint = _calibrations(ds, fold_src, nominal, tracker=True)
+        joint, fold_joint = _calibrations(ds, fold_src, nominal, tracker=True, lines=lines)
     except ValueError as exc:
         raise ValueError(f"{ds.path}: tracker start: {exc}") from None
     return StartModel("tracker", nominal, joint.model, [c.model for c in fold_joint],

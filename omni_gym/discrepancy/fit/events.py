@@ -69,6 +69,7 @@ from omni_gym.discrepancy.replay.simulate import Job, pose_residual, simulate_po
 from omni_gym.discrepancy.settings import EventSearchSettings
 from omni_gym.physics.liftoff import OVERLAP_TOL, contact_cases
 from omni_gym.physics.model import SimModel
+from omni_gym.progress import Progress
 
 PARAMS_PER_EVENT = 3  # fitted numbers per event: start, end, lifted case (the BIC count; not a setting)
 
@@ -241,11 +242,15 @@ class EventInference:
             poses, e.g. simulated as parallel tasks: :mod:`omni_gym.discrepancy.fit.fit_tasks`).
         counter: optional one-element list to which the number of simulated robot-runs is added.
         max_batch: most jobs per simulate call.
+        progress: the search's progress (its step, the batches simulated, and within a batch the worlds or
+            tasks done); None: none. ``simulate`` must then take ``done`` (as ``simulate_poses``).
     """
+
+    STEPS = ("window search", "join and refine", "decoding and keep test", "evidence and adequacy")
 
     def __init__(self, problem: EventProblem, settings: EventSearchSettings | None = None,
                  simulate: Callable[..., list[np.ndarray]] | None = None, counter: list[int] | None = None,
-                 max_batch: int = 3000) -> None:
+                 max_batch: int = 3000, progress: Progress | None = None) -> None:
         ds, nominal, lever, cost = problem.ds, problem.nominal, problem.lever, problem.cost
         sse0, n_comp, dt, sigma = problem.sse0, problem.n_comp, problem.dt, problem.sigma
         windows, adequacy = problem.windows, problem.adequacy
@@ -254,6 +259,8 @@ class EventInference:
         self.ds, self.nominal, self.lever, self.cost = ds, nominal, lever, cost
         self.sse0, self.n_comp, self.dt, self.sigma = sse0, n_comp, dt, sigma
         self.max_batch, self.adequacy = max_batch, adequacy
+        self.progress = progress
+        self._what = "" if progress is None else progress.what
         self.runs: list[Run] = ds.runs
         self.R = len(self.runs)
         self.n_cases = len(contact_cases(ds.n_wheels))
@@ -271,19 +278,32 @@ class EventInference:
 
     def run(self) -> EventFit:
         """All steps in order; the EventFit."""
+        self._step(1)
         self.search_windows()
+        self._step(2)
         self.join_and_refine()
+        self._step(3)
         self.decode_and_keep()
+        self._step(4)
         self.check_evidence()
         self.check_adequacy()
         return self.result()
+
+    def _step(self, i: int) -> None:
+        """Name step ``i`` (1-based) in the progress lines."""
+        if self.progress is not None:
+            self.progress.rename(f"{self._what} step {i}/{len(self.STEPS)} ({self.STEPS[i - 1]}):")
 
     # ---- simulation and scores -------------------------------------------------------------------------
 
     def _run_batch(self, jobs: list[Job]) -> list[np.ndarray]:
         """Simulated poses of ``jobs`` (one batched call), counted."""
         self.count[0] += len(jobs)
-        return self.simulate(jobs, self.dt, self.max_batch)
+        if self.progress is None:
+            return self.simulate(jobs, self.dt, self.max_batch)
+        poses = self.simulate(jobs, self.dt, self.max_batch, done=self.progress.inner("parts"))
+        self.progress.update()
+        return poses
 
     def _win_sse(self, wi: int, pose: np.ndarray) -> float:
         """SSE [m²] of window wi's simulated ``pose`` (rows after its start) against the measurement."""
@@ -697,7 +717,8 @@ class EventInference:
 
 def infer_events(problem: EventProblem, settings: EventSearchSettings | None = None,
                  simulate: Callable[..., list[np.ndarray]] | None = None, counter: list[int] | None = None,
-                 max_batch: int = 3000) -> EventFit:
+                 max_batch: int = 3000, progress: Progress | None = None) -> EventFit:
     """MAP lift events of every run of ``problem.ds`` (see the module docstring and :class:`EventInference` for
     the arguments)."""
-    return EventInference(problem, settings, simulate=simulate, counter=counter, max_batch=max_batch).run()
+    return EventInference(problem, settings, simulate=simulate, counter=counter, max_batch=max_batch,
+                          progress=progress).run()

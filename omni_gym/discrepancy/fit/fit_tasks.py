@@ -37,6 +37,7 @@ from omni_gym.discrepancy.replay.simulate import Job, simulate_poses
 from omni_gym.discrepancy.settings import GapSettings
 from omni_gym.parallel import Executor
 from omni_gym.physics.model import SimModel
+from omni_gym.progress import Progress
 
 # Robot time [s] one chunk task simulates at most (unless one job is longer): 120 s is one point on 24
 # runs of 5 s, about 40 ms of one core's work on the real omni3 segments, far above a task's dispatch
@@ -310,16 +311,24 @@ class TaskEvaluator:
         self.eval_thread_s += time.thread_time() - t_thread
         return out
 
-    def simulate(self, jobs: list[Job], dt: float, max_batch: int) -> list[np.ndarray]:
-        """:meth:`Evaluator.simulate`, the same bits (not counted in ``simulated``: the caller counts)."""
+    def simulate(self, jobs: list[Job], dt: float, max_batch: int,
+                 done: Callable[[int, int], None] | None = None) -> list[np.ndarray]:
+        """:meth:`Evaluator.simulate`, the same bits (not counted in ``simulated``: the caller counts).
+        ``done(j, m)``: progress, after each of the m worlds (this process) or chunk tasks (a backend)."""
         t_thread = time.thread_time()
         if self._ex is None:
             t0 = time.process_time()
-            poses = simulate_poses(jobs, dt, max_batch, self._ev.start_window)
+            poses = simulate_poses(jobs, dt, max_batch, self._ev.start_window, done=done)
             self.work.add_round([time.process_time() - t0])
         else:
-            parts = self._ex.map(jobs_task, job_chunks(jobs, self._ev.ds.runs, dt, max_batch), shared=self._shared,
-                                 inline_single=False)
+            tasks = job_chunks(jobs, self._ev.ds.runs, dt, max_batch)
+            finished = [0]
+
+            def on_done(_i: int, _result: ChunkResult) -> None:
+                finished[0] += 1
+                if done is not None:
+                    done(finished[0], len(tasks))
+            parts = self._ex.map(jobs_task, tasks, shared=self._shared, inline_single=False, on_done=on_done)
             poses = [p for part in parts for p in part.residuals]
             self.work.add_round([p.seconds for p in parts])
         self.eval_thread_s += time.thread_time() - t_thread
@@ -329,12 +338,13 @@ class TaskEvaluator:
 def run_fits(tasks: list[FitTask], ev: Evaluator, ex: Executor | None, shared: FitShared,
              tick: Callable[[], None] | None = None,
              started: Callable[[int], None] | None = None,
-             finished: Callable[[int], None] | None = None) -> tuple[list[FitResult], int, list[FitWork]]:
+             finished: Callable[[int], None] | None = None,
+             progress: list[Progress] | None = None) -> tuple[list[FitResult], int, list[FitWork]]:
     """Fit every task's candidate; returns the fits (in task order), the robot-runs simulated and each fit's
     work. ``ex`` None or serial: one fit after another in this thread. Else side by side in threads of
     the driver, their rounds as chunk tasks on ``ex``.
     ``tick`` per search round, ``started(i)``/``finished(i)`` per fit (progress; called from the fit's
-    thread, one at a time)."""
+    thread, one at a time); ``progress``: per task its fit's progress lines (:class:`omni_gym.progress.Progress`)."""
     n = len(tasks)
     fits: list[FitResult | None] = [None] * n
     sims = [0] * n
@@ -360,7 +370,7 @@ def run_fits(tasks: list[FitTask], ev: Evaluator, ex: Executor | None, shared: F
         t0 = time.thread_time()
         tev = TaskEvaluator(ev, ex if parallel else None, shared, work)
         fit = fit_candidate(task.candidate, tev, task.base, shared.fold_of, np.random.default_rng(task.seed),
-                            shared.settings, tick=tick_l)
+                            shared.settings, tick=tick_l, progress=None if progress is None else progress[i])
         work.driver_s = max(time.thread_time() - t0 - tev.eval_thread_s, 0.0)
         sim = tev.simulated
         fits[i], sims[i] = fit, sim

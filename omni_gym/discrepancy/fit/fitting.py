@@ -42,6 +42,7 @@ from omni_gym.discrepancy.replay.residuals import (
 from omni_gym.discrepancy.replay.simulate import FIT_DT, Job, pose_residual, simulate_poses
 from omni_gym.discrepancy.settings import FitSettings, GapSettings
 from omni_gym.physics.model import SimModel
+from omni_gym.progress import Progress
 
 # The search rounds of fit_candidate (LM iterations, starts, phase sweeps, valley rounds; also the progress
 # bound max_ticks) are the fields of settings.FitSettings, recorded in result.json (settings.fit).
@@ -182,10 +183,12 @@ class Evaluator:
         """True when some run is observed densely enough for multiple shooting."""
         return bool(self.windows)
 
-    def simulate(self, jobs: list[Job], dt: float, max_batch: int) -> list[np.ndarray]:
+    def simulate(self, jobs: list[Job], dt: float, max_batch: int,
+                 done: Callable[[int, int], None] | None = None) -> list[np.ndarray]:
         """Poses of any ``jobs`` (:func:`~omni_gym.discrepancy.replay.simulate.simulate_poses`), for searches that
-        build their own jobs (the lift-event inference); not counted in ``simulated`` (the caller counts)."""
-        return simulate_poses(jobs, dt, max_batch, self.start_window)
+        build their own jobs (the lift-event inference); not counted in ``simulated`` (the caller counts).
+        ``done(j, m)``: progress, after each of the m worlds."""
+        return simulate_poses(jobs, dt, max_batch, self.start_window, done=done)
 
 
 @dataclass
@@ -221,7 +224,7 @@ def max_ticks(cand: Candidate, fit: FitSettings | None = None) -> int:
 
 def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray,
                   rng: np.random.Generator, settings: GapSettings | None = None,
-                  tick: Callable[[], None] | None = None) -> FitResult:
+                  tick: Callable[[], None] | None = None, progress: Progress | None = None) -> FitResult:
     """Fit ``cand`` on all runs and on every fold's training runs (see the module docstring).
 
     1. A shared scrambled Sobol design, plus the effect's null point (so a fit is never worse than
@@ -239,11 +242,17 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
 
     The stochastic candidate (wheel_liftoff) is fitted by lift-event inference instead
     (:func:`_fit_events`). ``settings``: the rounds above (``settings.fit``), the event search's and the
-    decision's noise level (None: the defaults).
+    decision's noise level (None: the defaults). ``tick``: called after each batch round (at most
+    :func:`max_ticks`); ``progress``: the fit's progress, one item per batch round (the lift-event inference:
+    its steps and batches).
     """
     settings = GapSettings() if settings is None else settings
+    if progress is not None:
+        progress.start()
     if cand.stochastic:
-        return _fit_events(cand, ev, nominal, folds, settings)
+        return _fit_events(cand, ev, nominal, folds, settings, progress)
+    if progress is not None:
+        tick = _both(tick, progress.update)
     fs = settings.fit
     iterations, fold_iterations, starts, phase_grid = fs.iterations, fs.fold_iterations, fs.starts, fs.phase_grid
     phase_sweeps, phase_starts, phase_restarts = fs.phase_sweeps, fs.phase_starts, fs.phase_restarts
@@ -357,8 +366,17 @@ def fit_candidate(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.n
                      fold_params=fold_params, pool_u=np.vstack(pools_u[K]), pool_sse=np.vstack(pools_sse[K]))
 
 
+def _both(first: Callable[[], None] | None, second: Callable[[], None]) -> Callable[[], None]:
+    """A tick that calls ``first`` (if any), then ``second``."""
+    def tick() -> None:
+        if first is not None:
+            first()
+        second()
+    return tick
+
+
 def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.ndarray,
-                settings: GapSettings) -> FitResult:
+                settings: GapSettings, progress: Progress | None = None) -> FitResult:
     """wheel_liftoff by MAP lift-event inference (omni_gym.discrepancy.fit.events).
 
     Every run's events are inferred with the BIC cost 3·ln N per event (N residual components of the
@@ -382,7 +400,7 @@ def _fit_events(cand: Candidate, ev: Evaluator, nominal: SimModel, folds: np.nda
     problem = EventProblem(ds, nominal, ev.lever, PARAMS_PER_EVENT * math.log(N), sse0, n_comp, ev.dt, sigma=sigma,
                            adequacy=1.0 + settings.rules.noise_margin,  # "noise level" as the decision defines it
                            windows=ev.windows)
-    efit = infer_events(problem, settings.event_search, simulate=ev.simulate, counter=counter)
+    efit = infer_events(problem, settings.event_search, simulate=ev.simulate, counter=counter, progress=progress)
     ev.simulated += counter[0]
     null = null_point(cand)
 

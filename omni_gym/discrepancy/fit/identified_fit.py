@@ -58,6 +58,7 @@ from omni_gym.discrepancy.fit.identifiability import Linearisation, combination_
 from omni_gym.discrepancy.replay.residuals import geo_mse, run_sse
 from omni_gym.discrepancy.settings import FitSettings
 from omni_gym.physics.model import SimModel
+from omni_gym.progress import OFF, ProgressLines
 
 NOTE = ("parameters not determined by the data are held at the start model's values and the determined "
         "combinations refitted (u = u0 + B c, B the identified combinations; all runs, and each fold's training "
@@ -122,7 +123,8 @@ def _stack(res: list[np.ndarray], mask: np.ndarray) -> np.ndarray:
 
 
 def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, search_heldout: np.ndarray | None = None,
-          n_comp: np.ndarray | None = None, fit: FitSettings | None = None) -> IdentifiedFit | None:
+          n_comp: np.ndarray | None = None, fit: FitSettings | None = None,
+          lines: ProgressLines = OFF) -> IdentifiedFit | None:
     """The fit with the undetermined directions and the parameters at a fit bound held at the start model
     (module docstring); None when nothing is held (every combination identified or away from the start, no
     parameter at a bound): the search's fit stands as it is. ``ev``: the workflow's Evaluator; ``start``:
@@ -134,7 +136,8 @@ def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, search_h
     metric); when it does, the data reject the start value there (the bound value compensates another
     error that the model needs compensated): those parameters keep the search's values, reported as at
     their bound with the cost measured (``bound_cost``). ``fit``: the LM iterations of the subspace fits
-    (``identified_iterations``; None: the defaults)."""
+    (``identified_iterations``; None: the defaults). ``lines``: a progress line per LM iteration of each
+    subspace fit (:mod:`omni_gym.progress`)."""
     iterations = (FitSettings() if fit is None else fit).identified_iterations
     u_star = lin.u
     u0, has = start_point(lin)
@@ -143,7 +146,7 @@ def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, search_h
     bound = lin.at_bound() & has
     if not held_dir.any() and not bound.any():
         return None
-    out = _refit(ev, start, lin, fold_of, u_ref, has, held_dir, iterations)
+    out = _refit(ev, start, lin, fold_of, u_ref, has, held_dir, iterations, lines=lines)
     bound = out.bound_fixed
     if search_heldout is None or n_comp is None or not bound.any():
         return out
@@ -152,7 +155,7 @@ def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, search_h
         return out
     # The data reject the start value of the bound parameters: keep them where the search put them.
     u_keep = np.where(bound, u_star, u_ref)
-    kept = (_refit(ev, start, lin, fold_of, u_keep, has & ~bound, held_dir, iterations, keep=bound)
+    kept = (_refit(ev, start, lin, fold_of, u_keep, has & ~bound, held_dir, iterations, keep=bound, lines=lines)
             if held_dir.any() else None)
     if kept is not None and geo_mse(kept.heldout, n_comp) > (1.0 + lin.cfg.held_out_tolerance) * geo_mse(search_heldout,
                                                                                                       n_comp):
@@ -182,7 +185,8 @@ def refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, search_h
 
 
 def _refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, u_ref: np.ndarray, has: np.ndarray,
-           held_dir: np.ndarray, iterations: int, keep: np.ndarray | None = None) -> IdentifiedFit:
+           held_dir: np.ndarray, iterations: int, keep: np.ndarray | None = None,
+           lines: ProgressLines = OFF) -> IdentifiedFit:
     """One refit: the combinations not in ``held_dir`` fitted from ``u_ref``; parameters in no fitted
     combination held at ``u_ref`` (``has``: they have a start value; ``keep``: held at ``u_ref`` whatever
     else, as the search's values); parameters the fit puts at a bound are held at the start and the fit
@@ -196,7 +200,7 @@ def _refit(ev, start: SimModel, lin: Linearisation, fold_of: np.ndarray, u_ref: 
     fixed = has & (weight < lin.cfg.merge_weight) & ~own
     kept = ~has & ~keep & (weight < lin.cfg.merge_weight) & ~own
     for _ in range(1 + lin.cfg.bound_passes):
-        fit = _subspace_fit(ev, start, lin, V, fixed | kept | keep, u_ref, fold_of, iterations)
+        fit = _subspace_fit(ev, start, lin, V, fixed | kept | keep, u_ref, fold_of, iterations, lines)
         u = np.concatenate(fit[0])
         dims = lin.dims
         b = lin.cfg.bound
@@ -230,7 +234,7 @@ def _weights(V: np.ndarray, p: int) -> np.ndarray:
 
 
 def _subspace_fit(ev, start: SimModel, lin: Linearisation, V: np.ndarray, held: np.ndarray, u_ref: np.ndarray,
-                  fold_of: np.ndarray, iterations: int) -> tuple:
+                  fold_of: np.ndarray, iterations: int, lines: ProgressLines = OFF) -> tuple:
     """LM over c in u = u_ref + B c, B = Vᵀ with the ``held`` rows zeroed, on all runs and every fold's
     training runs. Starts: the projection of u* onto the subspace and the linearised least-squares
     solution (from the analysis' Jacobian, no simulation); each target starts from the better on its runs."""
@@ -262,6 +266,7 @@ def _subspace_fit(ev, start: SimModel, lin: Linearisation, V: np.ndarray, held: 
     for mask in masks:
         i = int(np.argmin([cost(r, mask) for r in res0]))
         states.append({"c": starts[i].copy(), "res": res0[i], "cost": cost(res0[i], mask), "lam": 1e-2})
+    progress = lines.loop("identified refit:", iterations if m else 0, "iterations")
     for _ in range(iterations if m else 0):
         # Jacobian of every target in one batch
         cs = [st["c"] + lin.cfg.step * e for st in states for e in np.eye(m)]
@@ -283,6 +288,7 @@ def _subspace_fit(ev, start: SimModel, lin: Linearisation, V: np.ndarray, held: 
         for st in states:
             if not st.pop("improved", False):
                 st["lam"] *= 10
+        progress.update()
     u_all = _split(point(states[K]["c"]), lin)
     u_folds = [_split(point(st["c"]), lin) for st in states[:K]]
     sse_all = np.array([run_sse(r) for r in states[K]["res"]])
