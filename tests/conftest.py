@@ -24,6 +24,26 @@ def ray_cluster():
 
 
 @pytest.fixture(scope="module")
+def omni3_two_runs(tmp_path_factory):
+    """Runs 1 and 2 of the bundled omni3 session circular/221220201730, imported (``omni-gym calibrate`` accepts
+    them: tests/test_calibrate_cli.py)."""
+    import shutil
+    from pathlib import Path
+
+    from omni_gym.discrepancy.data.importers.optiodom import import_optiodom
+
+    session = Path(__file__).resolve().parents[1] / "data" / "optiodom-omni3" / "circular" / "221220201730"
+    root = tmp_path_factory.mktemp("omni3")
+    folder = root / "session"
+    folder.mkdir()
+    shutil.copy(session / "221220201730_metadata.csv", folder)
+    for k in (1, 2):
+        shutil.copy(session / f"221220201730_run-0{k}.csv", folder)
+    import_optiodom([folder], root / "ds")
+    return root / "ds"
+
+
+@pytest.fixture(scope="module")
 def lag_dataset(tmp_path_factory):
     """A small synthetic dataset with a hidden motor lag (τ 80 ms; 3 runs of 1.5 s, tracker noise 1 mm, seed 5)."""
     from omni_gym.discrepancy.synthetic.recovery import nominal_model

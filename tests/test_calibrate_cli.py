@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -36,15 +35,8 @@ def cli(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
 
 
 @pytest.fixture(scope="module")
-def dataset(tmp_path_factory) -> Path:
-    root = tmp_path_factory.mktemp("calibrate")
-    folder = root / "session"
-    folder.mkdir()
-    shutil.copy(SESSION / "221220201730_metadata.csv", folder)
-    for k in (1, 2):
-        shutil.copy(SESSION / f"221220201730_run-0{k}.csv", folder)
-    import_optiodom([folder], root / "ds")
-    return root / "ds"
+def dataset(omni3_two_runs) -> Path:
+    return omni3_two_runs
 
 
 def _rms(runs, geometry) -> float:

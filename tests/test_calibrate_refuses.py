@@ -4,7 +4,6 @@ what is wrong, points to ``omni-gym gap``, exits 2 and writes nothing."""
 
 from __future__ import annotations
 
-import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -12,7 +11,6 @@ import pytest
 
 from omni_gym.cli import main
 from omni_gym.discrepancy.data.dataset import load_dataset, write_dataset
-from omni_gym.discrepancy.data.importers.optiodom import import_optiodom
 from omni_gym.discrepancy.synthetic.synth import synthesize
 from omni_gym.physics.model import load_model
 
@@ -21,17 +19,8 @@ SESSION = ROOT / "data" / "optiodom-omni3" / "circular" / "221220201730"
 
 
 @pytest.fixture(scope="module")
-def real(tmp_path_factory) -> Path:
-    """Runs 1 and 2 of the bundled omni3 session circular/221220201730 (calibrate accepts them:
-    test_calibrate_cli)."""
-    root = tmp_path_factory.mktemp("real")
-    folder = root / "session"
-    folder.mkdir()
-    shutil.copy(SESSION / "221220201730_metadata.csv", folder)
-    for k in (1, 2):
-        shutil.copy(SESSION / f"221220201730_run-0{k}.csv", folder)
-    import_optiodom([folder], root / "ds")
-    return root / "ds"
+def real(omni3_two_runs) -> Path:
+    return omni3_two_runs
 
 
 def _refused(capsys, dataset: Path, out: Path, *extra: str) -> str:
