@@ -84,7 +84,12 @@ class Episode:
                 "final_position_error": self.final_position_error, "final_heading_error": self.final_heading_error,
                 "success": self.success, "terminated": self.terminated, "steps": self.steps,
                 "episode_return": self.episode_return,
-                "reference_traction": None if math.isnan(self.reference_traction) else self.reference_traction}
+                "reference_traction": known_or_none(self.reference_traction)}
+
+
+def known_or_none(value: float | None) -> float | None:
+    """``value``, or None where it is not known (None or NaN): what a JSON record holds."""
+    return None if value is None or math.isnan(value) else float(value)
 
 
 def run_episode(env, policy: Policy, seed: int, record: bool = False) -> Episode:

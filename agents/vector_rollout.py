@@ -85,6 +85,7 @@ def run_episodes_vector(vec_env, policy: VectorActor, seeds: Sequence[int]) -> l
     sq_sum = [0.0] * num  # Python floats, summed step by step as run_episode does
     ret = [0.0] * num  # the environment's own reward (a wrapper may replace what step returns)
     core = vec_env.unwrapped.core
+    traction = core.ref_use.copy()  # each robot's first reference (info["reference_traction"] at reset)
     steps = np.zeros(num, dtype=np.int64)
     final: list[tuple[float, float, bool, bool] | None] = [None] * num
     while live.any():
@@ -111,5 +112,6 @@ def run_episodes_vector(vec_env, policy: VectorActor, seeds: Sequence[int]) -> l
         err_i, head_i, success_i, term_i = final[i]
         episodes.append(Episode(seed=seed, tracking_rmse=math.sqrt(sq_sum[i] / int(steps[i])),
                                 final_position_error=err_i, final_heading_error=head_i, success=success_i,
-                                terminated=term_i, steps=int(steps[i]), episode_return=ret[i]))
+                                terminated=term_i, steps=int(steps[i]), episode_return=ret[i],
+                                reference_traction=float(traction[i])))
     return episodes
