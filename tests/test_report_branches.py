@@ -106,3 +106,29 @@ def test_the_warning_legend_comes_only_with_its_rows():
     assert "⚠ marks a fitted value outside its plausible range:" in flagged
     assert "* tracker_offset: offset = 0.3 m, plausible [-0.1, 0.1]" in flagged
     assert "plausible range" not in markdown(two_kept(False), []).split("## Ranking")[1].split("##")[0]
+
+
+def test_every_ratio_in_the_report_follows_from_its_columns():
+    """The localisation table's ratio is its two columns divided (a tiny 'elsewhere' once printed as 0.000 beside
+    a ratio of 1867); the held-out table's ratio is its reported and kinematic columns divided."""
+    import re
+
+    r = copy.deepcopy(BASE)
+    r["where"]["conditions"] = {"accelerating": {"rows": 120, "mean_sq_growth": 1.867e-6, "elsewhere": 1.0e-9,
+                                                 "ratio": 1867.0},
+                                "turning": {"rows": 80, "mean_sq_growth": 2.5e-7, "elsewhere": 1.0e-7, "ratio": 2.5}}
+    report = markdown(r, [])
+    rows = [line for line in report.splitlines() if line.startswith(("| accelerating |", "| turning |"))]
+    assert len(rows) == 2
+    for line in rows:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        growth, elsewhere, ratio = (float(c) for c in cells[2:5])
+        # 4 significant digits on each column, 3 on the ratio: they agree to the ratio's last digit
+        assert abs(growth / elsewhere - ratio) <= 0.005 * ratio, line
+    heldout = [line for line in report.splitlines() if re.match(r"\| (`|\(none|all)", line) and "÷" not in line]
+    for line in heldout:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        if len(cells) >= 6 and cells[-1] not in ("", "–"):
+            values = [float(c) for c in cells[2:-1]]
+            kinematic, reported = values[1], values[-1]
+            assert abs(reported / kinematic - float(cells[-1])) <= 0.01 + 0.005 * float(cells[-1]), line

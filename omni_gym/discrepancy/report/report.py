@@ -481,8 +481,10 @@ def _where_lines(w: dict) -> list[str]:
         lines += ["", "| condition | rows | mean squared growth over 5 rows [mm²] | elsewhere [mm²] | ratio |",
                   "|---|---|---|---|---|"]
         for k, c in w["conditions"].items():
-            lines.append(f"| {k} | {c['rows']} | {_scaled(c['mean_sq_growth'], 1e6, 3)} "
-                         f"| {_scaled(c['elsewhere'], 1e6, 3)} | {_num2(c['ratio'])} |")
+            # Four significant digits on both sides, three on the ratio: the ratio can be recomputed from the row
+            # (a fixed number of decimals showed a tiny "elsewhere" as 0.000 beside a ratio in the thousands).
+            lines.append(f"| {k} | {c['rows']} | {_sig(c['mean_sq_growth'], 1e6, 4)} "
+                         f"| {_sig(c['elsewhere'], 1e6, 4)} | {_sig(c['ratio'], 1.0, 3)} |")
     if w.get("wheel_phase"):
         lines += ["", "Modulation of the local error over the roller pitch (max bin / mean; 1 = none): "
                   + ", ".join(f"{k} {v['modulation']:.2f}" for k, v in w["wheel_phase"].items()
@@ -542,8 +544,9 @@ def _pct(v: float | None) -> str:
     return "–" if v is None else f"{100 * v:.0f} %"
 
 
-def _scaled(v: float | None, scale: float, digits: int) -> str:
-    return "–" if v is None else f"{scale * v:.{digits}f}"
+def _sig(v: float | None, scale: float, digits: int) -> str:
+    """``scale·v`` to ``digits`` significant digits ("–" for None)."""
+    return "–" if v is None else f"{scale * v:.{digits}g}"
 
 
 def _plots(out: Path, result: dict, ds: Dataset, nominal: SimModel, model: SimModel, lever: float,
