@@ -102,6 +102,15 @@ def test_wheel_speeds_and_windows(sim, tmp_path):
     assert k == int(np.searchsorted(run.t, 1.5, side="right"))
 
 
+def _corrupt_heading(text: str) -> str:
+    """The log's 10th data row with a heading cell of 99999 (the file is in radians for this case)."""
+    lines = text.split("\r\n")
+    cells = lines[10].split(",")
+    cells[6] = "99999"
+    lines[10] = ",".join(cells)
+    return "\r\n".join(lines)
+
+
 @pytest.mark.parametrize("columns, units, edit, message", [
     (COLUMNS, "ms,mm,deg", lambda s: s.replace("wheel_c", "wheel_z", 1), "no column 'wheel_c'"),
     (COLUMNS.replace("enc3=wheel_c", ""), "ms,mm,deg", None, "no enc3"),
@@ -109,6 +118,9 @@ def test_wheel_speeds_and_windows(sim, tmp_path):
     (COLUMNS, "ms,deg", None, "positions look like millimetres"),  # mm read as metres
     (COLUMNS, "ms,mm,deg,s", None, "two time units"),
     (COLUMNS, "ms,mm,deg", lambda s: s.replace(",12.1\r\n", ",12.1\r\nabc,1,2,3,4,5,6,7\r\n", 1), "not a number"),
+    # a corrupt heading cell: 99999 rad (in degrees here) is beyond any tracked heading; unwrapping it must not
+    # fold it into a small jump that passes
+    (COLUMNS, "ms,mm,rad", _corrupt_heading, "theta must be"),
 ])
 def test_bad_input_one_line(sim, tmp_path, capsys, columns, units, edit, message):
     _, runs = sim
@@ -147,6 +159,10 @@ def test_column_map_errors():
     with pytest.raises(InputError, match="no theta"):
         parse_columns("t=a,x=b,y=c,enc1=e", 1)
     assert parse_columns("t=a,x=b,y=c,theta=d,enc1=-e", 1).wheels == (("e", -1.0),)
+    # One column read as two quantities is a copy-paste slip, never a mapping (it used to import silently).
+    for spec in ("t=a,x=b,y=c,theta=e,enc1=e", "t=a,x=b,y=b,theta=d,enc1=e", "t=a,x=b,y=c,theta=d,w1=b"):
+        with pytest.raises(InputError, match=r"column '[be]' is mapped to \w+ and \w+"):
+            parse_columns(spec, 1)
 
 
 def test_reads_are_bounded(sim, tmp_path, monkeypatch):

@@ -99,6 +99,13 @@ def parse_columns(spec: str, n_wheels: int, option: str = "--columns") -> Column
     unknown = sorted(set(pairs) - {"t", "x", "y", "theta", *names})
     if unknown:
         raise InputError(f"{option}: unknown name(s) {', '.join(unknown)} (t, x, y, theta, {names[0]}…{names[-1]})")
+    users: dict[str, list[str]] = {}
+    for key, (col, _) in pairs.items():
+        users.setdefault(col, []).append(key)
+    shared = {col: keys for col, keys in users.items() if len(keys) > 1}
+    if shared:  # one column read as two quantities (a copy-paste slip: theta=enc1, y=x) is never meant
+        col, keys = next(iter(shared.items()))
+        raise InputError(f"{option}: column {col!r} is mapped to {' and '.join(keys)}; each name needs its own column")
     return ColumnMap(pairs["t"][0], pairs["x"][0], pairs["y"][0], pairs["theta"][0],
                      tuple(pairs[k] for k in names), "position" if names is enc else "velocity")
 

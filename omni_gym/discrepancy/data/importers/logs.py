@@ -222,7 +222,13 @@ def make_run(name: str, wheels: WheelLog, pose: PoseLog, wheel_radius: float, wi
         if len(bad):
             raise InputError(f"{where}: at t = {t[bad[0]] - t[0]:.6g} s: the {what} overflows (not a finite number; "
                              "absurd wheel values or times too close together)")
-    th = unwrap_heading(pose.pose[:, 2])
+    heading = FILES["theta"]  # held as logged: unwrapping folds a corrupt 99999 rad cell into a small jump
+    raw = pose.pose[:, 2]
+    bad = np.nonzero(np.isfinite(raw) & ((raw < heading.lo) | (raw > heading.hi)))[0]
+    if bad.size:
+        raise InputError(f"{where}: at t = {pose.t[bad[0]] - pose.t[0]:.6g} s: theta {heading.describe()}, got "
+                         f"{raw[bad[0]]:.6g} (a corrupt cell or another unit)")
+    th = unwrap_heading(raw)
     rows = np.column_stack([np.interp(t, pose.t, pose.pose[:, 0]), np.interp(t, pose.t, pose.pose[:, 1]),
                             np.interp(t, pose.t, th)])
     j = np.clip(np.searchsorted(pose.t, t), 1, len(pose.t) - 1)

@@ -132,7 +132,8 @@ _READER_MODULES = ("rosbags", "zstandard", "backports", "compression", "zstd", "
 
 def _is_reader_error(exc: BaseException) -> bool:
     """True for an error of reading a damaged or unsupported bag (not a bug of this module)."""
-    return (isinstance(exc, (EOFError, struct.error, zlib.error, UnicodeDecodeError))
+    # RecursionError: a metadata.yaml nested thousands deep (the YAML reader recurses per level)
+    return (isinstance(exc, (EOFError, struct.error, zlib.error, UnicodeDecodeError, RecursionError))
             or type(exc).__module__.split(".")[0] in _READER_MODULES)
 
 
