@@ -120,6 +120,14 @@ def _after(text: str, marker: str) -> str:
     return text.split(marker, 1)[1] if marker in text else text
 
 
+def plain(text: str) -> str:
+    """``text`` with every temporary folder's path cut to its last part (records name no machine's paths)."""
+    import re
+
+    text = re.sub(r"/(?:tmp|var/folders)/\S*/([^/\s]+)", r"\1", text)
+    return re.sub(r"/(?:tmp|var/folders)\S*", "…", text)  # a path cut short by a note's length
+
+
 def write_logs(dataset: Path, logs: Path, n_wheels: int) -> list[Path]:
     """The dataset's runs as a robot would log them: time, tracked pose and encoder angles, other column names."""
     logs.mkdir()
@@ -183,8 +191,8 @@ def run_plant(case: dict, episodes: int) -> dict:
         if proc.returncode == 0:
             models["kinematic"] = tmp / "kinematic.json"
         else:  # the engineer is left with the nominal model: (b) is (a)
-            out["notes"].append("calibrate refused (b = a): " + _after(proc.stderr.strip().splitlines()[-1],
-                                                                          "nothing written: ")[:240])
+            out["notes"].append("calibrate refused (b = a): " + plain(_after(proc.stderr.strip().splitlines()[-1],
+                                                                                "nothing written: "))[:240])
         t_gap = time.perf_counter()
         proc = _cli("gap", str(tmp / "dataset"), "--out", str(tmp / "report"), "--json")
         out["gap_wall_s"] = time.perf_counter() - t_gap
@@ -329,7 +337,7 @@ def table(done: list[dict], rows: list[dict], pool: dict | None, command: str, e
     lines += ["", f"†: `omni-gym calibrate` refused on {refused} of {len(rows)} plants (values at its search bounds or "
               "dead reckoning far off after the fit: the wheels slip on carpet); the engineer then keeps the nominal "
               "model, so (b) is (a) there."]
-    notes = [f"- {r['robot']} {r['kind']}: {n}" for r in rows for n in r["notes"]]
+    notes = [f"- {r['robot']} {r['kind']}: {plain(n)}" for r in rows for n in r["notes"]]
     if notes:
         lines += ["", "Notes:", "", *notes]
     wall = [r["wall_s"] for r in done]
@@ -339,27 +347,40 @@ def table(done: list[dict], rows: list[dict], pool: dict | None, command: str, e
 
 
 def plot(rows: list[dict], path: Path) -> None:
+    """One panel per robot type: (c) ÷ (a) and (c) ÷ (b) per plant with their 95 % paired intervals, the cost of
+    each effect under its name; below 1 the calibrated controller tracks the plant better."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     robots = [rb for rb in ROBOTS if any(r["robot"] == rb for r in rows)]
-    fig, axes = plt.subplots(len(robots), 1, figsize=(10, 3.6 * len(robots)), squeeze=False)
-    colours = {"nominal": "#999999", "kinematic": "#4c72b0", "gap": "#dd8452"}
+    fig, axes = plt.subplots(len(robots), 1, figsize=(10, 3.4 * len(robots)), squeeze=False)
     for ax, rb in zip(axes[:, 0], robots, strict=True):
         sub = [r for r in rows if r["robot"] == rb]
         x = np.arange(len(sub))
-        for k, name in enumerate(MODELS):
-            vals = [1e3 * r["plant"].get(name, np.nan) for r in sub]
-            ax.bar(x + (k - 1) * 0.27, vals, 0.27, color=colours[name],
-                   label={"nominal": "(a) nominal", "kinematic": "(b) kinematic calibration",
-                          "gap": "(c) gap's model"}[name])
-        ax.set_xticks(x, [f"{r['kind']}\n→ {r['gap_effect']}" for r in sub], fontsize=7)
-        ax.set_ylabel("tracking RMSE on the plant [mm]")
-        ax.set_title(f"{rb}: ekf-pid designed on each model, driving the plant (hidden effect → what gap named)",
-                     fontsize=9)
-        ax.legend(fontsize=7)
+        for dx, key, colour, label in ((-0.12, "c_over_a", "#dd8452", "(c) gap's model ÷ (a) nominal"),
+                                       (0.12, "c_over_b", "#4c72b0", "(c) ÷ (b) kinematic calibration "
+                                                                     "(open: calibrate refused, b = a)")):
+            ratio = np.array([r[key]["ratio"] for r in sub])
+            lo = ratio - np.array([r[key]["ci95"][0] for r in sub])
+            hi = np.array([r[key]["ci95"][1] for r in sub]) - ratio
+            refused = np.array([key == "c_over_b" and r["b_refused"] for r in sub])
+            ax.errorbar(x + dx, ratio, yerr=[lo, hi], fmt="none", ecolor=colour, capsize=3)
+            ax.scatter(x[~refused] + dx, ratio[~refused], color=colour, zorder=3,
+                       label=label if (~refused).any() else None)
+            ax.scatter(x[refused] + dx, ratio[refused], facecolors="none", edgecolors=colour, zorder=3,
+                       label=label if refused.any() else None)
+        ax.axhline(1.0, color="k", lw=0.8)
+        ax.axhline(0.8, color="k", lw=0.6, ls="--")
+        costs = ["" if r.get("cost") is None else f"\ncost {r['cost']:+.0%}" for r in sub]
+        ax.set_xticks(x, [f"{r['kind']}\n→ {r['gap_effect']}{c}" for r, c in zip(sub, costs, strict=True)], fontsize=7)
+        ax.set_ylabel("ratio of mean tracking RMSE\non the plant (< 1: better)")
+        ax.set_title(f"{rb}: ekf-pid designed on gap's model against the others, driving the plant "
+                     "(hidden effect → what gap named)", fontsize=9)
+        top = max(1.3, max(r[k]["ci95"][1] for r in sub for k in ("c_over_a", "c_over_b")) + 0.05)
+        ax.set_ylim(min(0.3, min(r[k]["ci95"][0] for r in sub for k in ("c_over_a", "c_over_b")) - 0.05), top)
+        ax.legend(fontsize=7, loc="lower left")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
