@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from omni_gym.analysis.event_integrator import _region, build_plant, draw_lift_schedule, run_piece
+from omni_gym.analysis.event_integrator import build_plant, draw_lift_schedule, run_piece, start_state
 from omni_gym.physics.model import SimModel
 from omni_gym.physics.plant import PlantState
 
@@ -51,17 +51,10 @@ class SecondGeneratorPlant:
         start = np.asarray(pose, dtype=float).reshape(3)
         if not np.all(np.isfinite(start)):
             raise ValueError(f"reset: pose must be finite, got {start.tolist()}")
-        n = p.n
-        state = np.zeros(6 + n + (n if p.tau is not None else 0))
-        c0, s0 = math.cos(start[2]), math.sin(start[2])
-        state[0] = start[0] + c0 * p.com[0] - s0 * p.com[1]
-        state[1] = start[1] + s0 * p.com[0] + c0 * p.com[1]
-        state[2] = start[2]
-        self._state = state
-        self._regions = np.array([_region(p, p.phases[i]) for i in range(n)]) if p.gap else np.zeros(n, int)
+        self._state, self._regions = start_state(p, start)
         self._schedule = draw_lift_schedule(p, HORIZON_S, np.random.default_rng(int(seed)))
         self._next = 0  # index of the next lift-off switch
-        self._lifted = np.zeros(n, dtype=bool)
+        self._lifted = np.zeros(p.n, dtype=bool)
         self._t = 0.0
         self.counts = {"pieces": 0, "gap_switches": 0}
         return self._report()

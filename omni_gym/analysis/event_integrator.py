@@ -459,6 +459,19 @@ def _on_gap_of(plant: Plant, regions: np.ndarray) -> np.ndarray:
     return np.asarray(regions) % 2 == 0
 
 
+def start_state(plant: Plant, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(state y at rest with the geometric centre at ``start`` (x, y, θ), the wheels' roller/rigid region
+    indices) from which :func:`integrate` and the closed-loop plant run."""
+    n = plant.n
+    state = np.zeros(6 + n + (n if plant.tau is not None else 0))
+    c0, s0 = math.cos(start[2]), math.sin(start[2])
+    state[0] = start[0] + c0 * plant.com[0] - s0 * plant.com[1]
+    state[1] = start[1] + s0 * plant.com[0] + c0 * plant.com[1]
+    state[2] = start[2]
+    regions = np.array([_region(plant, plant.phases[i]) for i in range(n)]) if plant.gap else np.zeros(n, int)
+    return state, regions
+
+
 def integrate(plant: Plant, times: np.ndarray, commands: np.ndarray, sample_times: np.ndarray,
               start_pose=(0.0, 0.0, 0.0), lift_schedule=(), method: str = "LSODA",
               rtol: float = 1e-8, atol: float = 1e-10) -> Trajectory:
@@ -484,12 +497,7 @@ def integrate(plant: Plant, times: np.ndarray, commands: np.ndarray, sample_time
     switches = sorted((float(t), np.asarray(m, dtype=bool)) for t, m in lift_schedule)
     cuts = sorted(set([float(t) for t in times if t < end] + [t for t, _ in switches if t < end]))
     cuts.append(end)
-    state = np.zeros(6 + n + (n if plant.tau is not None else 0))
-    c0, s0 = math.cos(start[2]), math.sin(start[2])
-    state[0] = start[0] + c0 * plant.com[0] - s0 * plant.com[1]
-    state[1] = start[1] + s0 * plant.com[0] + c0 * plant.com[1]
-    state[2] = start[2]
-    regions = np.array([_region(plant, plant.phases[i]) for i in range(n)]) if plant.gap else np.zeros(n, int)
+    state, regions = start_state(plant, start)
     lifted = np.zeros(n, dtype=bool)
     out = np.zeros((len(samples), len(state)))
     filled = np.zeros(len(samples), dtype=bool)
