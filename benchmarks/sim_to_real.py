@@ -37,8 +37,15 @@ least 20 %: the share won back and (c) ÷ (a), paired over (plant, seed).
 Writes OUT/sim_to_real.md, .json (every plant) and .png (one panel per robot type); each finished plant is
 appended to OUT/sim_to_real_runs.jsonl at once, which ``--resume`` reads.
 
-Not here yet: agents trained on each model (a residual or student agent per plant and model);
-tracker effects (``tracker_offset``, ``time_offset``: they change what is logged, not how the robot moves, and
+**Agents** (on :data:`AGENT_PLANTS`, both robot types): a residual PPO agent on ``ekf-pid`` (the shipped
+``ppo_residual`` hyperparameters, the same fixed budget of :data:`AGENT_STEPS` steps and training seed for every
+model) is trained with ``omni-gym train`` on each model's ``OmniPathFollow-Custom-v0`` and evaluated like the
+scripted controllers, on the plant and on its own model. A model equal to another (calibrate refused, or ``gap``
+returned the nominal model) reuses that model's agent: the same training would give the same agent.
+
+    python benchmarks/sim_to_real.py --jobs 2 --out benchmarks/results --resume --agents-only  # agents only
+
+Not here: tracker effects (``tracker_offset``, ``time_offset``: they change what is logged, not how the robot moves, and
 the closed-loop plant models motion only).
 """
 
@@ -80,6 +87,10 @@ FIRST_SEED = 10_000  # held out: training uses small seeds, validation 5000…
 RUNS, RUN_SECONDS = 8, 6.0  # the logged driving: 48 s
 COST_MIN = 0.20  # an effect that costs the nominal controller at least this much more error is one to win back
 MODELS = ("nominal", "kinematic", "gap")
+AGENT_PLANTS = (("williams2002", "none"), ("williams2002", "com_offset"), ("williams2002", "wheel_radius"),
+                ("williams2002", "wheel_liftoff"), ("optiodom_omni4", "none"), ("optiodom_omni4", "wheel_radius"))
+AGENT_STEPS = 1_000_000  # one fixed budget for every model: about 1.5 min of training on one core
+AGENT = ("--algo", "ppo", "--hyperparams", "ppo_residual", "--seed", "0", "--eval-freq", "0", "--no-progress")
 
 
 def nominal(robot: str) -> SimModel:
@@ -145,9 +156,9 @@ def write_logs(dataset: Path, logs: Path, n_wheels: int) -> list[Path]:
     return files
 
 
-def evaluate_on(model_path: Path, plant: dict | None, episodes: int) -> dict:
-    """``omni-gym evaluate`` of ekf-pid with ``model_path``'s kinematics on the plant (or on the model itself)."""
-    args = ["evaluate", "--policy", "ekf-pid", "--env", ENV, "--episodes", str(episodes), "--seed", str(FIRST_SEED),
+def evaluate_on(model_path: Path, plant: dict | None, episodes: int, policy: str = "ekf-pid") -> dict:
+    """``omni-gym evaluate`` of ``policy`` on ``model_path``'s id on the plant (or on the model itself)."""
+    args = ["evaluate", "--policy", policy, "--env", ENV, "--episodes", str(episodes), "--seed", str(FIRST_SEED),
             "--env-kwargs", json.dumps({"model": str(model_path), **TASK}), "--json"]
     if plant is not None:
         args += ["--plant", "second-generator", "--plant-model", str(plant["model"])]
@@ -210,6 +221,46 @@ def run_plant(case: dict, episodes: int) -> dict:
                                    "own": evaluate_on(path, None, episodes),
                                    "model": json.loads(path.read_text())}  # kept: agents can be designed on it later
         out["truth"] = {"model": truth, "extra": extra}
+    out["wall_s"] = time.perf_counter() - t0
+    return out
+
+
+def run_agent_task(task: tuple[dict, int, int]) -> dict:
+    """:func:`run_agents` of (plant record, episodes, steps): one backend task."""
+    return run_agents(*task)
+
+
+def run_agents(record: dict, episodes: int, steps: int) -> dict:
+    """A residual agent trained on each of the plant's models (a fixed budget), evaluated on the plant and on its
+    own model; ``record`` is the plant's line of the runs log (its models and its truth)."""
+    t0 = time.perf_counter()
+    out = {k: record[k] for k in ("robot", "kind", "seed")}
+    out.update(episodes=episodes, steps=steps, models={})
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        (tmp / "truth.json").write_text(json.dumps(record["truth"]["model"]))
+        plant = {"model": tmp / "truth.json", "extra": record["truth"]["extra"]}
+        trained: dict[str, str] = {}  # model text → the name whose agent it is
+        for name in MODELS:
+            if name not in record["models"]:
+                continue
+            text = json.dumps(record["models"][name]["model"], sort_keys=True)
+            if text in trained:  # the same model, seed and budget: the same agent
+                out["models"][name] = {**out["models"][trained[text]], "same_as": trained[text]}
+                continue
+            trained[text] = name
+            path = tmp / f"{name}.json"
+            path.write_text(text)
+            agent = tmp / f"agent-{name}"
+            t_train = time.perf_counter()
+            proc = _cli("train", *AGENT, "--env", ENV, "--timesteps", str(steps), "--out", str(agent),
+                        "--env-kwargs", json.dumps({"model": str(path), **TASK}))
+            if proc.returncode != 0:
+                raise RuntimeError(f"train failed: {proc.stderr.strip()[-400:]}")
+            train_s = time.perf_counter() - t_train
+            out["models"][name] = {"plant": evaluate_on(path, plant, episodes, policy=str(agent)),
+                                   "own": evaluate_on(path, None, episodes, policy=str(agent)),
+                                   "train_s": train_s}
     out["wall_s"] = time.perf_counter() - t0
     return out
 
@@ -304,22 +355,11 @@ INTRO = (
     "RMSE on the plant| ÷ RMSE on the plant.")
 
 
-def table(done: list[dict], rows: list[dict], pool: dict | None, command: str, episodes: int) -> str:
-    lines = ["# Does calibrating make a better controller for the robot? Plants the models were not made from", "",
-             f"`{command}`", "",
-             INTRO.format(env=ENV, episodes=episodes, first=FIRST_SEED), ""]
-    if pool is not None:
-        lines += [f"**Pooled over the {len(pool['plants'])} plants whose effect costs the nominal controller ≥ "
-                  f"{COST_MIN:.0%}** ({', '.join(pool['plants'])}; {pool['pairs']} paired episodes): (c) wins back "
-                  f"{pool['won_back']:.0%} [{pool['won_back_ci95'][0]:.0%}, {pool['won_back_ci95'][1]:.0%}] of the "
-                  f"loss; (c) ÷ (a) = {_r(pool['c_over_a'])}.", ""]
-    else:
-        lines += [f"No plant's effect costs the nominal controller {COST_MIN:.0%} or more: nothing to win back.", ""]
-    worst = max((r["c_over_a"]["ratio"] for r in rows), default=math.nan)
-    lines += [f"Largest (c) ÷ (a) on any plant: {worst:.2f}.", "",
-              "| robot | hidden | gap named | plant RMSE a / b / c | own-model RMSE a / b / c | c ÷ a | c ÷ b | cost | "
-              "won back | gap of a / c | success a / b / c |",
-              "|---|---|---|---|---|---|---|---|---|---|---|"]
+def plant_rows(rows: list[dict]) -> list[str]:
+    """The per-plant table (Markdown lines) of :func:`figures`' rows."""
+    lines = ["| robot | hidden | gap named | plant RMSE a / b / c | own-model RMSE a / b / c | c ÷ a | c ÷ b | cost | "
+             "won back | gap of a / c | success a / b / c |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         p, o, s, g = r["plant"], r["own"], r["success"], r["sim_to_real_gap"]
 
@@ -333,6 +373,58 @@ def table(done: list[dict], rows: list[dict], pool: dict | None, command: str, e
                      f"{three(p, lambda v: f'{1e3 * v:.2f}')} | {three(o, lambda v: f'{1e3 * v:.2f}')} | "
                      f"{_r(r['c_over_a'])} | {cb} | {cost} | {won} | "
                      f"{g['nominal']:.0%} / {g['gap']:.0%} | {three(s, lambda v: f'{v:.0%}')} |")
+    return lines
+
+
+def agent_section(done: list[dict], rows: list[dict], pool: dict | None, scripted: list[dict], steps: int) -> list[str]:
+    """The agents' table: the same figures as the scripted controllers', and each agent ÷ the ekf-pid designed on
+    the same model, on the plant."""
+    lines = ["", f"## Residual agents trained on each model ({steps:,} steps each, the same seed)", "",
+             "A residual PPO agent on `ekf-pid` (`omni-gym train --algo ppo --hyperparams ppo_residual`), trained on "
+             "each model's `" + ENV + "` with one fixed budget and evaluated as above; (a), (b), (c) now name the "
+             "agent trained on that model. *cost* and *won back* use the agent trained on the nominal model on the "
+             "robot's nothing-hidden plant.", ""]
+    if pool is not None:
+        lines += [f"**Pooled over the {len(pool['plants'])} agent plants whose effect costs the nominal agent ≥ "
+                  f"{COST_MIN:.0%}** ({', '.join(pool['plants'])}; {pool['pairs']} paired episodes): (c) wins back "
+                  f"{pool['won_back']:.0%} [{pool['won_back_ci95'][0]:.0%}, {pool['won_back_ci95'][1]:.0%}] of the "
+                  f"loss; (c) ÷ (a) = {_r(pool['c_over_a'])}.", ""]
+    else:
+        lines += [f"No agent plant's effect costs the nominal agent {COST_MIN:.0%} or more.", ""]
+    lines += plant_rows(rows)
+    by_plant = {(r["robot"], r["kind"]): r for r in scripted}
+    lines += ["", "Agent ÷ `ekf-pid` designed on the same model, on the plant (mean RMSE, 95 % paired interval):", "",
+              "| robot | hidden | (a) nominal | (b) kinematic | (c) gap | training time per agent |",
+              "|---|---|---|---|---|---|"]
+    for r in done:
+        s = by_plant[(r["robot"], r["kind"])]
+        cells = []
+        for name in MODELS:
+            if name not in r["models"]:
+                cells.append("–")
+                continue
+            agent = np.array(r["models"][name]["plant"]["rmse"])
+            pid = np.array(s["models"][name]["plant"]["rmse"])
+            cells.append(_r(ratio(agent, pid, r["seed"] + 2)))
+        train = [m["train_s"] for m in r["models"].values() if "train_s" in m]
+        lines.append(f"| {r['robot']} | {r['kind']} | {' | '.join(cells)} | {np.median(train) / 60:.1f} min |")
+    return lines
+
+
+def table(done: list[dict], rows: list[dict], pool: dict | None, command: str, episodes: int,
+          more: list[str] = ()) -> str:
+    lines = ["# Does calibrating make a better controller for the robot? Plants the models were not made from", "",
+             f"`{command}`", "",
+             INTRO.format(env=ENV, episodes=episodes, first=FIRST_SEED), ""]
+    if pool is not None:
+        lines += [f"**Pooled over the {len(pool['plants'])} plants whose effect costs the nominal controller ≥ "
+                  f"{COST_MIN:.0%}** ({', '.join(pool['plants'])}; {pool['pairs']} paired episodes): (c) wins back "
+                  f"{pool['won_back']:.0%} [{pool['won_back_ci95'][0]:.0%}, {pool['won_back_ci95'][1]:.0%}] of the "
+                  f"loss; (c) ÷ (a) = {_r(pool['c_over_a'])}.", ""]
+    else:
+        lines += [f"No plant's effect costs the nominal controller {COST_MIN:.0%} or more: nothing to win back.", ""]
+    worst = max((r["c_over_a"]["ratio"] for r in rows), default=math.nan)
+    lines += [f"Largest (c) ÷ (a) on any plant: {worst:.2f}.", "", *plant_rows(rows)]
     refused = sum(r["b_refused"] for r in rows)
     lines += ["", f"†: `omni-gym calibrate` refused on {refused} of {len(rows)} plants (values at its search bounds or "
               "dead reckoning far off after the fit: the wheels slip on carpet); the engineer then keeps the nominal "
@@ -343,12 +435,13 @@ def table(done: list[dict], rows: list[dict], pool: dict | None, command: str, e
     wall = [r["wall_s"] for r in done]
     lines += ["", f"Wall time per plant: median {np.median(wall) / 60:.1f} min, max {max(wall) / 60:.1f} min "
               f"(gap median {np.median([r['gap_wall_s'] for r in done]):.0f} s)."]
-    return "\n".join(lines) + "\n"
+    return "\n".join([*lines, *more]) + "\n"
 
 
-def plot(rows: list[dict], path: Path) -> None:
-    """One panel per robot type: (c) ÷ (a) and (c) ÷ (b) per plant with their 95 % paired intervals, the cost of
-    each effect under its name; below 1 the calibrated controller tracks the plant better."""
+def plot(rows: list[dict], path: Path, agent_rows: list[dict] = ()) -> None:
+    """One panel per robot type: (c) ÷ (a) and (c) ÷ (b) per plant with their 95 % paired intervals, the agents'
+    (c) ÷ (a) where agents were trained, the cost of each effect under its name; below 1 the calibrated
+    controller tracks the plant better."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -359,9 +452,18 @@ def plot(rows: list[dict], path: Path) -> None:
     for ax, rb in zip(axes[:, 0], robots, strict=True):
         sub = [r for r in rows if r["robot"] == rb]
         x = np.arange(len(sub))
-        for dx, key, colour, label in ((-0.12, "c_over_a", "#dd8452", "(c) gap's model ÷ (a) nominal"),
-                                       (0.12, "c_over_b", "#4c72b0", "(c) ÷ (b) kinematic calibration "
-                                                                     "(open: calibrate refused, b = a)")):
+        agents = {r["kind"]: r for r in agent_rows if r["robot"] == rb}
+        xa = np.array([i for i, r in enumerate(sub) if r["kind"] in agents])
+        if len(xa):
+            ag = [agents[sub[i]["kind"]]["c_over_a"] for i in xa]
+            ratio = np.array([a["ratio"] for a in ag])
+            ax.errorbar(xa + 0.22, ratio, yerr=[ratio - np.array([a["ci95"][0] for a in ag]),
+                                                 np.array([a["ci95"][1] for a in ag]) - ratio],
+                        fmt="^", color="#55a868", capsize=3, zorder=3,
+                        label="residual agent: (c) trained on gap's model ÷ (a) on the nominal")
+        for dx, key, colour, label in ((-0.22, "c_over_a", "#dd8452", "ekf-pid: (c) gap's model ÷ (a) nominal"),
+                                       (0.0, "c_over_b", "#4c72b0", "ekf-pid: (c) ÷ (b) kinematic calibration "
+                                                                    "(open: calibrate refused, b = a)")):
             ratio = np.array([r[key]["ratio"] for r in sub])
             lo = ratio - np.array([r[key]["ci95"][0] for r in sub])
             hi = np.array([r[key]["ci95"][1] for r in sub]) - ratio
@@ -378,12 +480,50 @@ def plot(rows: list[dict], path: Path) -> None:
         ax.set_ylabel("ratio of mean tracking RMSE\non the plant (< 1: better)")
         ax.set_title(f"{rb}: ekf-pid designed on gap's model against the others, driving the plant "
                      "(hidden effect → what gap named)", fontsize=9)
-        top = max(1.3, max(r[k]["ci95"][1] for r in sub for k in ("c_over_a", "c_over_b")) + 0.05)
-        ax.set_ylim(min(0.3, min(r[k]["ci95"][0] for r in sub for k in ("c_over_a", "c_over_b")) - 0.05), top)
+        shown = [r[k]["ci95"] for r in sub for k in ("c_over_a", "c_over_b")] + [a["c_over_a"]["ci95"]
+                                                                                for a in agents.values()]
+        ax.set_ylim(min(0.3, min(c[0] for c in shown) - 0.05), max(1.3, max(c[1] for c in shown) + 0.05))
         ax.legend(fontsize=7, loc="lower left")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def agents_phase(args: argparse.Namespace, done: list[dict], backend) -> list[dict]:
+    """The agents on every plant of :data:`AGENT_PLANTS` already logged: resumed from OUT/sim_to_real_agents.jsonl
+    (with ``--resume``, ``--report-only`` or ``--agents-only``), the rest trained now (none with ``--report-only``).
+    Each result carries its plant's record, so :func:`figures` reads it like a plant's."""
+    log = args.out / "sim_to_real_agents.jsonl"
+    plants_ = {(r["robot"], r["kind"]): r for r in done if (r["robot"], r["kind"]) in AGENT_PLANTS}
+    got: dict = {}
+    if (args.resume or args.report_only or args.agents_only) and log.exists():
+        for line in log.read_text().splitlines():
+            a = json.loads(line)
+            r = plants_.get((a["robot"], a["kind"]))
+            if r is not None and a["seed"] == r["seed"] and (a["episodes"], a["steps"]) == (args.episodes,
+                                                                                            args.agent_steps):
+                got[(a["robot"], a["kind"])] = a
+    elif log.exists():
+        log.unlink()
+    todo = [] if args.report_only else [r for key, r in plants_.items() if key not in got]
+    print(f"sim_to_real: agents on {len(todo)} plants ({len(got)} resumed)", file=sys.stderr, flush=True)
+    t0 = time.perf_counter()
+
+    def keep(_i: int, a: dict) -> None:
+        with log.open("a") as f:
+            f.write(json.dumps(a) + "\n")
+        got[(a["robot"], a["kind"])] = a
+        k, elapsed = len(got), time.perf_counter() - t0
+        print(f"sim_to_real: agents {k}/{len(plants_)} plants ({a['robot']} {a['kind']}), {elapsed / 60:.1f} min",
+              file=sys.stderr, flush=True)
+
+    if todo:
+        parallel_map(run_agent_task, [(r, args.episodes, args.agent_steps) for r in todo], backend, on_done=keep)
+    out = []
+    for key, r in sorted(plants_.items(), key=lambda kv: (ROBOTS.index(kv[0][0]), KINDS.index(kv[0][1]))):
+        if key in got:
+            out.append({**r, "models": got[key]["models"], "wall_s": got[key]["wall_s"]})
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -399,6 +539,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--report-only", action="store_true",
                     help="write the table, JSON and plot from the plants already in OUT/sim_to_real_runs.jsonl, "
                          "running none (a study stopped part way; the table says how many plants it covers)")
+    ap.add_argument("--agents-only", action="store_true",
+                    help="train and evaluate the agents on the plants already logged, running no new plant")
+    ap.add_argument("--no-agents", action="store_true", help="the scripted controllers only")
+    ap.add_argument("--agent-steps", type=int, default=AGENT_STEPS, help="training steps per agent (one budget)")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     log = args.out / "sim_to_real_runs.jsonl"
@@ -415,7 +559,7 @@ def main(argv: list[str] | None = None) -> int:
     seen = {(r["robot"], r["kind"], r["seed"]) for r in done}
     todo = [c for c in todo if (c["robot"], c["kind"], c["seed"]) not in seen]
     missing = len(todo)
-    if args.report_only:
+    if args.report_only or args.agents_only:
         todo = []
     print(f"sim_to_real: {len(todo)} plants to run ({len(done)} resumed), {args.jobs} at a time", file=sys.stderr,
           flush=True)
@@ -439,16 +583,21 @@ def main(argv: list[str] | None = None) -> int:
     if todo:
         parallel_map(run_task, [(c, args.episodes) for c in todo], backend, on_done=keep)
     done.sort(key=lambda r: (ROBOTS.index(r["robot"]), KINDS.index(r["kind"])))
+    agent_done = [] if args.no_agents else agents_phase(args, done, backend)
     rows = figures(done)
     pool = pooled(done, rows)
+    agent_rows = figures(agent_done)
+    agent_pool = pooled(agent_done, agent_rows)
     command = "python benchmarks/sim_to_real.py " + " ".join(record_args(argv if argv is not None else sys.argv[1:]))
-    text = table(done, rows, pool, command, args.episodes)
+    more = agent_section(agent_done, agent_rows, agent_pool, done, args.agent_steps) if agent_done else []
+    text = table(done, rows, pool, command, args.episodes, more)
     if missing and args.report_only:
         text = text.replace("\n\n", f"\n\n**Partial: {len(done)} of {len(done) + missing} plants** (the others did not "
                             "run; `--resume` runs them).\n\n", 1)
     (args.out / "sim_to_real.md").write_text(text)
-    (args.out / "sim_to_real.json").write_text(json.dumps({"plants": rows, "pooled": pool}, indent=1) + "\n")
-    plot(rows, args.out / "sim_to_real.png")
+    (args.out / "sim_to_real.json").write_text(json.dumps(
+        {"plants": rows, "pooled": pool, "agents": {"plants": agent_rows, "pooled": agent_pool}}, indent=1) + "\n")
+    plot(rows, args.out / "sim_to_real.png", agent_rows)
     print(text)
     return 0
 
