@@ -548,7 +548,7 @@ def main(argv: list[str] | None = None) -> int:
     log = args.out / "sim_to_real_runs.jsonl"
     todo = plants(tuple(args.kinds), tuple(args.robots), args.seed0)
     done: list[dict] = []
-    if (args.resume or args.report_only) and log.exists():
+    if (args.resume or args.report_only or args.agents_only) and log.exists():
         keys = {(c["robot"], c["kind"], c["seed"]) for c in todo}
         for line in log.read_text().splitlines():
             r = json.loads(line)
