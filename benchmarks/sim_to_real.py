@@ -583,6 +583,9 @@ def main(argv: list[str] | None = None) -> int:
     if todo:
         parallel_map(run_task, [(c, args.episodes) for c in todo], backend, on_done=keep)
     done.sort(key=lambda r: (ROBOTS.index(r["robot"]), KINDS.index(r["kind"])))
+    if not done:
+        raise SystemExit(f"sim_to_real.py: error: no plant of these kinds in {log} with --episodes "
+                         f"{args.episodes}; run the plants first (without --report-only or --agents-only)")
     agent_done = [] if args.no_agents else agents_phase(args, done, backend)
     rows = figures(done)
     pool = pooled(done, rows)

@@ -71,3 +71,42 @@ def test_a_cheap_effect_is_not_pooled():
     assert s2r.pooled([none, slight], rows) is None
     text = s2r.table([none, slight], rows, None, "cmd", 2)
     assert "nothing to win back" in text and not math.isnan(np.mean(rows[1]["c_over_a"]["ci95"]))
+
+
+def test_agents_run_on_six_plants_of_both_robots_among_the_drawn_ones():
+    drawn = {(p["robot"], p["kind"]) for p in s2r.plants()}
+    assert len(s2r.AGENT_PLANTS) >= 6 and set(s2r.AGENT_PLANTS) <= drawn
+    assert {robot for robot, _ in s2r.AGENT_PLANTS} == set(s2r.ROBOTS)
+    assert all((robot, "none") in s2r.AGENT_PLANTS for robot in s2r.ROBOTS)  # each robot's cost needs its baseline
+
+
+def _agents(record, a, c, train_s=90.0):
+    return {"robot": record["robot"], "kind": record["kind"], "seed": record["seed"], "episodes": len(a),
+            "steps": s2r.AGENT_STEPS, "wall_s": 300.0,
+            "models": {"nominal": {"plant": {"rmse": a, "success": [True] * len(a)},
+                                   "own": {"rmse": [0.001] * len(a), "success": [True] * len(a)}, "train_s": train_s},
+                       "gap": {"plant": {"rmse": c, "success": [True] * len(c)},
+                               "own": {"rmse": [0.001] * len(c), "success": [True] * len(c)}, "train_s": train_s}}}
+
+
+def test_the_agents_log_is_read_back_beside_its_plants_and_compared_with_ekf_pid(tmp_path):
+    import argparse
+    import json
+
+    none = _record("williams2002", "none", [0.002, 0.002], [0.002, 0.002], seed=7)
+    radius = _record("williams2002", "wheel_radius", [0.010, 0.006], [0.004, 0.004], seed=27)
+    lines = [_agents(none, [0.001, 0.001], [0.001, 0.001]), _agents(radius, [0.006, 0.002], [0.002, 0.002]),
+             {**_agents(radius, [1.0, 1.0], [1.0, 1.0]), "steps": 5}]  # another budget: not this study's
+    (tmp_path / "sim_to_real_agents.jsonl").write_text("".join(json.dumps(x) + "\n" for x in lines))
+    args = argparse.Namespace(out=tmp_path, resume=False, report_only=True, agents_only=False, episodes=2,
+                              agent_steps=s2r.AGENT_STEPS)
+    done = s2r.agents_phase(args, [none, radius], backend=None)  # report only: nothing runs
+    assert [r["kind"] for r in done] == ["none", "wheel_radius"]
+    assert done[1]["gap_effect"] == "wheel_radius" and done[1]["models"]["nominal"]["plant"]["rmse"] == [0.006, 0.002]
+    rows = s2r.figures(done)
+    assert rows[1]["cost"] == pytest.approx(0.004 / 0.001 - 1)
+    assert rows[1]["won_back"] == pytest.approx((0.004 - 0.002) / (0.004 - 0.001))
+    text = "\n".join(s2r.agent_section(done, rows, s2r.pooled(done, rows), [none, radius], s2r.AGENT_STEPS))
+    # agent ÷ ekf-pid on the same model and plant: nominal 0.004 ÷ 0.008 = 0.50, gap 0.002 ÷ 0.004 = 0.50
+    assert "| williams2002 | wheel_radius | 0.50 [" in text and "1.5 min |" in text
+    assert "1,000,000 steps" in text
