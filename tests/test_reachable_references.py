@@ -23,7 +23,7 @@ from omni_gym.envs.references import _sampler, allowed_use, draw_reference, draw
 from omni_gym.physics.friction import SURFACES
 from omni_gym.physics.model import SimModel
 from omni_gym.physics.robot import robot_preset
-from omni_gym.physics.traction import reference_use
+from omni_gym.physics.traction import TractionLimiter, reference_use, reference_use_arrays
 
 
 def _limited(**kwargs):
@@ -50,6 +50,28 @@ def test_fitting_keeps_the_draws_and_the_path():
     assert raw_use.peak > allowed_use(raw_use.steady, 0.2)
     # Slower, not different: the peak speed falls by the stretch.
     assert np.max(np.hypot(*ref.velocity[:, :2].T)) < np.max(np.hypot(*vel[:, :2].T))
+
+
+@pytest.mark.parametrize("robot,surface,trajectory", [("williams2002", "carpet", "waypoints"),
+                                                      ("phunopas2018", "carpet", "circle"),
+                                                      ("optiodom_omni4", "grip", "figure_eight")])
+@pytest.mark.parametrize("mode", ["moving", "static"])
+def test_the_compiled_use_equals_the_array_version(robot, surface, trajectory, mode):
+    # The compiled pass repeats the limiter's own formulas sample by sample; only the order of a few sums
+    # differs, so the two agree to rounding (1e-12 relative: a few ulps over sums of 3 to 8 terms).
+    cfg = make_config(robot=robot, surface=surface, trajectory=trajectory, friction="initial", ref_traction=0.0)
+    model = cfg.base_model()
+    limiter = TractionLimiter(model.robot, model.surface, mode=mode, com=model.com)
+    for seed in range(3):
+        pose, vel = draw_reference(cfg, np.random.default_rng(seed), cfg.episode_steps + 1)
+        got, want = reference_use(limiter, pose, vel, cfg.control_dt), reference_use_arrays(limiter, pose, vel,
+                                                                                            cfg.control_dt)
+        assert got.peak == pytest.approx(want.peak, rel=1e-12) and want.peak > 0.01  # a reference that asks
+        assert got.steady == pytest.approx(want.steady, rel=1e-12, abs=1e-15)
+        if mode == "static":  # no rolling resistance in the static set
+            assert got.steady == want.steady == 0.0
+    with pytest.raises(ValueError, match="shape"):
+        reference_use(limiter, pose[:, :2], vel, cfg.control_dt)
 
 
 def test_zero_draws_the_reference_as_it_is_and_reports_its_use():

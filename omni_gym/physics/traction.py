@@ -53,14 +53,15 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from omni_gym.physics.friction import Surface
 from omni_gym.physics.loads import wheel_loads
 from omni_gym.physics.robot import GRAVITY, RobotSpec
 
-__all__ = ["TRACTION_MODES", "ReferenceUse", "TractionLimiter", "body_twists", "reference_use", "wrench_facets",
-           "wrench_generators"]
+__all__ = ["TRACTION_MODES", "ReferenceUse", "TractionLimiter", "body_twists", "reference_use", "reference_use_arrays",
+           "wrench_facets", "wrench_generators"]
 
 
 def _cross2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -278,9 +279,63 @@ class ReferenceUse:
 
 
 def reference_use(limiter: TractionLimiter, pose: np.ndarray, velocity: np.ndarray, dt: float) -> ReferenceUse:
-    """:class:`ReferenceUse` of a reference sampled every ``dt`` [s] from rest (pose, world velocity (K, 3))."""
+    """:class:`ReferenceUse` of a reference sampled every ``dt`` [s] from rest (pose, world velocity (K, 3)).
+
+    One compiled pass over the samples (every environment reset measures its reference: the array version,
+    :func:`reference_use_arrays`, took 80 % of a reset); the same formulas, equal to it within rounding."""
+    pose = np.ascontiguousarray(pose, dtype=float)
+    velocity = np.ascontiguousarray(velocity, dtype=float)
+    if pose.ndim != 2 or pose.shape[1] != 3 or velocity.shape != pose.shape:
+        raise ValueError(f"pose and velocity must both have shape (K, 3), got {pose.shape} and {velocity.shape}")
+    peak, steady = _reference_use_kernel(pose, velocity, float(dt), limiter.normals, limiter.offsets,
+                                         limiter._transverse, limiter._positions, limiter._rolling,
+                                         float(limiter.surface.k), limiter.mode == "moving")
+    return ReferenceUse(peak=peak, steady=steady)
+
+
+def reference_use_arrays(limiter: TractionLimiter, pose: np.ndarray, velocity: np.ndarray,
+                         dt: float) -> ReferenceUse:
+    """:func:`reference_use` written with the limiter's own array methods (its reference in the tests)."""
     twist = body_twists(pose, velocity, dt)
     prev = np.vstack([np.zeros((1, 3)), twist[:-1]])  # the reference starts at rest
     acc = limiter.accelerations(twist, prev, dt)
     steady = limiter.utilisation(np.zeros_like(twist), twist) if limiter.mode == "moving" else np.zeros(1)
     return ReferenceUse(peak=float(np.max(limiter.utilisation(acc, prev))), steady=float(np.max(steady)))
+
+
+@numba.njit(cache=True)
+def _reference_use_kernel(pose, velocity, dt, normals, offsets, transverse, positions, rolling, k, moving):
+    """(peak, steady) of :func:`reference_use_arrays`, sample by sample: body twist at the mid-period heading,
+    the boundary's acceleration from the previous twist (rest before the first), the facet shares around the
+    previous twist's rolling resistance ("moving"), and the resistance of each twist alone (steady)."""
+    n_facets, n_wheels = normals.shape[0], positions.shape[0]
+    shift_prev = np.zeros(n_facets)  # the previous twist's transverse wrench on each facet (rest: none)
+    shift_now = np.zeros(n_facets)
+    pvx, pvy, pw = 0.0, 0.0, 0.0
+    peak, steady = 0.0, 0.0
+    for i in range(pose.shape[0]):
+        mid = pose[i, 2] + 0.5 * velocity[i, 2] * dt
+        c, s = math.cos(mid), math.sin(mid)
+        vx = c * velocity[i, 0] + s * velocity[i, 1]
+        vy = -s * velocity[i, 0] + c * velocity[i, 1]
+        w = velocity[i, 2]
+        hn, hp = 0.5 * dt * w, -0.5 * dt * pw
+        ax = (math.cos(hn) * vx - math.sin(hn) * vy - math.cos(hp) * pvx + math.sin(hp) * pvy) / dt
+        ay = (math.sin(hn) * vx + math.cos(hn) * vy - math.sin(hp) * pvx - math.cos(hp) * pvy) / dt
+        al = (w - pw) / dt
+        for f in range(n_facets):
+            u = abs(ax * normals[f, 0] + ay * normals[f, 1] + al * normals[f, 2] - shift_prev[f]) / offsets[f]
+            peak = max(peak, u)
+        if moving:
+            shift_now[:] = 0.0
+            for j in range(n_wheels):
+                ux = vx - w * positions[j, 1]
+                uy = vy + w * positions[j, 0]
+                share = (2.0 / math.pi) * math.atan(k * (ux * rolling[j, 0] + uy * rolling[j, 1]))
+                for f in range(n_facets):
+                    shift_now[f] -= share * transverse[j, f]
+            for f in range(n_facets):
+                steady = max(steady, abs(shift_now[f]) / offsets[f])
+            shift_prev[:] = shift_now
+        pvx, pvy, pw = vx, vy, w
+    return peak, steady
