@@ -29,7 +29,7 @@ robot's nothing-hidden plant, same seeds and references) and how much of it (c) 
 gap |RMSE on the model − RMSE on the plant| ÷ RMSE on the plant. Pooled over the plants whose effect costs at
 least 20 %: the share won back and (c) ÷ (a), paired over (plant, seed).
 
-    python benchmarks/sim_to_real.py --jobs 2 --out benchmarks/results          # about 1.5 h on 2 cores
+    python benchmarks/sim_to_real.py --jobs 2 --out benchmarks/results          # about 2.5 h on 2 cores
     python benchmarks/sim_to_real.py --jobs 2 --out benchmarks/results --resume  # after an interruption
     python benchmarks/sim_to_real.py --ray HOST:PORT --out benchmarks/results    # plants as Ray tasks on a cluster
     python benchmarks/sim_to_real.py --kinds none com_offset --episodes 2 --out /tmp/s2r  # a quick look
@@ -379,7 +379,7 @@ def plant_rows(rows: list[dict]) -> list[str]:
 def agent_section(done: list[dict], rows: list[dict], pool: dict | None, scripted: list[dict], steps: int) -> list[str]:
     """The agents' table: the same figures as the scripted controllers', and each agent ÷ the ekf-pid designed on
     the same model, on the plant."""
-    lines = ["", f"## Residual agents trained on each model ({steps:,} steps each, the same seed)", "",
+    lines = [f"## Residual agents trained on each model ({steps:,} steps each, the same seed)", "",
              "A residual PPO agent on `ekf-pid` (`omni-gym train --algo ppo --hyperparams ppo_residual`), trained on "
              "each model's `" + ENV + "` with one fixed budget and evaluated as above; (a), (b), (c) now name the "
              "agent trained on that model. *cost* and *won back* use the agent trained on the nominal model on the "
@@ -391,7 +391,10 @@ def agent_section(done: list[dict], rows: list[dict], pool: dict | None, scripte
                   f"loss; (c) ÷ (a) = {_r(pool['c_over_a'])}.", ""]
     else:
         lines += [f"No agent plant's effect costs the nominal agent {COST_MIN:.0%} or more.", ""]
-    lines += plant_rows(rows)
+    worst = max(rows, key=lambda r: r["c_over_a"]["ratio"])
+    lines += [f"Largest (c) ÷ (a): {_r(worst['c_over_a'])} ({worst['robot']} {worst['kind']}). Each model's agent is "
+              "one training run of one seed, so a ratio also holds the spread between training runs, which this "
+              "table does not measure.", "", *plant_rows(rows)]
     by_plant = {(r["robot"], r["kind"]): r for r in scripted}
     lines += ["", "Agent ÷ `ekf-pid` designed on the same model, on the plant (mean RMSE, 95 % paired interval):", "",
               "| robot | hidden | (a) nominal | (b) kinematic | (c) gap | training time per agent |",
@@ -408,6 +411,49 @@ def agent_section(done: list[dict], rows: list[dict], pool: dict | None, scripte
             cells.append(_r(ratio(agent, pid, r["seed"] + 2)))
         train = [m["train_s"] for m in r["models"].values() if "train_s" in m]
         lines.append(f"| {r['robot']} | {r['kind']} | {' | '.join(cells)} | {np.median(train) / 60:.1f} min |")
+    return lines
+
+
+def goal_lines(done: list[dict], rows: list[dict], pool: dict | None, agent_done: list[dict] = (),
+               jobs: int = 2) -> list[str]:
+    """The benchmark's goals, each met or missed with the figure that decides it."""
+    def verdict(ok: bool) -> str:
+        return "**met**" if ok else "**missed**"
+
+    lines = ["## Goals", ""]
+    if pool is not None:
+        lo = pool["won_back_ci95"][0]
+        lines.append(f"- (c) wins back at least half of what the effects cost, pooled (interval's lower end): "
+                     f"{pool['won_back']:.0%} [{lo:.0%}, {pool['won_back_ci95'][1]:.0%}]: {verdict(lo >= 0.5)}")
+        hi = pool["c_over_a"]["ci95"][1]
+        lines.append(f"- (c) ÷ (a) at most 0.8 pooled over those plants: {_r(pool['c_over_a'])}: {verdict(hi <= 0.8)}")
+    worst = max(rows, key=lambda r: r["c_over_a"]["ratio"])
+    lines.append(f"- (c) ÷ (a) never above 1.05 on any plant: largest {worst['c_over_a']['ratio']:.2f} "
+                 f"({worst['robot']} {worst['kind']}): {verdict(worst['c_over_a']['ratio'] <= 1.05)}")
+    none = [r for r in rows if r["kind"] == "none"]
+    lines.append("- within 1.05 on the nothing-hidden plants: "
+                 + ", ".join(f"{r['robot']} {r['c_over_a']['ratio']:.2f}" for r in none)
+                 + f": {verdict(all(r['c_over_a']['ratio'] <= 1.05 for r in none))}")
+    named = [r for r in rows if r["kind"] not in ("none", *OUTSIDE) and r["gap_effect"] == r["kind"]]
+    over = [r for r in named if r["sim_to_real_gap"]["gap"] > 0.20]
+    lines.append(f"- sim-to-real gap of `gap`'s model at most 20 % on every plant where `gap` named the hidden "
+                 f"effect: {len(named) - len(over)} of {len(named)}"
+                 + "".join(f"; {r['robot']} {r['kind']} {r['sim_to_real_gap']['gap']:.0%} (nominal model "
+                           f"{r['sim_to_real_gap']['nominal']:.0%})" for r in over) + f": {verdict(not over)}")
+    wall = (sum(r["wall_s"] for r in done) + sum(r["wall_s"] for r in agent_done)) / jobs
+    lines.append(f"- the whole benchmark in at most 3 h with `--jobs {jobs}`: about {wall / 3600:.1f} h (the plants' "
+                 f"and agents' wall times ÷ {jobs}, on a loaded 2-core machine): {verdict(wall <= 3 * 3600)}")
+    accepted = [r for r in done if "kinematic" in r["models"]]
+    if accepted:
+        worse = [_mean(r["models"]["kinematic"]["plant"]["rmse"]) / _mean(r["models"]["nominal"]["plant"]["rmse"])
+                 for r in accepted]
+        scales = [v for r in accepted for v in r["models"]["kinematic"]["model"].get("effects", {})
+                  .get("wheel_radius", {}).get("scale", [])]
+        lines += ["", f"Where `calibrate` accepted a calibration ({len(accepted)} plants: "
+                  + ", ".join(f"{r['robot']} {r['kind']}" for r in accepted) + f"), `ekf-pid` on it tracked the plant "
+                  f"{min(worse):.1f}–{max(worse):.1f}× worse than on the nominal model"
+                  + (f": its kinematics absorb the carpet's slip (wheel radius scales {min(scales):.2f}–"
+                     f"{max(scales):.2f})" if scales else "") + "."]
     return lines
 
 
@@ -441,14 +487,16 @@ def table(done: list[dict], rows: list[dict], pool: dict | None, command: str, e
 def plot(rows: list[dict], path: Path, agent_rows: list[dict] = ()) -> None:
     """One panel per robot type: (c) ÷ (a) and (c) ÷ (b) per plant with their 95 % paired intervals, the agents'
     (c) ÷ (a) where agents were trained, the cost of each effect under its name; below 1 the calibrated
-    controller tracks the plant better."""
+    controller tracks the plant better. One legend for both panels, above them (it never hides a point)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
+    colours = {"c_over_a": "#dd8452", "c_over_b": "#4c72b0", "agent": "#55a868"}
     robots = [rb for rb in ROBOTS if any(r["robot"] == rb for r in rows)]
-    fig, axes = plt.subplots(len(robots), 1, figsize=(10, 3.4 * len(robots)), squeeze=False)
+    fig, axes = plt.subplots(len(robots), 1, figsize=(12, 3.3 * len(robots) + 0.9), squeeze=False)
     for ax, rb in zip(axes[:, 0], robots, strict=True):
         sub = [r for r in rows if r["robot"] == rb]
         x = np.arange(len(sub))
@@ -459,32 +507,37 @@ def plot(rows: list[dict], path: Path, agent_rows: list[dict] = ()) -> None:
             ratio = np.array([a["ratio"] for a in ag])
             ax.errorbar(xa + 0.22, ratio, yerr=[ratio - np.array([a["ci95"][0] for a in ag]),
                                                  np.array([a["ci95"][1] for a in ag]) - ratio],
-                        fmt="^", color="#55a868", capsize=3, zorder=3,
-                        label="residual agent: (c) trained on gap's model ÷ (a) on the nominal")
-        for dx, key, colour, label in ((-0.22, "c_over_a", "#dd8452", "ekf-pid: (c) gap's model ÷ (a) nominal"),
-                                       (0.0, "c_over_b", "#4c72b0", "ekf-pid: (c) ÷ (b) kinematic calibration "
-                                                                    "(open: calibrate refused, b = a)")):
+                        fmt="^", color=colours["agent"], capsize=3, zorder=3)
+        for dx, key in ((-0.22, "c_over_a"), (0.0, "c_over_b")):
             ratio = np.array([r[key]["ratio"] for r in sub])
             lo = ratio - np.array([r[key]["ci95"][0] for r in sub])
             hi = np.array([r[key]["ci95"][1] for r in sub]) - ratio
             refused = np.array([key == "c_over_b" and r["b_refused"] for r in sub])
-            ax.errorbar(x + dx, ratio, yerr=[lo, hi], fmt="none", ecolor=colour, capsize=3)
-            ax.scatter(x[~refused] + dx, ratio[~refused], color=colour, zorder=3,
-                       label=label if (~refused).any() else None)
-            ax.scatter(x[refused] + dx, ratio[refused], facecolors="none", edgecolors=colour, zorder=3,
-                       label=label if refused.any() else None)
+            ax.errorbar(x + dx, ratio, yerr=[lo, hi], fmt="none", ecolor=colours[key], capsize=3)
+            ax.scatter(x[~refused] + dx, ratio[~refused], color=colours[key], zorder=3)
+            ax.scatter(x[refused] + dx, ratio[refused], facecolors="white", edgecolors=colours[key], zorder=3)
         ax.axhline(1.0, color="k", lw=0.8)
         ax.axhline(0.8, color="k", lw=0.6, ls="--")
         costs = ["" if r.get("cost") is None else f"\ncost {r['cost']:+.0%}" for r in sub]
-        ax.set_xticks(x, [f"{r['kind']}\n→ {r['gap_effect']}{c}" for r, c in zip(sub, costs, strict=True)], fontsize=7)
+        names = [r["kind"].replace("_", "_\n", 1) if len(r["kind"]) > 11 else r["kind"] for r in sub]
+        ax.set_xticks(x, [f"{n}\n→ {r['gap_effect']}{c}" for n, r, c in zip(names, sub, costs, strict=True)],
+                      fontsize=7)
         ax.set_ylabel("ratio of mean tracking RMSE\non the plant (< 1: better)")
-        ax.set_title(f"{rb}: ekf-pid designed on gap's model against the others, driving the plant "
-                     "(hidden effect → what gap named)", fontsize=9)
+        ax.set_title(f"{rb}: hidden effect → what gap named, and what the effect costs the nominal ekf-pid",
+                     fontsize=9)
         shown = [r[k]["ci95"] for r in sub for k in ("c_over_a", "c_over_b")] + [a["c_over_a"]["ci95"]
                                                                                 for a in agents.values()]
         ax.set_ylim(min(0.3, min(c[0] for c in shown) - 0.05), max(1.3, max(c[1] for c in shown) + 0.05))
-        ax.legend(fontsize=7, loc="lower left")
-    fig.tight_layout()
+    handles = [Line2D([], [], ls="", marker="o", color=colours["c_over_a"],
+                      label="ekf-pid: (c) on gap's model ÷ (a) on the nominal"),
+               Line2D([], [], ls="", marker="o", color=colours["c_over_b"],
+                      label="ekf-pid: (c) ÷ (b) on the kinematic calibration"),
+               Line2D([], [], ls="", marker="o", markerfacecolor="white", color=colours["c_over_b"],
+                      label="(c) ÷ (b) where calibrate refused (b = a)"),
+               Line2D([], [], ls="", marker="^", color=colours["agent"],
+                      label="residual agent: (c) trained on gap's model ÷ (a) on the nominal")]
+    fig.legend(handles=handles, loc="upper center", ncol=2, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.75 / fig.get_figheight()))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -593,7 +646,13 @@ def main(argv: list[str] | None = None) -> int:
     agent_pool = pooled(agent_done, agent_rows)
     command = "python benchmarks/sim_to_real.py " + " ".join(record_args(argv if argv is not None else sys.argv[1:]))
     more = agent_section(agent_done, agent_rows, agent_pool, done, args.agent_steps) if agent_done else []
+    more = [*goal_lines(done, rows, pool, agent_done, max(args.jobs, 1)), "", *more]
     text = table(done, rows, pool, command, args.episodes, more)
+    if args.report_only:
+        text = text.replace("\n\n", "\n\nRendered from the logs `sim_to_real_runs.jsonl` and "
+                            "`sim_to_real_agents.jsonl` beside this table, written by "
+                            "`python benchmarks/sim_to_real.py --jobs 2 --out benchmarks/results` (resumed with "
+                            "`--resume` where a session ended).\n\n", 1)
     if missing and args.report_only:
         text = text.replace("\n\n", f"\n\n**Partial: {len(done)} of {len(done) + missing} plants** (the others did not "
                             "run; `--resume` runs them).\n\n", 1)
