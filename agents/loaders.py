@@ -3,13 +3,15 @@
 Each loader says whether it takes a spec (:meth:`PolicyLoader.accepts`, from the spec alone: a name or
 what is on disk) and builds ``(env, policy)`` for it (:meth:`PolicyLoader.load`). :data:`LOADERS` is asked
 in order; the first that accepts builds. The order matters where two could take the same folder: an
-RLlib model directory also holds a ``meta.json``, so the RLlib loader comes before SB3's model directory.
+RLlib model directory and a gated controller also hold a ``meta.json``, so their loaders come before SB3's model
+directory.
 
 =================  =================================================================  ==========================
 loader             accepts                                                            builds with
 =================  =================================================================  ==========================
 scripted           a name of :data:`agents.policies.POLICIES`                          :func:`make_policy`
 rllib              our ``--backend rllib`` directory or a bare RLlib checkpoint        :mod:`agents.rllib.policy`
+gated              a gated controller's directory (``meta.json`` with kind "gated")    :mod:`agents.gated`
 sb3-model          our model directory (``meta.json`` + model zip)                    :mod:`agents.sb3_policy`
 rl-zoo             any other directory (an RL Zoo output folder)                      :mod:`agents.sb3_policy`
 sb3-zip            a path ending in ``.zip`` (a plain SB3 model; it may not exist:    :mod:`agents.sb3_policy`
@@ -27,6 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
+from agents.gated import build as build_gated
+from agents.gated import is_gated
 from agents.policies import POLICIES, make_policy
 from agents.rllib.policy import build as build_rllib
 from agents.rllib.policy import is_rllib_model
@@ -93,6 +97,23 @@ class RLlibLoader:
 
 
 @dataclass(frozen=True)
+class GatedLoader:
+    """A gated controller (:mod:`agents.gated`): ekf-pid, then its student; the model options apply to the
+    student."""
+
+    name: str = "gated"
+
+    def accepts(self, spec: str) -> bool:
+        return is_gated(spec)
+
+    def check_options(self, spec: str, options: ModelOptions | None) -> None:
+        """Nothing here: the options are the student's, checked when it loads."""
+
+    def load(self, spec: str, env_id: str, env_kwargs: dict | None, options: ModelOptions | None):
+        return build_gated(spec, env_id, env_kwargs, options)
+
+
+@dataclass(frozen=True)
 class SB3Loader:
     """An SB3 model of one ``kind`` ("sb3-model", "rl-zoo" or "sb3-zip"; :func:`agents.sb3_policy.resolve`
     reads each); the model options are checked against its files there."""
@@ -114,8 +135,8 @@ class SB3Loader:
         return build(spec, env_id, env_kwargs, options)
 
 
-LOADERS: tuple[PolicyLoader, ...] = (ScriptedLoader(), RLlibLoader(), SB3Loader("sb3-model"), SB3Loader("rl-zoo"),
-                                     SB3Loader("sb3-zip"))
+LOADERS: tuple[PolicyLoader, ...] = (ScriptedLoader(), RLlibLoader(), GatedLoader(), SB3Loader("sb3-model"),
+                                     SB3Loader("rl-zoo"), SB3Loader("sb3-zip"))
 
 
 def find_loader(spec: str) -> PolicyLoader:

@@ -212,14 +212,16 @@ def main(argv: list[str] | None = None) -> int:
     import gymnasium as gym
 
     import omni_gym  # noqa: F401  (registers the ids)
+    from agents.gated import is_gated
     from agents.sb3_policy import read_meta
 
     env_ids = args.envs or [e for e in ENV_IDS if e in gym.registry]
     bad = [p for p in args.policies if p not in SCRIPTED]
     if args.episodes < 2 or args.seed < 0 or args.workers < 1 or bad:
         ap.error(f"--episodes must be >= 2, --seed >= 0, --workers >= 1 and --policies among {', '.join(SCRIPTED)}")
+    # The gated controllers (ekf-pid, then a student) have their own table: benchmarks/gated.py.
     models = args.models if args.models is not None else sorted(str(p) for p in Path("agents/models").iterdir()
-                                                                if (p / "meta.json").is_file())
+                                                                if (p / "meta.json").is_file() and not is_gated(p))
     try:
         metas = {m: read_meta(m) for m in models}
     except ValueError as exc:

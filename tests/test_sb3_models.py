@@ -13,6 +13,7 @@ import torch
 import yaml
 
 from agents.evaluate import evaluate
+from agents.gated import is_gated
 from agents.sb3_policy import ModelOptions, build, read_meta
 from agents.train import load_hyperparams, train
 from omni_gym.cli import main
@@ -20,7 +21,7 @@ from omni_gym.cli import main
 torch.set_num_threads(1)
 
 MODELS = sorted(p for p in (Path(__file__).resolve().parents[1] / "agents" / "models").glob("*")
-                if (p / "meta.json").is_file())
+                if (p / "meta.json").is_file() and not is_gated(p))  # gated controllers: tests/test_gated.py
 ENV = "OmniPathFollow-Phunopas-v0"
 SHORT = {"episode_seconds": 2.0}
 
