@@ -214,6 +214,12 @@ def export(spec: str, out: str | Path, env_id: str | None = None, env_kwargs: di
     loader = find_loader(spec)
     if loader.name == "scripted":
         raise ValueError(f"policy {spec!r} is a scripted controller, not a trained network: nothing to export")
+    if loader.name == "gated":  # two controllers and a gate: only the network half is a network
+        from agents.gated import read_gate
+
+        raise ValueError(f"{spec}: a gated controller is ekf-pid and a student with a gate between them, not one "
+                         f"network; export its student ({read_gate(spec).student.name}) and run the gate of "
+                         "agents/gated.py beside it")
     loader.check_options(spec, options)
     if env_id is None and loader.name in ("sb3-model", "rllib"):
         env_id = _recorded_env(spec)

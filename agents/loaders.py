@@ -10,6 +10,7 @@ directory.
 loader             accepts                                                            builds with
 =================  =================================================================  ==========================
 scripted           a name of :data:`agents.policies.POLICIES`                          :func:`make_policy`
+recommended        the name ``recommended``: per id, a gated controller or ekf-pid      :mod:`agents.recommended`
 rllib              our ``--backend rllib`` directory or a bare RLlib checkpoint        :mod:`agents.rllib.policy`
 gated              a gated controller's directory (``meta.json`` with kind "gated")    :mod:`agents.gated`
 sb3-model          our model directory (``meta.json`` + model zip)                    :mod:`agents.sb3_policy`
@@ -32,6 +33,8 @@ from typing import Protocol
 from agents.gated import build as build_gated
 from agents.gated import is_gated
 from agents.policies import POLICIES, make_policy
+from agents.recommended import NAME as RECOMMENDED
+from agents.recommended import resolve as resolve_recommended
 from agents.rllib.policy import build as build_rllib
 from agents.rllib.policy import is_rllib_model
 from agents.rollout import make_env
@@ -97,6 +100,24 @@ class RLlibLoader:
 
 
 @dataclass(frozen=True)
+class RecommendedLoader:
+    """``recommended``: the controller :func:`agents.recommended.resolve` names for the id, built by its loader."""
+
+    name: str = "recommended"
+
+    def accepts(self, spec: str) -> bool:
+        return spec == RECOMMENDED
+
+    def check_options(self, spec: str, options: ModelOptions | None) -> None:
+        if _given(options):
+            raise ValueError(f"{_given(options)[0]} applies to a trained model, not to 'recommended'")
+
+    def load(self, spec: str, env_id: str, env_kwargs: dict | None, options: ModelOptions | None):
+        target = resolve_recommended(env_id)
+        return find_loader(target).load(target, env_id, env_kwargs, options)
+
+
+@dataclass(frozen=True)
 class GatedLoader:
     """A gated controller (:mod:`agents.gated`): ekf-pid, then its student; the model options apply to the
     student."""
@@ -135,8 +156,8 @@ class SB3Loader:
         return build(spec, env_id, env_kwargs, options)
 
 
-LOADERS: tuple[PolicyLoader, ...] = (ScriptedLoader(), RLlibLoader(), GatedLoader(), SB3Loader("sb3-model"),
-                                     SB3Loader("rl-zoo"), SB3Loader("sb3-zip"))
+LOADERS: tuple[PolicyLoader, ...] = (ScriptedLoader(), RecommendedLoader(), RLlibLoader(), GatedLoader(),
+                                     SB3Loader("sb3-model"), SB3Loader("rl-zoo"), SB3Loader("sb3-zip"))
 
 
 def find_loader(spec: str) -> PolicyLoader:
@@ -149,4 +170,5 @@ def find_loader(spec: str) -> PolicyLoader:
     if os.sep in spec or "/" in spec or spec.startswith("."):
         raise ValueError(f"policy {spec!r}: no such folder or file (a model directory, an RL Zoo folder, an "
                          f"SB3 .zip or an RLlib checkpoint)")
-    raise ValueError(f"{POLICIES.unknown(spec)} or a saved model path (no such folder or file either)")
+    raise ValueError(f"{POLICIES.unknown(spec)}, '{RECOMMENDED}' or a saved model path (no such folder or file "
+                     "either)")

@@ -60,9 +60,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     ev = sub.add_parser("evaluate", help="evaluate a policy on held-out seeds (mean and 95%% CI per metric)")
     ev.add_argument("--policy", required=True,
-                    help="open-loop, odometry-pid, ekf-pid, ekf-pid-traction, or a trained model: our model "
-                         "directory (meta.json), an RL Zoo output folder (logs/ALGO/ENV_1), a plain SB3 .zip or "
-                         "an RLlib checkpoint folder (rllib_checkpoint.json)")
+                    help="open-loop, odometry-pid, ekf-pid, ekf-pid-traction, recommended (per id: the controller "
+                         "to deploy, docs/agents.md), or a trained model: our model directory (meta.json), a gated "
+                         "controller, an RL Zoo output folder (logs/ALGO/ENV_1), a plain SB3 .zip or an RLlib "
+                         "checkpoint folder (rllib_checkpoint.json)")
     ev.add_argument("--env", required=True, help="environment id, e.g. OmniPathFollow-Phunopas-v0")
     ev.add_argument("--episodes", type=int, required=True, help="number of episodes, 1 to 100000")
     ev.add_argument("--seed", type=int, default=None,

@@ -29,13 +29,18 @@ def test_each_model_layout_goes_to_its_loader(tmp_path):
     rllib = _dir(tmp_path, "rllib", {"meta.json": json.dumps({"backend": "rllib", "model": "ckpt"})})
     bare = _dir(tmp_path, "bare", {CHECKPOINT_MARKER: "{}"})
     zoo = _dir(tmp_path, "zoo", {})
+    gate = {"kind": "gated", "student": "sb3", "threshold_m": 0.003}
+    gated = _dir(tmp_path, "gated", {"meta.json": json.dumps(gate)})
     assert find_loader(sb3).name == "sb3-model"
+    assert find_loader(gated).name == "gated"  # has a meta.json too: the gated loader is asked before SB3's
+    assert find_loader("recommended").name == "recommended"
     assert find_loader(rllib).name == "rllib"  # has a meta.json too: the RLlib loader is asked first
     assert find_loader(bare).name == "rllib"
     assert find_loader(zoo).name == "rl-zoo"
     # A .zip that is not there still goes to SB3, whose loader names the missing file.
     assert find_loader(str(tmp_path / "absent.zip")).name == "sb3-zip"
-    assert [loader.name for loader in LOADERS] == ["scripted", "rllib", "sb3-model", "rl-zoo", "sb3-zip"]
+    assert [loader.name for loader in LOADERS] == ["scripted", "recommended", "rllib", "gated", "sb3-model", "rl-zoo",
+                                                  "sb3-zip"]
 
 
 def test_a_spec_no_loader_takes_gets_one_line_saying_what_it_is_not(tmp_path):
@@ -48,7 +53,7 @@ def test_a_spec_no_loader_takes_gets_one_line_saying_what_it_is_not(tmp_path):
     with pytest.raises(ValueError) as exc:
         find_loader("ekf_pid")
     assert str(exc.value) == ("unknown policy 'ekf_pid'; choose one of open-loop, odometry-pid, ekf-pid, "
-                              "ekf-pid-traction or a saved model path (no such folder or file either)")
+                              "ekf-pid-traction, 'recommended' or a saved model path (no such folder or file either)")
 
 
 def test_model_options_apply_to_sb3_models_only():
