@@ -355,6 +355,16 @@ INTRO = (
     "RMSE on the plant| ÷ RMSE on the plant.")
 
 
+def pooled_line(pool: dict | None, plants: str, nominal: str) -> str:
+    """The pooled sentence of :func:`pooled`'s figures (or that nothing costs enough to pool)."""
+    if pool is None:
+        return f"No {plants[:-1]}'s effect costs {nominal} {COST_MIN:.0%} or more: nothing to win back."
+    return (f"**Pooled over the {len(pool['plants'])} {plants} whose effect costs {nominal} ≥ {COST_MIN:.0%}** "
+            f"({', '.join(pool['plants'])}; {pool['pairs']} paired episodes): (c) wins back {pool['won_back']:.0%} "
+            f"[{pool['won_back_ci95'][0]:.0%}, {pool['won_back_ci95'][1]:.0%}] of the loss; (c) ÷ (a) = "
+            f"{_r(pool['c_over_a'])}.")
+
+
 def plant_rows(rows: list[dict]) -> list[str]:
     """The per-plant table (Markdown lines) of :func:`figures`' rows."""
     lines = ["| robot | hidden | gap named | plant RMSE a / b / c | own-model RMSE a / b / c | c ÷ a | c ÷ b | cost | "
@@ -384,13 +394,7 @@ def agent_section(done: list[dict], rows: list[dict], pool: dict | None, scripte
              "each model's `" + ENV + "` with one fixed budget and evaluated as above; (a), (b), (c) now name the "
              "agent trained on that model. *cost* and *won back* use the agent trained on the nominal model on the "
              "robot's nothing-hidden plant.", ""]
-    if pool is not None:
-        lines += [f"**Pooled over the {len(pool['plants'])} agent plants whose effect costs the nominal agent ≥ "
-                  f"{COST_MIN:.0%}** ({', '.join(pool['plants'])}; {pool['pairs']} paired episodes): (c) wins back "
-                  f"{pool['won_back']:.0%} [{pool['won_back_ci95'][0]:.0%}, {pool['won_back_ci95'][1]:.0%}] of the "
-                  f"loss; (c) ÷ (a) = {_r(pool['c_over_a'])}.", ""]
-    else:
-        lines += [f"No agent plant's effect costs the nominal agent {COST_MIN:.0%} or more.", ""]
+    lines += [pooled_line(pool, "agent plants", "the nominal agent"), ""]
     worst = max(rows, key=lambda r: r["c_over_a"]["ratio"])
     lines += [f"Largest (c) ÷ (a): {_r(worst['c_over_a'])} ({worst['robot']} {worst['kind']}). Each model's agent is "
               "one training run of one seed, so a ratio also holds the spread between training runs, which this "
@@ -462,13 +466,7 @@ def table(done: list[dict], rows: list[dict], pool: dict | None, command: str, e
     lines = ["# Does calibrating make a better controller for the robot? Plants the models were not made from", "",
              f"`{command}`", "",
              INTRO.format(env=ENV, episodes=episodes, first=FIRST_SEED), ""]
-    if pool is not None:
-        lines += [f"**Pooled over the {len(pool['plants'])} plants whose effect costs the nominal controller ≥ "
-                  f"{COST_MIN:.0%}** ({', '.join(pool['plants'])}; {pool['pairs']} paired episodes): (c) wins back "
-                  f"{pool['won_back']:.0%} [{pool['won_back_ci95'][0]:.0%}, {pool['won_back_ci95'][1]:.0%}] of the "
-                  f"loss; (c) ÷ (a) = {_r(pool['c_over_a'])}.", ""]
-    else:
-        lines += [f"No plant's effect costs the nominal controller {COST_MIN:.0%} or more: nothing to win back.", ""]
+    lines += [pooled_line(pool, "plants", "the nominal controller"), ""]
     worst = max((r["c_over_a"]["ratio"] for r in rows), default=math.nan)
     lines += [f"Largest (c) ÷ (a) on any plant: {worst:.2f}.", "", *plant_rows(rows)]
     refused = sum(r["b_refused"] for r in rows)
