@@ -28,9 +28,9 @@ from pathlib import Path
 import numpy as np
 
 from agents.rollout import TrainedPolicy
+from agents.sb3_policy import META
 from omni_gym.io import read_json
 
-META = "meta.json"
 KIND = "gated"
 GATE_ALPHA = 0.02  # per 10 ms control period: the average forgets in about 0.5 s (50 periods)
 
@@ -40,7 +40,6 @@ class GateSpec:
     """A gated controller's ``meta.json``: the student's directory and the threshold [m] of the smoothed estimated
     tracking error at which it takes over."""
 
-    path: Path
     student: Path
     threshold_m: float
     env_id: str | None
@@ -75,7 +74,7 @@ def read_gate(path: str | Path) -> GateSpec:
     if not (student / META).is_file():
         raise ValueError(f"{f}: its student {name!r} is not a model directory beside it ({student})")
     env_id = meta.get("env_id")
-    return GateSpec(d, student, float(g), env_id if isinstance(env_id, str) else None)
+    return GateSpec(student, float(g), env_id if isinstance(env_id, str) else None)
 
 
 class GateState:
@@ -167,7 +166,7 @@ class VectorGatedPolicy(TrainedPolicy):
     def act(self, obs: np.ndarray) -> np.ndarray:
         venv = self.env
         driving = self.gate.update(venv.base.pid.error[:, :2])
-        out = venv.base_action.astype(np.float32).copy()
+        out = venv.base_action.astype(np.float32)  # a copy
         if driving.any():
             out[driving] = np.asarray(self.student.act(obs), dtype=np.float32).reshape(out.shape)[driving]
         return out

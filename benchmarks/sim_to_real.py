@@ -89,7 +89,7 @@ COST_MIN = 0.20  # an effect that costs the nominal controller at least this muc
 MODELS = ("nominal", "kinematic", "gap")
 AGENT_PLANTS = (("williams2002", "none"), ("williams2002", "com_offset"), ("williams2002", "wheel_radius"),
                 ("williams2002", "wheel_liftoff"), ("optiodom_omni4", "none"), ("optiodom_omni4", "wheel_radius"))
-AGENT_STEPS = 1_000_000  # one fixed budget for every model: about 1.5 min of training on one core
+AGENT_STEPS = 1_000_000  # one fixed budget for every model: 2.6-4 min of training on a loaded 2-core machine
 AGENT = ("--algo", "ppo", "--hyperparams", "ppo_residual", "--seed", "0", "--eval-freq", "0", "--no-progress")
 
 

@@ -16,6 +16,7 @@ pytest.importorskip("stable_baselines3")
 import onnxruntime as ort  # noqa: E402
 
 from agents.export import PARITY_OBSERVATIONS, _normaliser, parity_observations  # noqa: E402
+from agents.gated import is_gated  # noqa: E402
 from agents.loaders import find_loader  # noqa: E402
 from agents.sb3_policy import ModelOptions  # noqa: E402
 from omni_gym.cli import main  # noqa: E402
@@ -30,7 +31,7 @@ def committed_kinds() -> dict[str, Path]:
     kinds: dict[str, Path] = {}
     for meta_file in sorted(MODELS.glob("*/meta.json")):
         meta = json.loads(meta_file.read_text())
-        if meta.get("kind") == "gated":  # ekf-pid and a student: not one network (export refuses it, test_gated)
+        if is_gated(meta_file.parent):  # ekf-pid and a student: not one network (export refuses it, test_gated)
             continue
         actor = "skip" if "AffineSkip" in str(meta.get("hyperparams", {}).get("policy_kwargs")) else "mlp"
         kinds.setdefault(f"{meta['algo']}-{meta['wrapper']}-{meta.get('obs_mode')}-{actor}", meta_file.parent)
